@@ -1,0 +1,91 @@
+#include "common/image/film.h"
+
+#include <algorithm>
+#include <limits>
+
+#include "common/util/check.h"
+
+namespace rayfarm {
+
+TileResult::TileResult(TileRect r, SampleRange s)
+    : rect(r), samples(s), sum(size_t{r.pixel_count()} * 3, 0),
+      sum_sq(size_t{r.pixel_count()} * 3, 0) {}
+
+bool TileResult::well_formed() const {
+  const size_t n = size_t{rect.pixel_count()} * 3;
+  return rect.x1 > rect.x0 && rect.y1 > rect.y0 && samples.end > samples.begin &&
+         sum.size() == n && sum_sq.size() == n;
+}
+
+std::vector<TileRect> split_tiles(FilmSize film, uint32_t tile_size) {
+  RAYFARM_CHECK(tile_size > 0, "tile size must be positive");
+  std::vector<TileRect> tiles;
+  for (uint32_t y = 0; y < film.height; y += tile_size) {
+    for (uint32_t x = 0; x < film.width; x += tile_size) {
+      tiles.push_back({x, y, std::min(x + tile_size, film.width), std::min(y + tile_size, film.height)});
+    }
+  }
+  return tiles;
+}
+
+std::vector<SampleRange> split_passes(uint32_t spp, uint32_t pass_spp) {
+  RAYFARM_CHECK(pass_spp > 0, "pass size must be positive");
+  std::vector<SampleRange> passes;
+  for (uint32_t s = 0; s < spp; s += std::min(pass_spp, spp - s)) {
+    passes.push_back({s, s + std::min(pass_spp, spp - s)});
+  }
+  return passes;
+}
+
+uint32_t default_pass_spp(uint32_t tile_size, uint32_t spp) {
+  const uint64_t pixels = std::max<uint64_t>(1, uint64_t{tile_size} * tile_size);
+  const uint64_t target = (uint64_t{1} << 18) / pixels;
+  // A power of two keeps pass boundaries aligned when spp grows.
+  uint32_t pass = 1;
+  while (uint64_t{pass} * 2 <= target) pass *= 2;
+  return std::clamp<uint32_t>(pass, 1, std::max<uint32_t>(spp, 1));
+}
+
+Film::Film(uint32_t width, uint32_t height)
+    : width_(width), height_(height), sum_(size_t{width} * height * 3, 0),
+      sum_sq_(size_t{width} * height * 3, 0), spp_(size_t{width} * height, 0) {}
+
+bool Film::fits(const TileResult& r) const {
+  return r.well_formed() && r.rect.x1 <= width_ && r.rect.y1 <= height_;
+}
+
+void Film::add(const TileResult& r) {
+  RAYFARM_CHECK(fits(r), "tile result does not fit the film");
+  const uint32_t w = r.rect.width();
+  for (uint32_t y = r.rect.y0; y < r.rect.y1; ++y) {
+    for (uint32_t x = r.rect.x0; x < r.rect.x1; ++x) {
+      const size_t src = (size_t{y - r.rect.y0} * w + (x - r.rect.x0)) * 3;
+      const size_t dst = (size_t{y} * width_ + x) * 3;
+      for (int c = 0; c < 3; ++c) {
+        sum_[dst + c] += r.sum[src + c];
+        sum_sq_[dst + c] += r.sum_sq[src + c];
+      }
+      spp_[size_t{y} * width_ + x] += r.samples.count();
+    }
+  }
+  nonfinite_ += r.nonfinite;
+  rays_ += r.rays;
+}
+
+uint32_t Film::min_spp() const {
+  if (spp_.empty()) return 0;
+  return *std::min_element(spp_.begin(), spp_.end());
+}
+
+std::vector<float> Film::mean_rgb() const {
+  std::vector<float> out(sum_.size(), 0.f);
+  for (size_t p = 0; p < spp_.size(); ++p) {
+    if (spp_[p] == 0) continue;
+    for (int c = 0; c < 3; ++c) {
+      out[p * 3 + c] = static_cast<float>(from_fixed(sum_[p * 3 + c]) / spp_[p]);
+    }
+  }
+  return out;
+}
+
+}  // namespace rayfarm

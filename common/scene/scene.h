@@ -1,0 +1,107 @@
+#pragma once
+// The scene as the renderer sees it: every shape resolved to triangles or spheres, every material
+// and light validated. Produced by load_scene() (parser.h); see docs/scene-format.md.
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/math/vec3.h"
+
+namespace rayfarm {
+
+/// Version of the scene format that this build reads (the file's optional "format" field).
+inline constexpr int kSceneFormatVersion = 1;
+
+/// Thin-lens perspective camera. Right-handed: the image's right is forward x up.
+struct Camera {
+  Vec3 eye{0.f, 0.f, 0.f};
+  Vec3 look_at{0.f, 0.f, 1.f};
+  Vec3 up{0.f, 1.f, 0.f};
+  float fov_y_deg = 40.f;        ///< vertical field of view, degrees
+  float aperture_radius = 0.f;   ///< lens radius in scene units; 0 = pinhole
+  float focus_distance = 0.f;    ///< distance to the plane in focus; 0 = |look_at - eye|
+};
+
+struct FilmSize {
+  uint32_t width = 0;
+  uint32_t height = 0;
+};
+
+enum class MaterialType : uint8_t { kDiffuse, kPhong, kMirror, kDielectric };
+
+/// One material; which fields matter depends on `type` (docs/scene-format.md).
+struct Material {
+  std::string name;
+  MaterialType type = MaterialType::kDiffuse;
+  Vec3 albedo{0.8f};       ///< diffuse: reflectance
+  Vec3 kd{0.f};            ///< phong: diffuse reflectance
+  Vec3 ks{0.f};            ///< phong: specular reflectance
+  float exponent = 1.f;    ///< phong: specular exponent
+  Vec3 reflectance{1.f};   ///< mirror: reflectance
+  float ior = 1.5f;        ///< dielectric: index of refraction inside / outside
+  Vec3 tint{1.f};          ///< dielectric: transmission colour
+  Vec3 emission{0.f};      ///< emitted radiance (any type); non-zero makes an area light
+  bool two_sided = false;  ///< emission leaves both sides
+
+  bool is_emissive() const { return !is_black(emission); }
+  /// Specular (Dirac) materials cannot be sampled by light sampling.
+  bool is_specular() const {
+    return type == MaterialType::kMirror || type == MaterialType::kDielectric;
+  }
+};
+
+/// Triangles with one material index each. The front face is (v1-v0) x (v2-v0).
+struct TriangleMesh {
+  std::vector<Vec3> positions;
+  std::vector<uint32_t> indices;    ///< 3 per triangle, into positions
+  std::vector<uint32_t> materials;  ///< 1 per triangle, into Scene::materials
+  std::string origin;               ///< where it came from, for messages ("box.obj", "shapes[3]")
+
+  size_t triangle_count() const { return indices.size() / 3; }
+};
+
+struct Sphere {
+  Vec3 center;
+  float radius = 1.f;
+  uint32_t material = 0;
+};
+
+/// Isotropic point light; intensity is radiant intensity in W/sr per RGB channel.
+struct PointLight {
+  Vec3 position;
+  Vec3 intensity;
+};
+
+enum class IntegratorType : uint8_t { kNaive, kNee, kMis };
+
+/// Name used in scene files and on the command line ("naive", "nee", "mis").
+const char* integrator_name(IntegratorType type);
+/// Parses an integrator name; nullopt when unknown.
+std::optional<IntegratorType> parse_integrator(const std::string& name);
+
+/// How to render: the scene's defaults, overridden by the command line or the job.
+struct RenderSettings {
+  uint32_t spp = 64;              ///< samples per pixel
+  uint32_t max_depth = 16;        ///< most surface hits per path (the camera ray's hit is 1)
+  IntegratorType integrator = IntegratorType::kMis;
+  uint64_t seed = 0;              ///< selects the random streams; same seed, same image
+};
+
+struct Scene {
+  Camera camera;
+  FilmSize film;
+  std::vector<Material> materials;
+  std::vector<TriangleMesh> meshes;
+  std::vector<Sphere> spheres;
+  std::vector<PointLight> point_lights;
+  Vec3 background{0.f};  ///< radiance of rays that escape
+  RenderSettings render;
+
+  std::filesystem::path source;                      ///< the scene file
+  std::vector<std::filesystem::path> referenced;     ///< files it uses, relative to its folder
+  std::vector<std::string> warnings;                 ///< non-fatal problems found while loading
+};
+
+}  // namespace rayfarm

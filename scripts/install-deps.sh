@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Installs exactly what rayfarm needs to build, test and run, from Debian packages. Idempotent.
+set -euo pipefail
+
+packages=(
+  cmake ninja-build g++ pkg-config git
+  libembree-dev libopenexr-dev libspdlog-dev libfmt-dev libcli11-dev nlohmann-json3-dev
+  libtinyobjloader-dev libtbb-dev libpng-dev
+  libzmq3-dev cppzmq-dev libprotobuf-dev protobuf-compiler
+  libgtest-dev libgmock-dev libbenchmark-dev
+  python3
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#packages[@]} packages present"
+  exit 0
+fi
+
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+echo "install-deps: installing ${missing[*]}"
+$SUDO apt-get update -qq
+DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
