@@ -1,1 +1,36 @@
-int main() { return 0; }
+// rayfarm: the command-line tool (render locally, compare images, talk to a farm).
+#include <exception>
+#include <iostream>
+
+#include <CLI/CLI.hpp>
+
+#include "cli/commands.h"
+#include "common/util/log.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{"rayfarm: a distributed path tracer"};
+  app.require_subcommand(1);
+  std::string log_level = "info";
+  std::string log_format = "text";
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off")->capture_default_str();
+  app.add_option("--log-format", log_format, "text or json")
+      ->check(CLI::IsMember({"text", "json"}))
+      ->capture_default_str();
+  app.parse_complete_callback([&] {
+    rayfarm::configure_logging(log_level, log_format == "json" ? rayfarm::LogFormat::kJson
+                                                               : rayfarm::LogFormat::kText);
+  });
+
+  int exit_code = 0;
+  rayfarm::cli::add_render_command(app, exit_code);
+  rayfarm::cli::add_compare_command(app, exit_code);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const std::exception& e) {
+    std::cerr << "rayfarm: error: " << e.what() << "\n";
+    return 1;
+  }
+  return exit_code;
+}
