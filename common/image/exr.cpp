@@ -1,1 +1,201 @@
-// (in progress)
+#include "common/image/exr.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cerrno>
+#include <cstring>
+#include <exception>
+#include <system_error>
+
+#include <ImfChannelList.h>
+#include <ImfCompression.h>
+#include <ImfFrameBuffer.h>
+#include <ImfHeader.h>
+#include <ImfInputFile.h>
+#include <ImfOutputFile.h>
+#include <ImfStringAttribute.h>
+
+namespace rayfarm {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// A name beside `path` that no other writer in this process or another one uses.
+fs::path temporary_path(const fs::path& path) {
+  static std::atomic<uint64_t> counter{0};
+  const std::string name = path.filename().string() + ".tmp-" + std::to_string(::getpid()) + "-" +
+                           std::to_string(counter.fetch_add(1));
+  return path.parent_path() / name;
+}
+
+/// Flushes a closed file's data to the disk, so the rename cannot expose an empty file after a
+/// crash. Throws std::system_error.
+void sync_file(const fs::path& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) throw std::system_error(errno, std::generic_category(), "cannot reopen to sync");
+  const int result = ::fsync(fd);
+  const int sync_errno = errno;
+  ::close(fd);
+  if (result != 0) throw std::system_error(sync_errno, std::generic_category(), "fsync failed");
+}
+
+[[noreturn]] void fail_read(const fs::path& path, const std::string& cause) {
+  throw ImageError("cannot read " + path.string() + ": " + cause);
+}
+
+/// Checks the sizes of `image`; the message names the first inconsistency.
+void check_image_shape(const Image& image) {
+  if (image.width == 0 || image.height == 0) {
+    throw ImageError("empty image (" + std::to_string(image.width) + "x" +
+                     std::to_string(image.height) + ")");
+  }
+  const size_t pixels = size_t{image.width} * image.height;
+  if (image.rgb.size() != pixels * 3) {
+    throw ImageError("image has " + std::to_string(image.rgb.size()) + " RGB values, expected " +
+                     std::to_string(pixels * 3));
+  }
+  for (const auto& [name, values] : image.extra) {
+    if (name.empty() || name == "R" || name == "G" || name == "B") {
+      throw ImageError("invalid extra channel name '" + name + "'");
+    }
+    if (values.size() != pixels) {
+      throw ImageError("channel '" + name + "' has " + std::to_string(values.size()) +
+                       " values, expected " + std::to_string(pixels));
+    }
+  }
+}
+
+/// Writes `image` as a ZIP-compressed float32 EXR; OpenEXR (Iex) errors propagate.
+void write_exr_file(const fs::path& file, const Image& image) {
+  const int width = static_cast<int>(image.width);
+  const int height = static_cast<int>(image.height);
+  Imf::Header header(width, height);
+  header.compression() = Imf::ZIP_COMPRESSION;
+  for (const auto& [name, value] : image.attributes) {
+    header.insert(name, Imf::StringAttribute(value));
+  }
+
+  Imf::FrameBuffer frame;
+  const Imath::Box2i window = header.dataWindow();
+  const size_t rgb_stride = 3 * sizeof(float);
+  const char* rgb_names[3] = {"R", "G", "B"};
+  for (int c = 0; c < 3; ++c) {
+    header.channels().insert(rgb_names[c], Imf::Channel(Imf::FLOAT));
+    frame.insert(rgb_names[c], Imf::Slice::Make(Imf::FLOAT, image.rgb.data() + c, window,
+                                                rgb_stride, rgb_stride * image.width));
+  }
+  for (const auto& [name, values] : image.extra) {
+    header.channels().insert(name, Imf::Channel(Imf::FLOAT));
+    frame.insert(name, Imf::Slice::Make(Imf::FLOAT, values.data(), window, sizeof(float),
+                                        sizeof(float) * image.width));
+  }
+
+  // The destructor writes the line offset table and closes the file.
+  Imf::OutputFile out(file.c_str(), header);
+  out.setFrameBuffer(frame);
+  out.writePixels(height);
+}
+
+/// Reads the whole EXR at `path`; OpenEXR (Iex) errors propagate.
+Image read_exr_file(const fs::path& path) {
+  Imf::InputFile in(path.c_str());
+  const Imf::Header& header = in.header();
+  const Imath::Box2i data = header.dataWindow();
+  const Imath::Box2i display = header.displayWindow();
+  if (data != display) {
+    fail_read(path, "data window differs from display window (cropped or overscan images are "
+                    "not supported)");
+  }
+  const int64_t width = int64_t{data.max.x} - data.min.x + 1;
+  const int64_t height = int64_t{data.max.y} - data.min.y + 1;
+  if (width <= 0 || height <= 0 || width > UINT32_MAX || height > UINT32_MAX) {
+    fail_read(path, "invalid data window");
+  }
+
+  Image image;
+  image.width = static_cast<uint32_t>(width);
+  image.height = static_cast<uint32_t>(height);
+  const size_t pixels = size_t{image.width} * image.height;
+  const Imf::ChannelList& channels = header.channels();
+  for (const char* name : {"R", "G", "B"}) {
+    if (channels.findChannel(name) == nullptr) {
+      fail_read(path, std::string("no ") + name + " channel");
+    }
+  }
+  for (auto it = channels.begin(); it != channels.end(); ++it) {
+    if (it.channel().xSampling != 1 || it.channel().ySampling != 1) {
+      fail_read(path, std::string("channel '") + it.name() + "' is subsampled");
+    }
+  }
+
+  // Slices are positioned in the data window's coordinates; OpenEXR converts any pixel type.
+  Imf::FrameBuffer frame;
+  image.rgb.assign(pixels * 3, 0.f);
+  const size_t rgb_stride = 3 * sizeof(float);
+  const char* rgb_names[3] = {"R", "G", "B"};
+  for (int c = 0; c < 3; ++c) {
+    frame.insert(rgb_names[c], Imf::Slice::Make(Imf::FLOAT, image.rgb.data() + c, data,
+                                                rgb_stride, rgb_stride * image.width));
+  }
+  for (auto it = channels.begin(); it != channels.end(); ++it) {
+    const std::string name = it.name();
+    if (name == "R" || name == "G" || name == "B") continue;
+    std::vector<float>& values = image.extra[name];
+    values.assign(pixels, 0.f);
+    frame.insert(name, Imf::Slice::Make(Imf::FLOAT, values.data(), data, sizeof(float),
+                                        sizeof(float) * image.width));
+  }
+  in.setFrameBuffer(frame);
+  if (!in.isComplete()) fail_read(path, "the file is truncated (missing pixel data)");
+  in.readPixels(data.min.y, data.max.y);
+
+  for (auto it = header.begin(); it != header.end(); ++it) {
+    if (const auto* text = dynamic_cast<const Imf::StringAttribute*>(&it.attribute())) {
+      image.attributes[it.name()] = text->value();
+    }
+  }
+  return image;
+}
+
+}  // namespace
+
+void write_atomically(const fs::path& path,
+                      const std::function<void(const fs::path& temporary)>& write) {
+  const fs::path temporary = temporary_path(path);
+  try {
+    write(temporary);
+    sync_file(temporary);
+    fs::rename(temporary, path);
+  } catch (const std::exception& e) {
+    std::error_code ignored;
+    fs::remove(temporary, ignored);
+    throw ImageError("cannot write " + path.string() + ": " + e.what());
+  }
+}
+
+void write_exr(const fs::path& path, const Image& image) {
+  try {
+    check_image_shape(image);
+  } catch (const ImageError& e) {
+    throw ImageError("cannot write " + path.string() + ": " + e.what());
+  }
+  write_atomically(path, [&](const fs::path& temporary) { write_exr_file(temporary, image); });
+}
+
+Image read_exr(const fs::path& path) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) fail_read(path, "no such file");
+  if (fs::is_directory(path, ec)) fail_read(path, "is a directory");
+  try {
+    return read_exr_file(path);
+  } catch (const ImageError&) {
+    throw;
+  } catch (const std::exception& e) {
+    // Iex exceptions (invalid header, unexpected end of file, ...) derive from std::exception.
+    fail_read(path, e.what());
+  }
+}
+
+}  // namespace rayfarm
