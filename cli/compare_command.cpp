@@ -32,27 +32,21 @@ nlohmann::json json_number(double v) {
 }
 
 void print_json(const CompareOptions& options, const Image& reference, const ImageDiff& diff) {
-  const nlohmann::json out = {
-      {"test", options.test},
-      {"reference", options.reference},
-      {"width", reference.width},
-      {"height", reference.height},
-      {"rmse", json_number(diff.rmse)},
-      {"rel_mse", json_number(diff.rel_mse)},
-      {"mae", json_number(diff.mae)},
-      {"max_abs", json_number(diff.max_abs)},
-      {"differing", diff.differing},
-      {"nan_values", diff.nan_values},
-      {"values", diff.values},
-      {"identical", diff.identical},
+  const nlohmann::ordered_json out = {
+      {"test", options.test},           {"reference", options.reference},
+      {"width", reference.width},       {"height", reference.height},
+      {"rmse", json_number(diff.rmse)}, {"rel_mse", json_number(diff.rel_mse)},
+      {"mae", json_number(diff.mae)},   {"max_abs", json_number(diff.max_abs)},
+      {"differing", diff.differing},    {"nan_values", diff.nan_values},
+      {"values", diff.values},          {"identical", diff.identical},
   };
   std::cout << out.dump() << "\n";
 }
 
 void print_text(const CompareOptions& options, const Image& reference, const ImageDiff& diff) {
   std::cout << fmt::format("test:               {}\n", options.test)
-            << fmt::format("reference:          {} ({}x{})\n", options.reference,
-                           reference.width, reference.height)
+            << fmt::format("reference:          {} ({}x{})\n", options.reference, reference.width,
+                           reference.height)
             << fmt::format("RMSE:               {:.6e}\n", diff.rmse)
             << fmt::format("relative MSE:       {:.6e}\n", diff.rel_mse)
             << fmt::format("MAE:                {:.6e}\n", diff.mae)
@@ -84,8 +78,9 @@ int run_compare(const CompareOptions& options) {
 void add_compare_command(CLI::App& app, int& exit_code) {
   auto options = std::make_shared<CompareOptions>();
   CLI::App* command = app.add_subcommand(
-      "compare", "Compare an image to a reference: RMSE, relative MSE, MAE, max difference. "
-                 "Exit code 0 when bit-identical, 1 when different, 2 on an error.");
+      "compare",
+      "Compare an image to a reference: RMSE, relative MSE, MAE, max difference. "
+      "Exit code 0 when bit-identical, 1 when different, 2 on an error.");
   command->add_option("test", options->test, "image to check (EXR)")->required();
   command->add_option("reference", options->reference, "reference image (EXR)")->required();
   command->add_flag("--json", options->json, "print the metrics as one JSON object");

@@ -105,8 +105,9 @@ Image read_exr_file(const fs::path& path) {
   const Imath::Box2i data = header.dataWindow();
   const Imath::Box2i display = header.displayWindow();
   if (data != display) {
-    fail_read(path, "data window differs from display window (cropped or overscan images are "
-                    "not supported)");
+    fail_read(path,
+              "data window differs from display window (cropped or overscan images are "
+              "not supported)");
   }
   const int64_t width = int64_t{data.max.x} - data.min.x + 1;
   const int64_t height = int64_t{data.max.y} - data.min.y + 1;
@@ -136,8 +137,8 @@ Image read_exr_file(const fs::path& path) {
   const size_t rgb_stride = 3 * sizeof(float);
   const char* rgb_names[3] = {"R", "G", "B"};
   for (int c = 0; c < 3; ++c) {
-    frame.insert(rgb_names[c], Imf::Slice::Make(Imf::FLOAT, image.rgb.data() + c, data,
-                                                rgb_stride, rgb_stride * image.width));
+    frame.insert(rgb_names[c], Imf::Slice::Make(Imf::FLOAT, image.rgb.data() + c, data, rgb_stride,
+                                                rgb_stride * image.width));
   }
   for (auto it = channels.begin(); it != channels.end(); ++it) {
     const std::string name = it.name();

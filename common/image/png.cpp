@@ -20,7 +20,7 @@ struct PngWriteJob {
   const uint8_t* pixels;  ///< 8-bit RGB, row-major
   uint32_t width;
   uint32_t height;
-  char error[256];        ///< the cause, when writing fails
+  char error[256];  ///< the cause, when writing fails
 };
 
 void on_png_error(png_structp png, png_const_charp message) {
