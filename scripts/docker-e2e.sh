@@ -1,0 +1,195 @@
+#!/usr/bin/env bash
+# End-to-end run of the compose cluster: build the images, start a master and N workers, submit the
+# bundled Cornell box, fetch the EXR to the host, render the same scene locally in the same image and
+# require `rayfarm compare` to call the two bit-identical. Prints timings; always tears the cluster
+# down (docker-compose down -v), also on failure.
+#
+# Needs a Docker engine. When none answers and this runs as root, it installs docker.io,
+# docker-compose and debootstrap (apt) and starts `dockerd --storage-driver=vfs` for the duration of
+# the run. Not part of the unit or e2e test suite: it takes minutes (the image build compiles rayfarm).
+#
+# Usage: scripts/docker-e2e.sh [--workers N] [--spp N] [--scene PATH-IN-IMAGE] [--from-git REV]
+#                              [--no-build] [--keep]
+#   --workers N     worker containers                    (default 2)
+#   --spp N         samples per pixel                    (default 16)
+#   --scene PATH    scene inside the image               (default the bundled Cornell box)
+#   --from-git REV  build the image from a committed revision (git archive), not the working tree
+#   --no-build      use the existing rayfarm image as it is
+#   --keep          leave the cluster running (no teardown) to look around
+# Environment: RAYFARM_BUILD_JOBS (compile jobs in the image build, default 2),
+#   RAYFARM_WORKER_THREADS (threads per worker, default 1), E2E_TIMEOUT (seconds for the job, 900).
+set -euo pipefail
+
+REPO="$(cd "$(dirname "$0")/.." && pwd)"
+WORKERS=2
+SPP=16
+SCENE=/usr/share/rayfarm/scenes/cornell-box/scene.json
+BUILD=1
+FROM_GIT=""
+KEEP=0
+TIMEOUT="${E2E_TIMEOUT:-900}"
+
+log() { echo "docker-e2e: $*" >&2; }
+die() { log "FAIL: $*"; exit 1; }
+
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --workers) WORKERS="$2"; shift 2 ;;
+    --spp) SPP="$2"; shift 2 ;;
+    --scene) SCENE="$2"; shift 2 ;;
+    --from-git) FROM_GIT="$2"; shift 2 ;;
+    --no-build) BUILD=0; shift ;;
+    --keep) KEEP=1; shift ;;
+    -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;;
+    *) die "unknown argument '$1' (try --help)" ;;
+  esac
+done
+
+now() { date +%s.%N; }
+elapsed() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.1f", b - a }'; }
+
+# ---- a Docker engine ---------------------------------------------------------------------------
+STARTED_DOCKERD=""
+ensure_engine() {
+  if command -v docker >/dev/null && docker info >/dev/null 2>&1; then return; fi
+  [ "$(id -u)" -eq 0 ] || die "no Docker engine answers, and starting one needs root"
+  local missing=()
+  command -v dockerd >/dev/null || missing+=(docker.io)
+  command -v docker-compose >/dev/null || missing+=(docker-compose)
+  command -v debootstrap >/dev/null || missing+=(debootstrap)
+  if [ ${#missing[@]} -gt 0 ]; then
+    log "installing ${missing[*]}"
+    apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+  fi
+  log "starting dockerd --storage-driver=vfs (log: /tmp/rayfarm-dockerd.log)"
+  nohup dockerd --storage-driver=vfs >/tmp/rayfarm-dockerd.log 2>&1 &
+  STARTED_DOCKERD=$!
+  for _ in $(seq 60); do
+    docker info >/dev/null 2>&1 && return
+    kill -0 "$STARTED_DOCKERD" 2>/dev/null || { tail -n 20 /tmp/rayfarm-dockerd.log >&2; die "dockerd exited"; }
+    sleep 1
+  done
+  die "dockerd did not answer within 60 s (see /tmp/rayfarm-dockerd.log)"
+}
+
+# ---- the compose project -----------------------------------------------------------------------
+# Its own project name and free host ports, so it never touches a cluster someone else runs here.
+free_port() { python3 -c 'import socket; s = socket.socket(); s.bind(("", 0)); print(s.getsockname()[1])'; }
+
+OUT="$REPO/out/docker-e2e"
+export COMPOSE_PROJECT_NAME="rayfarm-e2e"
+export RAYFARM_OUT="$OUT"
+export RAYFARM_UID="$(id -u)" RAYFARM_GID="$(id -g)"
+export RAYFARM_BUILD_JOBS="${RAYFARM_BUILD_JOBS:-2}"
+export RAYFARM_WORKER_THREADS="${RAYFARM_WORKER_THREADS:-1}"
+compose() { docker-compose -f "$REPO/deploy/docker-compose.yml" "$@"; }
+cli() { compose run --rm -T cli "$@"; }
+
+STATUS=1
+teardown() {
+  set +e
+  if [ "$STATUS" -ne 0 ] && [ -n "${CLUSTER_UP:-}" ]; then
+    log "logs of the failed run:"
+    compose logs --no-color --tail=40 >&2
+  fi
+  if [ "$KEEP" -eq 1 ] && [ -n "${CLUSTER_UP:-}" ]; then
+    log "--keep: cluster left running; stop it with: COMPOSE_PROJECT_NAME=$COMPOSE_PROJECT_NAME docker-compose -f deploy/docker-compose.yml down -v"
+  elif [ -n "${CLUSTER_UP:-}" ]; then
+    log "tearing down"
+    compose down -v --remove-orphans >/dev/null 2>&1
+  fi
+  if [ -n "$STARTED_DOCKERD" ]; then
+    log "stopping the dockerd this run started (pid $STARTED_DOCKERD)"
+    kill "$STARTED_DOCKERD" 2>/dev/null && wait "$STARTED_DOCKERD" 2>/dev/null
+  fi
+  [ "$STATUS" -eq 0 ] && log "PASS" || log "FAIL"
+}
+trap teardown EXIT
+trap 'exit 130' INT TERM
+
+ensure_engine
+command -v docker-compose >/dev/null || die "docker-compose is not installed"
+export RAYFARM_WORKER_PORT="$(free_port)" RAYFARM_CLIENT_PORT="$(free_port)"
+mkdir -p "$OUT"
+rm -f "$OUT"/farm.exr "$OUT"/local.exr "$OUT"/local.png
+
+# ---- images ------------------------------------------------------------------------------------
+t0=$(now)
+"$REPO/scripts/docker-base-image.sh"
+t_base=$(now)
+if [ "$BUILD" -eq 1 ] && [ -n "$FROM_GIT" ]; then
+  rev="$(git -C "$REPO" rev-parse --short "$FROM_GIT^{commit}")" || die "no git revision '$FROM_GIT'"
+  log "building the rayfarm image from git $rev (-j$RAYFARM_BUILD_JOBS)"
+  CONTEXT="$(mktemp -d /var/tmp/rayfarm-context.XXXXXX)"
+  git -C "$REPO" archive "$rev" | tar -x -C "$CONTEXT"
+  cp "$REPO/.dockerignore" "$CONTEXT/" 2>/dev/null || true
+  docker build -f "$CONTEXT/deploy/Dockerfile" -t "${RAYFARM_IMAGE:-rayfarm:latest}" \
+    --build-arg BASE="${RAYFARM_BASE_IMAGE:-rayfarm/debian:bookworm}" \
+    --build-arg JOBS="$RAYFARM_BUILD_JOBS" "$CONTEXT" \
+    || { rm -rf "$CONTEXT"; die "image build failed"; }
+  rm -rf "$CONTEXT"
+elif [ "$BUILD" -eq 1 ]; then
+  log "building the rayfarm image from the working tree (-j$RAYFARM_BUILD_JOBS)"
+  compose build master
+fi
+t_build=$(now)
+
+# ---- the cluster -------------------------------------------------------------------------------
+log "starting a master and $WORKERS workers (host ports $RAYFARM_WORKER_PORT, $RAYFARM_CLIENT_PORT)"
+CLUSTER_UP=1
+compose up -d --scale worker="$WORKERS" master worker
+for _ in $(seq 60); do
+  health="$(docker inspect -f '{{.State.Health.Status}}' "$(compose ps -q master)" 2>/dev/null || true)"
+  [ "$health" = healthy ] && break
+  sleep 1
+done
+[ "$health" = healthy ] || die "the master is not healthy after 60 s (state: ${health:-none})"
+running="$(compose ps -q worker | wc -l)"
+[ "$running" -eq "$WORKERS" ] || die "$running of $WORKERS workers running"
+t_up=$(now)
+
+# ---- submit, wait, fetch -----------------------------------------------------------------------
+log "submitting $SCENE at $SPP spp"
+submit_out="$(cli rayfarm submit "$SCENE" --spp "$SPP")" || die "submit failed: $submit_out"
+JOB="$(printf '%s\n' "$submit_out" | tail -n 1 | tr -d '[:space:]')"
+[ -n "$JOB" ] || die "submit printed no job id"
+log "job $JOB"
+t_submit=$(now)
+timeout "$TIMEOUT" docker-compose -f "$REPO/deploy/docker-compose.yml" run --rm -T cli \
+  rayfarm watch "$JOB" || die "job $JOB did not finish within ${TIMEOUT} s"
+t_done=$(now)
+cli rayfarm status "$JOB" >&2 || true
+cli rayfarm fetch "$JOB" -o /out/farm.exr || die "fetch failed"
+[ -s "$OUT/farm.exr" ] || die "fetch wrote no $OUT/farm.exr"
+t_fetch=$(now)
+
+# ---- the same render on one machine, and the comparison ----------------------------------------
+log "rendering the same scene locally in the image"
+cli rayfarm render "$SCENE" --spp "$SPP" -o /out/local.exr >&2 || die "local render failed"
+t_local=$(now)
+if cli rayfarm compare /out/farm.exr /out/local.exr; then
+  identical=yes
+else
+  identical=no
+fi
+
+log "master log for the job:"
+compose logs --no-color master 2>/dev/null | grep -F "$JOB" | tail -n 15 >&2 || true
+
+cat <<EOF
+docker-e2e summary
+  workers              $WORKERS x $RAYFARM_WORKER_THREADS thread(s)
+  scene, spp           $SCENE, $SPP
+  base image           $(elapsed "$t0" "$t_base") s
+  rayfarm image build  $(elapsed "$t_base" "$t_build") s
+  cluster up           $(elapsed "$t_build" "$t_up") s
+  submit               $(elapsed "$t_up" "$t_submit") s
+  job (submit → done)  $(elapsed "$t_submit" "$t_done") s
+  fetch                $(elapsed "$t_done" "$t_fetch") s
+  local render         $(elapsed "$t_fetch" "$t_local") s  (one container, all cores, including container start)
+  EXR on the host      $OUT/farm.exr
+  bit-identical        $identical
+EOF
+[ "$identical" = yes ] || die "the farm's EXR differs from rayfarm render"
+STATUS=0
