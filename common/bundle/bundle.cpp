@@ -1,0 +1,199 @@
+#include "common/bundle/bundle.h"
+
+#include <algorithm>
+#include <atomic>
+#include <fstream>
+#include <iterator>
+#include <system_error>
+
+#include <openssl/evp.h>
+#include <unistd.h>
+
+#include "common/scene/parser.h"
+
+namespace rayfarm {
+namespace fs = std::filesystem;
+namespace {
+
+void append_u64le(std::string& out, uint64_t v) {
+  for (int i = 0; i < 8; ++i) out.push_back(static_cast<char>((v >> (8 * i)) & 0xff));
+}
+
+std::string read_file(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw BundleError(path.string() + ": cannot read file for the scene bundle");
+  std::string data{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  if (in.bad()) throw BundleError(path.string() + ": read error while packing the scene bundle");
+  return data;
+}
+
+void write_file(const fs::path& path, const std::string& data) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out.write(data.data(), static_cast<std::streamsize>(data.size()));
+  out.close();
+  if (!out) throw BundleError(path.string() + ": cannot write file while unpacking a bundle");
+}
+
+/// Deepest folder containing both `a` and `b` (both absolute and lexically normal).
+fs::path common_ancestor(const fs::path& a, const fs::path& b) {
+  fs::path out;
+  auto ia = a.begin(), ib = b.begin();
+  for (; ia != a.end() && ib != b.end() && *ia == *ib; ++ia, ++ib) out /= *ia;
+  return out;
+}
+
+std::string unique_suffix() {
+  static std::atomic<uint64_t> counter{0};
+  return std::to_string(::getpid()) + "-" + std::to_string(counter.fetch_add(1));
+}
+
+}  // namespace
+
+uint64_t Bundle::data_bytes() const {
+  uint64_t n = 0;
+  for (const auto& f : files) n += f.data.size();
+  return n;
+}
+
+void check_bundle_path(std::string_view path) {
+  const std::string quoted = "bundle path '" + std::string(path) + "'";
+  if (path.empty()) throw BundleError("empty bundle path");
+  if (path.size() > 4096) throw BundleError(quoted + " is too long");
+  if (path.front() == '/') throw BundleError(quoted + " is absolute");
+  if (path.find('\\') != std::string_view::npos || path.find('\0') != std::string_view::npos) {
+    throw BundleError(quoted + " contains a backslash or NUL");
+  }
+  size_t start = 0;
+  while (start <= path.size()) {
+    const size_t end = std::min(path.find('/', start), path.size());
+    const std::string_view part = path.substr(start, end - start);
+    if (part.empty()) throw BundleError(quoted + " has an empty component");
+    if (part == "..") throw BundleError(quoted + " contains '..'");
+    if (part == ".") throw BundleError(quoted + " contains '.'");
+    start = end + 1;
+  }
+}
+
+bool is_bundle_hash(std::string_view hash) {
+  return hash.size() == 64 && std::all_of(hash.begin(), hash.end(), [](char c) {
+           return (c >= '0' && c <= '9') || (c >= 'a' && c <= 'f');
+         });
+}
+
+Bundle make_bundle(std::vector<BundleFile> files) {
+  std::sort(files.begin(), files.end(),
+            [](const BundleFile& a, const BundleFile& b) { return a.path < b.path; });
+  for (size_t i = 0; i < files.size(); ++i) {
+    check_bundle_path(files[i].path);
+    if (i > 0 && files[i].path == files[i - 1].path) {
+      throw BundleError("bundle path '" + files[i].path + "' appears twice");
+    }
+  }
+  return Bundle{std::move(files)};
+}
+
+std::string canonical_bytes(const Bundle& bundle) {
+  std::string out;
+  out.reserve(bundle.data_bytes() + bundle.files.size() * 64);
+  for (const auto& f : bundle.files) {
+    append_u64le(out, f.path.size());
+    out += f.path;
+    append_u64le(out, f.data.size());
+    out += f.data;
+  }
+  return out;
+}
+
+std::string sha256_hex(std::string_view bytes) {
+  unsigned char digest[EVP_MAX_MD_SIZE];
+  unsigned int length = 0;
+  if (EVP_Digest(bytes.data(), bytes.size(), digest, &length, EVP_sha256(), nullptr) != 1) {
+    throw BundleError("SHA-256 failed (OpenSSL)");
+  }
+  static constexpr char kHex[] = "0123456789abcdef";
+  std::string out;
+  for (unsigned int i = 0; i < length; ++i) {
+    out.push_back(kHex[digest[i] >> 4]);
+    out.push_back(kHex[digest[i] & 15]);
+  }
+  return out;
+}
+
+std::string bundle_hash(const Bundle& bundle) { return sha256_hex(canonical_bytes(bundle)); }
+
+PackedScene pack_scene(const fs::path& scene_file) {
+  const Scene scene = load_scene(scene_file);
+  const fs::path scene_abs = fs::absolute(scene_file).lexically_normal();
+  const fs::path scene_dir = scene_abs.parent_path();
+
+  std::vector<fs::path> sources{scene_abs};
+  for (const auto& ref : scene.referenced) {
+    if (ref.is_absolute()) {
+      throw BundleError(scene_file.string() + ": references the absolute path " + ref.string() +
+                        "; a bundled scene must reference its files by relative paths");
+    }
+    sources.push_back((scene_dir / ref).lexically_normal());
+  }
+  fs::path root = scene_dir;
+  for (const auto& s : sources) root = common_ancestor(root, s.parent_path());
+
+  std::vector<BundleFile> files;
+  for (const auto& s : sources) {
+    const std::string rel = s.lexically_relative(root).generic_string();
+    if (std::any_of(files.begin(), files.end(), [&](const BundleFile& f) { return f.path == rel; })) {
+      continue;  // referenced twice
+    }
+    files.push_back({rel, read_file(s)});
+  }
+  PackedScene packed;
+  packed.scene_path = scene_abs.lexically_relative(root).generic_string();
+  packed.bundle = make_bundle(std::move(files));
+  packed.hash = bundle_hash(packed.bundle);
+  return packed;
+}
+
+fs::path unpack_bundle(const Bundle& bundle, const fs::path& cache_dir,
+                       const std::string& expected_hash) {
+  if (!is_bundle_hash(expected_hash)) {
+    throw BundleError("'" + expected_hash + "' is not a bundle hash (64 lowercase hex digits)");
+  }
+  const fs::path final_dir = cache_dir / expected_hash;
+  std::error_code ec;
+  if (fs::is_directory(final_dir, ec)) return final_dir;
+
+  for (const auto& f : bundle.files) check_bundle_path(f.path);
+  const std::string actual = bundle_hash(bundle);
+  if (actual != expected_hash) {
+    throw BundleError("bundle hash mismatch: expected " + expected_hash + ", contents hash to " +
+                      actual);
+  }
+
+  const fs::path temp = cache_dir / (".tmp-" + expected_hash.substr(0, 16) + "-" + unique_suffix());
+  try {
+    fs::create_directories(temp);
+    for (const auto& f : bundle.files) {
+      const fs::path target = temp / fs::path(f.path);
+      fs::create_directories(target.parent_path());
+      write_file(target, f.data);
+    }
+    fs::rename(temp, final_dir, ec);
+    if (ec) {
+      // Another process unpacked the same bundle first: keep theirs.
+      fs::remove_all(temp);
+      if (!fs::is_directory(final_dir)) {
+        throw BundleError("cannot move unpacked bundle into " + final_dir.string() + ": " +
+                          ec.message());
+      }
+    }
+  } catch (const fs::filesystem_error& e) {
+    fs::remove_all(temp, ec);
+    throw BundleError(std::string("cannot unpack bundle into ") + cache_dir.string() + ": " +
+                      e.what());
+  } catch (...) {
+    fs::remove_all(temp, ec);
+    throw;
+  }
+  return final_dir;
+}
+
+}  // namespace rayfarm

@@ -1,0 +1,85 @@
+#pragma once
+// RAII sockets for the farm: a Router (the master binds one per endpoint) and a Dealer (workers
+// and clients connect one). This module is the only one that includes zmq.hpp; nothing of ZeroMQ
+// appears in its interface. Every socket has linger 0 (closing never blocks) and a message size
+// limit; receives take a timeout and never block longer.
+#include <chrono>
+#include <cstddef>
+#include <memory>
+#include <optional>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "common/net/frames.h"
+
+namespace rayfarm::net {
+
+/// A socket could not be created, bound or connected; the message names the endpoint and cause.
+class NetError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Largest message (all frames) a socket accepts; a peer sending more is disconnected.
+inline constexpr int64_t kDefaultMaxMessageBytes = int64_t{1} << 30;  // 1 GiB
+
+/// One message received on a Router: who sent it and its frames (the routing frame removed).
+struct Delivery {
+  PeerId peer;
+  Frames frames;
+};
+
+/// Common base: owns the ZeroMQ socket. Not copyable, movable.
+class Socket {
+ public:
+  virtual ~Socket();
+  Socket(const Socket&) = delete;
+  Socket& operator=(const Socket&) = delete;
+  Socket(Socket&&) noexcept;
+  Socket& operator=(Socket&&) noexcept;
+
+  /// The endpoint this socket is bound or connected to; for "tcp://*:0" the port chosen.
+  std::string endpoint() const;
+  /// How long closing waits to deliver queued messages (0 by default: closing never blocks).
+  /// Set it before closing after a last message that must get out, e.g. a worker's goodbye.
+  void set_linger(std::chrono::milliseconds linger);
+
+ protected:
+  struct Impl;
+  explicit Socket(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+  friend std::vector<bool> poll(std::span<Socket* const>, std::chrono::milliseconds);
+};
+
+/// A ZeroMQ ROUTER bound to an endpoint: receives from many peers, sends to one by id.
+class Router : public Socket {
+ public:
+  /// Binds `endpoint` (e.g. "tcp://*:5555", "tcp://127.0.0.1:0"). Throws NetError.
+  explicit Router(const std::string& endpoint, int64_t max_message_bytes = kDefaultMaxMessageBytes);
+
+  /// Sends `frames` to `peer` without blocking; false when the peer is gone or its queue is full.
+  bool send(const PeerId& peer, const Frames& frames);
+  /// Receives one message, waiting at most `timeout` (0 = do not wait); nullopt on timeout.
+  std::optional<Delivery> receive(std::chrono::milliseconds timeout);
+};
+
+/// A ZeroMQ DEALER connected to an endpoint: talks to one master.
+class Dealer : public Socket {
+ public:
+  /// Connects to `endpoint` (e.g. "tcp://localhost:5556"); the connection is made in the
+  /// background, so an absent peer shows up as receive timeouts. Throws NetError on a bad endpoint.
+  explicit Dealer(const std::string& endpoint, int64_t max_message_bytes = kDefaultMaxMessageBytes);
+
+  /// Queues `frames` without blocking; false when the send queue is full.
+  bool send(const Frames& frames);
+  /// Receives one message, waiting at most `timeout` (0 = do not wait); nullopt on timeout.
+  std::optional<Frames> receive(std::chrono::milliseconds timeout);
+};
+
+/// Waits until at least one of `sockets` has a message to read, or `timeout` passes. Returns,
+/// for each socket, whether it is readable. An interrupted wait (a signal) returns all false.
+std::vector<bool> poll(std::span<Socket* const> sockets, std::chrono::milliseconds timeout);
+
+}  // namespace rayfarm::net

@@ -1,0 +1,157 @@
+#include "common/protocol/convert.h"
+
+namespace rayfarm::protocol {
+
+wire::Integrator integrator_to_wire(IntegratorType type) {
+  switch (type) {
+    case IntegratorType::kNaive: return wire::INTEGRATOR_NAIVE;
+    case IntegratorType::kNee: return wire::INTEGRATOR_NEE;
+    case IntegratorType::kMis: return wire::INTEGRATOR_MIS;
+  }
+  return wire::INTEGRATOR_UNSPECIFIED;
+}
+
+IntegratorType integrator_from_wire(wire::Integrator value) {
+  switch (value) {
+    case wire::INTEGRATOR_NAIVE: return IntegratorType::kNaive;
+    case wire::INTEGRATOR_NEE: return IntegratorType::kNee;
+    case wire::INTEGRATOR_MIS: return IntegratorType::kMis;
+    default: break;
+  }
+  throw ProtocolError("unknown integrator " + std::to_string(static_cast<int>(value)));
+}
+
+wire::RenderSettings settings_to_wire(const RenderSettings& settings) {
+  wire::RenderSettings out;
+  out.set_spp(settings.spp);
+  out.set_max_depth(settings.max_depth);
+  out.set_integrator(integrator_to_wire(settings.integrator));
+  out.set_seed(settings.seed);
+  return out;
+}
+
+RenderSettings settings_from_wire(const wire::RenderSettings& settings) {
+  if (settings.spp() == 0) throw ProtocolError("render settings with 0 samples per pixel");
+  RenderSettings out;
+  out.spp = settings.spp();
+  out.max_depth = settings.max_depth();
+  out.integrator = integrator_from_wire(settings.integrator());
+  out.seed = settings.seed();
+  return out;
+}
+
+wire::Rect rect_to_wire(const TileRect& rect) {
+  wire::Rect out;
+  out.set_x0(rect.x0);
+  out.set_y0(rect.y0);
+  out.set_x1(rect.x1);
+  out.set_y1(rect.y1);
+  return out;
+}
+
+TileRect rect_from_wire(const wire::Rect& rect) {
+  constexpr uint32_t kMaxSide = 65536;
+  if (rect.x1() <= rect.x0() || rect.y1() <= rect.y0() || rect.x1() - rect.x0() > kMaxSide ||
+      rect.y1() - rect.y0() > kMaxSide) {
+    throw ProtocolError("bad tile rectangle [" + std::to_string(rect.x0()) + "," +
+                        std::to_string(rect.x1()) + ")x[" + std::to_string(rect.y0()) + "," +
+                        std::to_string(rect.y1()) + ")");
+  }
+  return TileRect{rect.x0(), rect.y0(), rect.x1(), rect.y1()};
+}
+
+std::string pack_fixed(const std::vector<Fixed>& values) {
+  std::string out(values.size() * kFixedWireBytes, '\0');
+  char* p = out.data();
+  for (const Fixed v : values) {
+    const uint64_t lo = fixed_lo(v);
+    const uint64_t hi = static_cast<uint64_t>(fixed_hi(v));
+    for (int i = 0; i < 8; ++i) p[i] = static_cast<char>((lo >> (8 * i)) & 0xff);
+    for (int i = 0; i < 8; ++i) p[8 + i] = static_cast<char>((hi >> (8 * i)) & 0xff);
+    p += kFixedWireBytes;
+  }
+  return out;
+}
+
+std::vector<Fixed> unpack_fixed(std::string_view bytes, size_t count) {
+  if (bytes.size() != count * kFixedWireBytes) {
+    throw ProtocolError("expected " + std::to_string(count) + " fixed-point values (" +
+                        std::to_string(count * kFixedWireBytes) + " bytes), got " +
+                        std::to_string(bytes.size()) + " bytes");
+  }
+  std::vector<Fixed> out(count);
+  const auto* p = reinterpret_cast<const unsigned char*>(bytes.data());
+  for (size_t k = 0; k < count; ++k, p += kFixedWireBytes) {
+    uint64_t lo = 0, hi = 0;
+    for (int i = 0; i < 8; ++i) lo |= uint64_t{p[i]} << (8 * i);
+    for (int i = 0; i < 8; ++i) hi |= uint64_t{p[8 + i]} << (8 * i);
+    out[k] = fixed_from_parts(lo, static_cast<int64_t>(hi));
+  }
+  return out;
+}
+
+wire::UnitResult result_to_wire(const std::string& job_id, uint64_t unit_id, const TileResult& result,
+                                double render_seconds) {
+  wire::UnitResult out;
+  out.set_job_id(job_id);
+  out.set_unit_id(unit_id);
+  *out.mutable_tile() = rect_to_wire(result.rect);
+  out.set_sample_begin(result.samples.begin);
+  out.set_sample_end(result.samples.end);
+  out.set_sum(pack_fixed(result.sum));
+  out.set_sum_sq(pack_fixed(result.sum_sq));
+  out.set_nonfinite(result.nonfinite);
+  out.set_rays(result.rays);
+  out.set_render_seconds(render_seconds);
+  return out;
+}
+
+TileResult result_from_wire(const wire::UnitResult& result) {
+  const TileRect rect = rect_from_wire(result.tile());
+  if (result.sample_end() <= result.sample_begin()) {
+    throw ProtocolError("empty sample range [" + std::to_string(result.sample_begin()) + "," +
+                        std::to_string(result.sample_end()) + ")");
+  }
+  const size_t count = size_t{rect.width()} * rect.height() * 3;
+  TileResult out;
+  out.rect = rect;
+  out.samples = SampleRange{result.sample_begin(), result.sample_end()};
+  try {
+    out.sum = unpack_fixed(result.sum(), count);
+    out.sum_sq = unpack_fixed(result.sum_sq(), count);
+  } catch (const ProtocolError& e) {
+    throw ProtocolError(std::string("unit result sums do not match its tile: ") + e.what());
+  }
+  out.nonfinite = result.nonfinite();
+  out.rays = result.rays();
+  return out;
+}
+
+void bundle_to_wire(const Bundle& bundle, wire::Bundle* out) {
+  out->clear_files();
+  for (const auto& f : bundle.files) {
+    auto* file = out->add_files();
+    file->set_path(f.path);
+    file->set_data(f.data);
+  }
+}
+
+Bundle bundle_from_wire(const wire::Bundle& bundle) {
+  std::vector<BundleFile> files;
+  files.reserve(static_cast<size_t>(bundle.files_size()));
+  for (const auto& f : bundle.files()) files.push_back({f.path(), f.data()});
+  return make_bundle(std::move(files));
+}
+
+const char* job_state_name(wire::JobState state) {
+  switch (state) {
+    case wire::JOB_QUEUED: return "queued";
+    case wire::JOB_RUNNING: return "running";
+    case wire::JOB_DONE: return "done";
+    case wire::JOB_FAILED: return "failed";
+    case wire::JOB_CANCELLED: return "cancelled";
+    default: return "unknown";
+  }
+}
+
+}  // namespace rayfarm::protocol

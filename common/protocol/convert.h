@@ -1,0 +1,58 @@
+#pragma once
+// Conversions between rayfarm's types and the wire messages. Conversions from the wire check what
+// they read and throw ProtocolError (a well-formed message with impossible content) naming it.
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "common/bundle/bundle.h"
+#include "common/image/film.h"
+#include "common/scene/scene.h"
+#include "proto/rayfarm.pb.h"
+
+namespace rayfarm::protocol {
+
+namespace wire = ::rayfarm::wire;
+
+/// A decoded message whose content is invalid (sizes, ranges, enums); what() names the field.
+class ProtocolError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Bytes per fixed-point value on the wire: low 64 bits then high 64 bits, little-endian.
+inline constexpr size_t kFixedWireBytes = 16;
+
+wire::Integrator integrator_to_wire(IntegratorType type);
+/// Throws ProtocolError on INTEGRATOR_UNSPECIFIED or an unknown value.
+IntegratorType integrator_from_wire(wire::Integrator value);
+
+wire::RenderSettings settings_to_wire(const RenderSettings& settings);
+/// Throws ProtocolError on an unknown integrator or zero spp.
+RenderSettings settings_from_wire(const wire::RenderSettings& settings);
+
+wire::Rect rect_to_wire(const TileRect& rect);
+/// Throws ProtocolError on an empty rectangle or one wider or taller than 65536 pixels.
+TileRect rect_from_wire(const wire::Rect& rect);
+
+/// Packs fixed-point values, kFixedWireBytes each.
+std::string pack_fixed(const std::vector<Fixed>& values);
+/// Unpacks exactly `count` values; throws ProtocolError when `bytes` has another size.
+std::vector<Fixed> unpack_fixed(std::string_view bytes, size_t count);
+
+/// The wire form of a rendered unit.
+wire::UnitResult result_to_wire(const std::string& job_id, uint64_t unit_id, const TileResult& result,
+                                double render_seconds);
+/// A rendered unit read back; throws ProtocolError when the rectangle, sample range or sum sizes
+/// are inconsistent. The result is well_formed().
+TileResult result_from_wire(const wire::UnitResult& result);
+
+void bundle_to_wire(const Bundle& bundle, wire::Bundle* out);
+/// Throws BundleError on a bad or repeated path.
+Bundle bundle_from_wire(const wire::Bundle& bundle);
+
+/// Name of a job state for people ("queued", "running", "done", "failed", "cancelled").
+const char* job_state_name(wire::JobState state);
+
+}  // namespace rayfarm::protocol

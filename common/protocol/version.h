@@ -1,0 +1,14 @@
+#pragma once
+// The wire protocol's version. Every message carries it (field 1, stamped by the codec); a peer
+// that speaks another version is refused with a message naming both. Bump it on any change to
+// proto/rayfarm.proto that an older peer would misread.
+#include <cstdint>
+
+namespace rayfarm::protocol {
+
+inline constexpr uint32_t kProtocolVersion = 1;
+
+/// Software version of this build, sent in Hello and Welcome for the logs.
+inline constexpr const char* kBuildVersion = "rayfarm 0.1.0";
+
+}  // namespace rayfarm::protocol
