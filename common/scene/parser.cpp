@@ -408,7 +408,10 @@ class SceneReader {
     const Vec3 e1 = read_vec3(n.require("edge1"));
     const Vec3 e2 = read_vec3(n.require("edge2"));
     const uint32_t material = material_ref(n.require("material"));
-    if (cross_length(e1, e2) == 0.0) return n.warn("the quad has zero area and is dropped");
+    if (cross_length(e1, e2) == 0.0) {
+      n.warn("the quad has zero area and is dropped");
+      return;
+    }
     // Both triangles' front faces, (v1-v0) x (v2-v0), point along edge1 x edge2.
     add_triangles(origin, {c, c + e1, c + e1 + e2, c + e2}, {0, 1, 2, 0, 2, 3}, material);
   }
@@ -423,8 +426,10 @@ class SceneReader {
     const Vec3 b = read_vec3(vertices.child(1));
     const Vec3 c = read_vec3(vertices.child(2));
     const uint32_t material = material_ref(n.require("material"));
-    if (cross_length(b - a, c - a) == 0.0)
-      return n.warn("the triangle has zero area and is dropped");
+    if (cross_length(b - a, c - a) == 0.0) {
+      n.warn("the triangle has zero area and is dropped");
+      return;
+    }
     add_triangles(origin, {a, b, c}, {0, 1, 2}, material);
   }
 
@@ -450,7 +455,10 @@ class SceneReader {
     for (Material& m : obj.materials)
       remap.push_back(material ? *material : add_material(std::move(m)));
     for (uint32_t& index : obj.mesh.materials) index = remap.at(index);
-    if (obj.mesh.triangle_count() == 0) return n.warn("the mesh has no triangles");
+    if (obj.mesh.triangle_count() == 0) {
+      n.warn("the mesh has no triangles");
+      return;
+    }
     scene_.meshes.push_back(std::move(obj.mesh));
   }
 
