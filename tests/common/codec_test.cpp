@@ -1,0 +1,211 @@
+// The wire codec: every message round-trips through its two frames with the protocol version
+// stamped; garbage (wrong frame counts, unknown types, oversized or malformed bodies) raises a
+// DecodeError naming the cause and never crashes; fixed-point sums survive the wire bit for bit.
+#include <gtest/gtest.h>
+
+#include <google/protobuf/descriptor.h>
+
+#include <limits>
+#include <random>
+#include <set>
+
+#include "common/protocol/codec.h"
+#include "common/protocol/convert.h"
+#include "common/protocol/heartbeat.h"
+
+namespace rayfarm::protocol {
+namespace {
+
+using Kind = DecodeError::Kind;
+
+Kind decode_error_kind(const net::Frames& frames) {
+  try {
+    decode(frames);
+  } catch (const DecodeError& e) {
+    EXPECT_FALSE(std::string(e.what()).empty());
+    return e.kind();
+  }
+  ADD_FAILURE() << "decoded without error";
+  return Kind::kMalformedBody;
+}
+
+TEST(Codec, HelloRoundTripsWithVersionStamped) {
+  wire::Hello hello;
+  hello.set_role(wire::ROLE_WORKER);
+  hello.set_name("w1");
+  hello.set_threads(8);
+  hello.set_build("test");
+  const net::Frames frames = encode(hello);
+  ASSERT_EQ(frames.size(), 2u);
+  EXPECT_EQ(frames[0], "rayfarm.wire.Hello");
+
+  const Decoded d = decode(frames);
+  EXPECT_EQ(d.type, "rayfarm.wire.Hello");
+  EXPECT_EQ(d.version, kProtocolVersion);
+  EXPECT_TRUE(d.version_ok());
+  const auto* back = d.as<wire::Hello>();
+  ASSERT_NE(back, nullptr);
+  EXPECT_EQ(back->name(), "w1");
+  EXPECT_EQ(back->threads(), 8u);
+  EXPECT_EQ(back->role(), wire::ROLE_WORKER);
+  EXPECT_EQ(d.as<wire::Welcome>(), nullptr);
+}
+
+TEST(Codec, AnotherVersionIsDecodedAndFlagged) {
+  const Decoded d = decode(encode(wire::Hello{}, 7));
+  EXPECT_EQ(d.version, 7u);
+  EXPECT_FALSE(d.version_ok());
+  EXPECT_NE(d.as<wire::Hello>(), nullptr);
+}
+
+TEST(Codec, EveryTopLevelMessageCarriesTheVersion) {
+  const auto* file = wire::Hello::descriptor()->file();
+  const std::set<std::string> building_blocks{"RenderSettings", "Rect", "BundleFile", "Bundle", "JobOverrides"};
+  int wire_messages = 0;
+  for (int i = 0; i < file->message_type_count(); ++i) {
+    const auto* d = file->message_type(i);
+    if (building_blocks.count(d->name())) {
+      EXPECT_FALSE(is_wire_message(d)) << d->name();
+      continue;
+    }
+    EXPECT_TRUE(is_wire_message(d)) << d->full_name() << " lacks field 1 protocol_version";
+    ++wire_messages;
+  }
+  EXPECT_GE(wire_messages, 20);
+}
+
+TEST(Codec, WorkUnitAndResultRoundTrip) {
+  wire::WorkUnit unit;
+  unit.set_job_id("j0001");
+  unit.set_unit_id(12345678901ull);
+  *unit.mutable_tile() = rect_to_wire({64, 0, 128, 64});
+  unit.set_sample_begin(16);
+  unit.set_sample_end(32);
+  *unit.mutable_settings() = settings_to_wire(RenderSettings{256, 8, IntegratorType::kNee, 42});
+  unit.set_bundle_hash(std::string(64, 'a'));
+  unit.set_scene_path("box/scene.json");
+  const Decoded d = decode(encode(unit));
+  const auto* back = d.as<wire::WorkUnit>();
+  ASSERT_NE(back, nullptr);
+  EXPECT_EQ(back->unit_id(), 12345678901ull);
+  EXPECT_EQ(rect_from_wire(back->tile()), (TileRect{64, 0, 128, 64}));
+  const RenderSettings s = settings_from_wire(back->settings());
+  EXPECT_EQ(s.spp, 256u);
+  EXPECT_EQ(s.max_depth, 8u);
+  EXPECT_EQ(s.integrator, IntegratorType::kNee);
+  EXPECT_EQ(s.seed, 42u);
+}
+
+TEST(Codec, FixedPointSumsSurviveTheWireBitForBit) {
+  TileResult r({0, 0, 3, 2}, {0, 4});
+  std::mt19937_64 rng(1);
+  for (size_t i = 0; i < r.sum.size(); ++i) {
+    r.sum[i] = fixed_from_parts(rng(), static_cast<int64_t>(rng()));
+    r.sum_sq[i] = to_fixed(std::ldexp(static_cast<double>(rng() % 1000), static_cast<int>(i) - 8));
+  }
+  r.sum[0] = std::numeric_limits<Fixed>::min();
+  r.sum[1] = -1;
+  r.sum[2] = std::numeric_limits<Fixed>::max();
+  r.nonfinite = 3;
+  r.rays = 99;
+  const Decoded d = decode(encode(result_to_wire("j0002", 7, r, 0.25)));
+  const auto* wire_result = d.as<wire::UnitResult>();
+  ASSERT_NE(wire_result, nullptr);
+  EXPECT_EQ(wire_result->sum().size(), r.sum.size() * kFixedWireBytes);
+  const TileResult back = result_from_wire(*wire_result);
+  EXPECT_TRUE(back.well_formed());
+  EXPECT_EQ(back.rect, r.rect);
+  EXPECT_EQ(back.samples, r.samples);
+  EXPECT_TRUE(back.sum == r.sum);
+  EXPECT_TRUE(back.sum_sq == r.sum_sq);
+  EXPECT_EQ(back.nonfinite, 3u);
+  EXPECT_EQ(back.rays, 99u);
+}
+
+TEST(Codec, FixedPointLayoutIsLowThenHighLittleEndian) {
+  const std::string bytes = pack_fixed({fixed_from_parts(0x0807060504030201ull, 0x100f0e0d0c0b0a09ll)});
+  ASSERT_EQ(bytes.size(), 16u);
+  for (int i = 0; i < 16; ++i) EXPECT_EQ(static_cast<unsigned char>(bytes[i]), i + 1) << i;
+  EXPECT_THROW(unpack_fixed(bytes, 2), ProtocolError);
+}
+
+TEST(Codec, InconsistentResultsAreProtocolErrors) {
+  TileResult r({0, 0, 2, 2}, {0, 1});
+  wire::UnitResult w = result_to_wire("j", 0, r, 0.0);
+  w.mutable_tile()->set_x1(3);  // sums are for 4 pixels, the tile claims 6
+  EXPECT_THROW(result_from_wire(w), ProtocolError);
+  w = result_to_wire("j", 0, r, 0.0);
+  w.set_sample_end(0);
+  EXPECT_THROW(result_from_wire(w), ProtocolError);
+  w = result_to_wire("j", 0, r, 0.0);
+  w.mutable_tile()->set_x0(5);  // empty rectangle
+  EXPECT_THROW(result_from_wire(w), ProtocolError);
+  w = result_to_wire("j", 0, r, 0.0);
+  w.mutable_tile()->set_x1(4000000000u);  // absurdly wide: rejected before any allocation
+  w.mutable_tile()->set_y1(4000000000u);
+  EXPECT_THROW(result_from_wire(w), ProtocolError);
+}
+
+TEST(Codec, BadIntegratorAndZeroSppAreRejected) {
+  wire::RenderSettings s;
+  s.set_spp(1);
+  EXPECT_THROW(settings_from_wire(s), ProtocolError);  // unspecified integrator
+  s.set_integrator(static_cast<wire::Integrator>(99));
+  EXPECT_THROW(settings_from_wire(s), ProtocolError);
+  s.set_integrator(wire::INTEGRATOR_MIS);
+  s.set_spp(0);
+  EXPECT_THROW(settings_from_wire(s), ProtocolError);
+}
+
+TEST(Codec, WrongFrameCountsAreRejected) {
+  EXPECT_EQ(decode_error_kind({}), Kind::kFrameCount);
+  EXPECT_EQ(decode_error_kind({"rayfarm.wire.Hello"}), Kind::kFrameCount);
+  EXPECT_EQ(decode_error_kind({"rayfarm.wire.Hello", "", ""}), Kind::kFrameCount);
+}
+
+TEST(Codec, UnknownAndNonWireTypesAreRejected) {
+  EXPECT_EQ(decode_error_kind({"", ""}), Kind::kUnknownType);
+  EXPECT_EQ(decode_error_kind({"rayfarm.wire.NoSuchMessage", ""}), Kind::kUnknownType);
+  EXPECT_EQ(decode_error_kind({"rayfarm.wire.Rect", ""}), Kind::kUnknownType);  // not sent alone
+  EXPECT_EQ(decode_error_kind({"google.protobuf.FileDescriptorProto", ""}), Kind::kUnknownType);
+  EXPECT_EQ(decode_error_kind({std::string("rayfarm.wire.Hello\0x", 20), ""}), Kind::kUnknownType);
+  EXPECT_EQ(decode_error_kind({std::string(1000, 'x'), ""}), Kind::kTooLarge);
+}
+
+TEST(Codec, MalformedBodiesAreRejected) {
+  EXPECT_EQ(decode_error_kind({"rayfarm.wire.Hello", "\xff\xff\xff\xff"}), Kind::kMalformedBody);
+  // A truncated length-delimited field.
+  wire::Hello hello;
+  hello.set_name(std::string(100, 'n'));
+  std::string body = encode(hello)[1];
+  body.resize(body.size() - 10);
+  EXPECT_EQ(decode_error_kind({"rayfarm.wire.Hello", body}), Kind::kMalformedBody);
+}
+
+TEST(Codec, RandomBytesNeverCrash) {
+  std::mt19937 rng(7);
+  const auto* file = wire::Hello::descriptor()->file();
+  int rejected = 0;
+  for (int i = 0; i < 2000; ++i) {
+    std::string body(rng() % 64, '\0');
+    for (char& c : body) c = static_cast<char>(rng());
+    const std::string type = file->message_type(static_cast<int>(rng() % file->message_type_count()))->full_name();
+    try {
+      const Decoded d = decode({type, body});
+      EXPECT_EQ(d.type, type);
+    } catch (const DecodeError&) {
+      ++rejected;
+    }
+  }
+  EXPECT_GT(rejected, 0);
+}
+
+TEST(Heartbeat, DefaultsAreConsistent) {
+  const HeartbeatOptions o;
+  EXPECT_EQ(o.expiry(), kHeartbeatInterval * kHeartbeatLiveness);
+  EXPECT_LE(o.reconnect_min, o.reconnect_max);
+  EXPECT_GE(kHeartbeatLiveness, 2);
+}
+
+}  // namespace
+}  // namespace rayfarm::protocol
