@@ -1,1 +1,109 @@
-// (in progress)
+#include "worker/renderer.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <atomic>
+#include <set>
+
+#include "common/image/fixed.h"
+#include "worker/camera.h"
+#include "worker/integrators/path_integrator.h"
+#include "worker/lights/light_set.h"
+#include "worker/scene_data.h"
+
+namespace rayfarm {
+
+struct Renderer::Impl {
+  RenderSettings settings;
+  SceneData data;
+  LightSet lights;
+  PathIntegrator integrator;
+  CameraModel camera;
+
+  Impl(const Scene& scene, const RenderSettings& s)
+      : settings(s), data(scene), lights(data), integrator(data, lights, s),
+        camera(scene.camera, scene.film) {}
+
+  // Renders samples [begin, end) of one pixel into its fixed-point sums.
+  void render_pixel(uint32_t x, uint32_t y, const SampleRange& samples, Fixed* sum, Fixed* sum_sq,
+                    uint64_t& nonfinite, uint64_t& rays) const {
+    const uint64_t pixel = uint64_t{y} * data.scene().film.width + x;
+    for (uint32_t s = samples.begin; s < samples.end; ++s) {
+      Pcg32 rng = sample_stream(settings.seed, pixel, s);
+      const float jx = rng.next_float(), jy = rng.next_float();
+      const float lu = rng.next_float(), lv = rng.next_float();
+      const Ray ray = camera.generate(static_cast<float>(x) + jx, static_cast<float>(y) + jy, lu, lv);
+      const Vec3 l = integrator.li(ray, rng, rays);
+      // A sample that is NaN, infinite or beyond the accumulator's range never reaches the film.
+      if (!is_finite(l) || max_component(abs(l)) > kMaxSampleValue) {
+        ++nonfinite;
+        continue;
+      }
+      for (int c = 0; c < 3; ++c) {
+        const double v = l[c];
+        sum[c] += to_fixed(v);
+        sum_sq[c] += to_fixed(v * v);
+      }
+    }
+  }
+};
+
+Renderer::Renderer(const Scene& scene, const RenderSettings& settings)
+    : impl_(std::make_unique<Impl>(scene, settings)) {}
+
+Renderer::~Renderer() = default;
+
+const RenderSettings& Renderer::settings() const { return impl_->settings; }
+FilmSize Renderer::film() const { return impl_->data.scene().film; }
+
+TileResult Renderer::render(const TileRect& rect, const SampleRange& samples) const {
+  TileResult result(rect, samples);
+  std::atomic<uint64_t> nonfinite{0}, rays{0};
+  tbb::parallel_for(tbb::blocked_range<uint32_t>(rect.y0, rect.y1),
+                    [&](const tbb::blocked_range<uint32_t>& rows) {
+                      uint64_t local_nonfinite = 0, local_rays = 0;
+                      for (uint32_t y = rows.begin(); y < rows.end(); ++y) {
+                        for (uint32_t x = rect.x0; x < rect.x1; ++x) {
+                          const size_t i = (size_t{y - rect.y0} * rect.width() + (x - rect.x0)) * 3;
+                          impl_->render_pixel(x, y, samples, &result.sum[i], &result.sum_sq[i],
+                                              local_nonfinite, local_rays);
+                        }
+                      }
+                      nonfinite += local_nonfinite;
+                      rays += local_rays;
+                    });
+  result.nonfinite = nonfinite.load();
+  result.rays = rays.load();
+  return result;
+}
+
+std::string Renderer::plan() const {
+  const IntegratorPlan& p = impl_->integrator.plan();
+  std::string out = std::string("integrator ") + integrator_name(p.integrator);
+  const size_t area = impl_->lights.area_light_count(), point = impl_->lights.point_light_count();
+  if (impl_->lights.empty()) {
+    out += "; no lights, no light sampling";
+  } else {
+    out += "; " + std::to_string(area) + " emitters, " + std::to_string(point) + " point lights";
+    out += p.sample_lights ? ", power-sampled" : ", not sampled";
+    if (p.integrator == IntegratorType::kMis && !p.weight_emission && p.sample_lights) {
+      out += " (no MIS weights: no area lights)";
+    }
+  }
+  std::set<std::string> kinds;
+  for (const Material& m : impl_->data.scene().materials) {
+    static const char* names[] = {"diffuse", "phong", "mirror", "dielectric"};
+    kinds.insert(names[static_cast<int>(m.type)]);
+  }
+  out += "; materials:";
+  bool first = true;
+  for (const auto& k : kinds) {
+    out += (first ? " " : ", ") + k;
+    first = false;
+  }
+  out += "; max_depth " + std::to_string(p.max_depth);
+  return out;
+}
+
+}  // namespace rayfarm

@@ -42,8 +42,8 @@ uint32_t default_pass_spp(uint32_t tile_size, uint32_t spp) {
   const uint64_t target = (uint64_t{1} << 18) / pixels;
   // A power of two keeps pass boundaries aligned when spp grows.
   uint32_t pass = 1;
-  while (uint64_t{pass} * 2 <= target) pass *= 2;
-  return std::clamp<uint32_t>(pass, 1, std::max<uint32_t>(spp, 1));
+  while (uint64_t{pass} * 2 <= target && pass * 2 <= std::max<uint32_t>(spp, 1)) pass *= 2;
+  return pass;
 }
 
 Film::Film(uint32_t width, uint32_t height)

@@ -9,6 +9,7 @@
 namespace rayfarm {
 
 __extension__ typedef __int128 Fixed;
+__extension__ typedef unsigned __int128 UFixed;
 
 inline constexpr int kFixedFractionBits = 40;
 /// Largest sample magnitude accepted; larger samples are dropped and counted (docs/determinism.md).
@@ -27,10 +28,10 @@ inline double from_fixed(Fixed v) {
 }
 
 /// Low and high 64-bit halves, for the wire and for files.
-inline uint64_t fixed_lo(Fixed v) { return static_cast<uint64_t>(static_cast<unsigned __int128>(v)); }
+inline uint64_t fixed_lo(Fixed v) { return static_cast<uint64_t>(static_cast<UFixed>(v)); }
 inline int64_t fixed_hi(Fixed v) { return static_cast<int64_t>(v >> 64); }
 inline Fixed fixed_from_parts(uint64_t lo, int64_t hi) {
-  return static_cast<Fixed>((static_cast<unsigned __int128>(static_cast<uint64_t>(hi)) << 64) | lo);
+  return static_cast<Fixed>((static_cast<UFixed>(static_cast<uint64_t>(hi)) << 64) | lo);
 }
 
 }  // namespace rayfarm

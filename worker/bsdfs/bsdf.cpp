@@ -1,0 +1,149 @@
+#include "worker/bsdfs/bsdf.h"
+
+#include <cmath>
+
+namespace rayfarm {
+namespace {
+
+// Two-sided surfaces: mirror both directions to the upper hemisphere of wo.
+inline Vec3 to_upper(const Vec3& w, bool flip) { return flip ? Vec3{w.x, w.y, -w.z} : w; }
+inline Vec3 reflect_z(const Vec3& w) { return {-w.x, -w.y, w.z}; }
+
+// Probability of choosing the specular lobe of a Phong material: the ratio of luminances.
+inline float phong_specular_probability(const Material& m) {
+  const float ls = luminance(m.ks), ld = luminance(m.kd);
+  return ls + ld > 0.f ? ls / (ls + ld) : 0.f;
+}
+
+// Normalised Phong lobe: (n + 2) / (2 pi) cos^n(alpha) for the BRDF, (n + 1) / (2 pi) for the pdf.
+inline float cos_alpha_pow(const Vec3& wo, const Vec3& wi, float exponent) {
+  const float c = dot(reflect_z(wo), wi);
+  return c > 0.f ? std::pow(c, exponent) : 0.f;
+}
+
+Vec3 eval_phong(const Material& m, const Vec3& wo, const Vec3& wi) {
+  const float lobe = cos_alpha_pow(wo, wi, m.exponent) * (m.exponent + 2.f) * (0.5f * kInvPi);
+  return (m.kd * kInvPi + m.ks * lobe) * wi.z;
+}
+
+float pdf_phong(const Material& m, const Vec3& wo, const Vec3& wi) {
+  const float ps = phong_specular_probability(m);
+  const float spec = cos_alpha_pow(wo, wi, m.exponent) * (m.exponent + 1.f) * (0.5f * kInvPi);
+  return (1.f - ps) * wi.z * kInvPi + ps * spec;
+}
+
+// Direction around `axis` with density (n + 1) / (2 pi) cos^n.
+Vec3 sample_phong_lobe(const Vec3& axis, float exponent, float u1, float u2) {
+  const float cos_a = std::pow(u1, 1.f / (exponent + 1.f));
+  const float sin_a = std::sqrt(std::max(0.f, 1.f - cos_a * cos_a));
+  const float phi = 2.f * kPi * u2;
+  return Frame(axis).to_world({std::cos(phi) * sin_a, std::sin(phi) * sin_a, cos_a});
+}
+
+bool sample_dielectric(const Material& m, const Vec3& wo, float u_lobe, BsdfSample& out) {
+  const bool entering = wo.z > 0.f;
+  const float eta = entering ? m.ior : 1.f / m.ior;  // eta_t / eta_i
+  const float cos_o = std::fabs(wo.z);
+  float cos_t = 0.f;
+  const float f = fresnel_dielectric(cos_o, eta, cos_t);
+  out.specular = true;
+  out.pdf = 0.f;
+  if (u_lobe < f) {
+    out.wi = reflect_z(wo);
+    out.weight = Vec3(1.f);
+    return true;
+  }
+  // Refraction: wi = -wo / eta + (cos_o / eta - cos_t) n, with n on wo's side.
+  const float n_z = entering ? 1.f : -1.f;
+  out.wi = normalize(Vec3{-wo.x / eta, -wo.y / eta, -wo.z / eta + (cos_o / eta - cos_t) * n_z});
+  // Radiance is compressed by (eta_i / eta_t)^2 crossing the interface.
+  out.weight = m.tint / (eta * eta);
+  return true;
+}
+
+}  // namespace
+
+float fresnel_dielectric(float cos_i, float eta, float& cos_t) {
+  const float sin2_t = (1.f - cos_i * cos_i) / (eta * eta);
+  if (sin2_t >= 1.f) {
+    cos_t = 0.f;
+    return 1.f;  // total internal reflection
+  }
+  cos_t = std::sqrt(1.f - sin2_t);
+  const float r_parl = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+  const float r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+  return 0.5f * (r_parl * r_parl + r_perp * r_perp);
+}
+
+Vec3 sample_cosine_hemisphere(float u1, float u2) {
+  // Concentric disk mapping (Shirley-Chiu), then lift to the hemisphere.
+  const float a = 2.f * u1 - 1.f, b = 2.f * u2 - 1.f;
+  float r = 0.f, phi = 0.f;
+  if (a == 0.f && b == 0.f) return {0.f, 0.f, 1.f};
+  if (std::fabs(a) > std::fabs(b)) {
+    r = a;
+    phi = (kPi / 4.f) * (b / a);
+  } else {
+    r = b;
+    phi = (kPi / 2.f) - (kPi / 4.f) * (a / b);
+  }
+  const float x = r * std::cos(phi), y = r * std::sin(phi);
+  return {x, y, std::sqrt(std::max(0.f, 1.f - x * x - y * y))};
+}
+
+Vec3 Bsdf::eval(const Vec3& wo_in, const Vec3& wi_in) const {
+  if (is_specular() || wo_in.z * wi_in.z <= 0.f) return Vec3(0.f);
+  const bool flip = wo_in.z < 0.f;
+  const Vec3 wo = to_upper(wo_in, flip), wi = to_upper(wi_in, flip);
+  if (m_->type == MaterialType::kDiffuse) return m_->albedo * (wi.z * kInvPi);
+  return eval_phong(*m_, wo, wi);
+}
+
+float Bsdf::pdf(const Vec3& wo_in, const Vec3& wi_in) const {
+  if (is_specular() || wo_in.z * wi_in.z <= 0.f) return 0.f;
+  const bool flip = wo_in.z < 0.f;
+  const Vec3 wo = to_upper(wo_in, flip), wi = to_upper(wi_in, flip);
+  if (m_->type == MaterialType::kDiffuse) return wi.z * kInvPi;
+  return pdf_phong(*m_, wo, wi);
+}
+
+bool Bsdf::sample(const Vec3& wo_in, float u_lobe, float u1, float u2, BsdfSample& out) const {
+  if (wo_in.z == 0.f) return false;
+  switch (m_->type) {
+    case MaterialType::kDielectric:
+      return sample_dielectric(*m_, wo_in, u_lobe, out);
+    case MaterialType::kMirror:
+      out.wi = reflect_z(wo_in);
+      out.weight = m_->reflectance;
+      out.pdf = 0.f;
+      out.specular = true;
+      return true;
+    case MaterialType::kDiffuse: {
+      const bool flip = wo_in.z < 0.f;
+      const Vec3 wi = sample_cosine_hemisphere(u1, u2);
+      if (wi.z <= 0.f) return false;
+      out.wi = to_upper(wi, flip);
+      out.weight = m_->albedo;
+      out.pdf = wi.z * kInvPi;
+      out.specular = false;
+      return true;
+    }
+    case MaterialType::kPhong: {
+      const bool flip = wo_in.z < 0.f;
+      const Vec3 wo = to_upper(wo_in, flip);
+      const float ps = phong_specular_probability(*m_);
+      const Vec3 wi = u_lobe < ps ? sample_phong_lobe(reflect_z(wo), m_->exponent, u1, u2)
+                                  : sample_cosine_hemisphere(u1, u2);
+      if (wi.z <= 0.f) return false;
+      out.pdf = pdf_phong(*m_, wo, wi);
+      if (!(out.pdf > 0.f)) return false;
+      out.weight = eval_phong(*m_, wo, wi) / out.pdf;
+      out.wi = to_upper(wi, flip);
+      out.specular = false;
+      return true;
+    }
+  }
+  return false;
+}
+
+}  // namespace rayfarm

@@ -1,0 +1,47 @@
+#pragma once
+// Thin-lens perspective camera. Right-handed: the image's right is forward x up; row 0 is the top.
+#include <cmath>
+
+#include "common/scene/scene.h"
+#include "worker/embree/bvh.h"
+
+namespace rayfarm {
+
+class CameraModel {
+ public:
+  CameraModel(const Camera& c, FilmSize film) {
+    eye_ = c.eye;
+    forward_ = normalize(c.look_at - c.eye);
+    right_ = normalize(cross(forward_, c.up));
+    up_ = cross(right_, forward_);
+    tan_half_ = std::tan(0.5f * c.fov_y_deg * kPi / 180.f);
+    aspect_ = static_cast<float>(film.width) / static_cast<float>(film.height);
+    inv_w_ = 1.f / static_cast<float>(film.width);
+    inv_h_ = 1.f / static_cast<float>(film.height);
+    lens_ = c.aperture_radius;
+    focus_ = c.focus_distance > 0.f ? c.focus_distance : length(c.look_at - c.eye);
+  }
+
+  /// Ray through film position (x + jx, y + jy) in pixels; (lu, lv) pick the lens point.
+  Ray generate(float fx, float fy, float lu, float lv) const {
+    const float sx = (2.f * fx * inv_w_ - 1.f) * tan_half_ * aspect_;
+    const float sy = (1.f - 2.f * fy * inv_h_) * tan_half_;
+    Vec3 dir = forward_ + right_ * sx + up_ * sy;  // forward component 1: a point at depth 1
+    Ray ray;
+    ray.org = eye_;
+    if (lens_ > 0.f) {
+      const float r = lens_ * std::sqrt(lu), phi = 2.f * kPi * lv;
+      const Vec3 lens_point = right_ * (r * std::cos(phi)) + up_ * (r * std::sin(phi));
+      ray.org = eye_ + lens_point;
+      dir = dir * focus_ - lens_point;
+    }
+    ray.dir = normalize(dir);
+    return ray;
+  }
+
+ private:
+  Vec3 eye_, forward_, right_, up_;
+  float tan_half_ = 1.f, aspect_ = 1.f, inv_w_ = 1.f, inv_h_ = 1.f, lens_ = 0.f, focus_ = 1.f;
+};
+
+}  // namespace rayfarm

@@ -1,0 +1,60 @@
+#pragma once
+// The only module that calls Embree. The renderer sees intersect(ray) and occluded(segment).
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "common/math/vec3.h"
+
+namespace rayfarm {
+
+/// A ray: origin, direction (need not be unit length) and the parametric interval (tnear, tfar).
+struct Ray {
+  Vec3 org;
+  Vec3 dir;
+  float tnear = 0.f;
+  float tfar = 3.0e38f;
+};
+
+/// A closest hit: which primitive, where along the ray, and its barycentrics (triangles).
+struct RayHit {
+  float t = 0.f;
+  uint32_t geom = 0;  ///< mesh index, or kSphereGeometry for spheres
+  uint32_t prim = 0;  ///< triangle index within the mesh, or sphere index
+  float u = 0.f, v = 0.f;
+};
+
+/// Geometry id of the sphere set in RayHit::geom.
+inline constexpr uint32_t kSphereGeometry = 0xfffffffeu;
+
+/// Triangle meshes and spheres in one Embree BVH.
+class Bvh {
+ public:
+  /// Triangle input: positions and 3 indices per triangle.
+  struct Mesh {
+    const std::vector<Vec3>* positions;
+    const std::vector<uint32_t>* indices;
+  };
+  /// Sphere input: centre and radius.
+  struct SphereInput {
+    Vec3 center;
+    float radius;
+  };
+
+  /// Builds the BVH. Mesh i gets geometry id i. Throws std::runtime_error with Embree's message.
+  Bvh(const std::vector<Mesh>& meshes, const std::vector<SphereInput>& spheres);
+  ~Bvh();
+  Bvh(const Bvh&) = delete;
+  Bvh& operator=(const Bvh&) = delete;
+
+  /// Closest hit in (tnear, tfar), if any.
+  bool intersect(const Ray& ray, RayHit& hit) const;
+  /// True when anything lies in (tnear, tfar) along the ray.
+  bool occluded(const Ray& ray) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace rayfarm

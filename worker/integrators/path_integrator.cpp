@@ -1,0 +1,107 @@
+#include "worker/integrators/path_integrator.h"
+
+#include <algorithm>
+
+#include "worker/bsdfs/bsdf.h"
+
+namespace rayfarm {
+
+PathIntegrator::PathIntegrator(const SceneData& data, const LightSet& lights,
+                               const RenderSettings& settings)
+    : data_(data), lights_(lights), background_(data.scene().background) {
+  plan_.integrator = settings.integrator;
+  plan_.max_depth = settings.max_depth;
+  bool any_diffuse = false;
+  for (const Material& m : data.scene().materials) any_diffuse |= !m.is_specular();
+  // Light sampling only where there are lights and surfaces that light sampling can serve.
+  plan_.sample_lights = settings.integrator != IntegratorType::kNaive && !lights.empty() && any_diffuse;
+  // MIS weights matter only when BSDF rays can also find the sampled emitters (area lights).
+  plan_.weight_emission = plan_.sample_lights && settings.integrator == IntegratorType::kMis &&
+                          lights.area_light_count() > 0;
+  plan_.emitters_reachable = lights.area_light_count() > 0 || !is_black(background_);
+}
+
+float PathIntegrator::emission_weight(const SurfaceHit& hit, bool specular_bounce, float bsdf_pdf,
+                                      const Vec3& prev_p) const {
+  // Emitters seen by the camera or through a specular chain: light sampling could not find them.
+  if (specular_bounce || !plan_.sample_lights) return 1.f;
+  if (!plan_.weight_emission) return 0.f;  // NEE: already counted by light sampling
+  return power_heuristic(bsdf_pdf, lights_.pdf(hit.light, prev_p, hit.p, hit.n));
+}
+
+Vec3 PathIntegrator::sample_light(const SurfaceHit& hit, const Vec3& wo_local, const Frame& frame,
+                                  const Bsdf& bsdf, Pcg32& rng, uint64_t& rays) const {
+  const float u_select = rng.next_float(), u1 = rng.next_float(), u2 = rng.next_float();
+  LightSample ls;
+  if (!lights_.sample(hit.p, u_select, u1, u2, ls)) return Vec3(0.f);
+  const Vec3 wi_local = frame.to_local(ls.wi);
+  const Vec3 f = bsdf.eval(wo_local, wi_local);
+  if (is_black(f)) return Vec3(0.f);
+  // Shadow ray from the offset origin to the (offset) light point.
+  const Vec3 origin = offset_ray_origin(hit.p, hit.p_error, wi_local.z > 0.f ? frame.n : -frame.n);
+  ++rays;
+  if (data_.bvh().occluded(Ray{origin, ls.target - origin, 0.f, 1.f})) return Vec3(0.f);
+  const float w = (ls.delta || !plan_.weight_emission)
+                      ? 1.f
+                      : power_heuristic(ls.pdf, bsdf.pdf(wo_local, wi_local));
+  return f * ls.radiance * (w / ls.pdf);
+}
+
+Vec3 PathIntegrator::li(Ray ray, Pcg32& rng, uint64_t& rays) const {
+  Vec3 radiance(0.f), beta(1.f);
+  bool specular_bounce = true;  // the camera ray: emitters it sees count fully
+  float bsdf_pdf = 0.f;
+  Vec3 prev_p;
+  for (uint32_t depth = 0;; ++depth) {
+    // Find the next vertex; escaped rays see the background.
+    RayHit rh;
+    ++rays;
+    if (!data_.bvh().intersect(ray, rh)) {
+      radiance += beta * background_;
+      break;
+    }
+    const SurfaceHit hit = data_.resolve(ray, rh);
+    const Material& material = data_.material(hit.material);
+    const Vec3 wo = -normalize(ray.dir);
+
+    // Emission reached by BSDF sampling, weighted against light sampling.
+    if (material.is_emissive()) {
+      const Vec3 le = LightSet::emitted(material, hit.n, wo);
+      if (!is_black(le)) radiance += beta * le * emission_weight(hit, specular_bounce, bsdf_pdf, prev_p);
+    }
+    if (depth == plan_.max_depth) break;
+
+    // Light sampling (NEE / MIS) at non-specular vertices.
+    const Frame frame(hit.n);
+    const Vec3 wo_local = frame.to_local(wo);
+    const Bsdf bsdf(material);
+    if (plan_.sample_lights && !bsdf.is_specular()) {
+      radiance += beta * sample_light(hit, wo_local, frame, bsdf, rng, rays);
+    }
+
+    // BSDF sampling for the next direction.
+    const float u_lobe = rng.next_float(), u1 = rng.next_float(), u2 = rng.next_float();
+    BsdfSample bs;
+    if (!bsdf.sample(wo_local, u_lobe, u1, u2, bs)) break;
+
+    // Russian roulette with survival probability min(1, max component of the update).
+    const float survive = std::min(1.f, max_component(bs.weight));
+    if (!(rng.next_float() < survive)) break;
+    beta *= bs.weight / survive;
+    specular_bounce = bs.specular;
+    bsdf_pdf = bs.pdf;
+    prev_p = hit.p;
+
+    // The ray after the last scattering vertex matters only if it can find counted emission.
+    if (depth + 1 == plan_.max_depth && !plan_.emitters_reachable) break;
+    if (depth + 1 == plan_.max_depth && !specular_bounce && plan_.sample_lights &&
+        !plan_.weight_emission && is_black(background_)) {
+      break;  // NEE: diffuse-bounce emitter hits are not counted
+    }
+    const Vec3 wi = frame.to_world(bs.wi);
+    ray = Ray{offset_ray_origin(hit.p, hit.p_error, bs.wi.z > 0.f ? frame.n : -frame.n), wi};
+  }
+  return radiance;
+}
+
+}  // namespace rayfarm

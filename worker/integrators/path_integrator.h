@@ -1,0 +1,52 @@
+#pragma once
+// The path tracer: naive (BSDF sampling only), NEE (one light per vertex, power-sampled) and MIS
+// (light and BSDF sampling, power heuristic), each with Russian roulette on the throughput
+// update and the max_depth cap of RenderSettings.
+#include <cstdint>
+#include <string>
+
+#include "common/scene/scene.h"
+#include "worker/bsdfs/bsdf.h"
+#include "worker/lights/light_set.h"
+#include "worker/samplers/rng.h"
+#include "worker/scene_data.h"
+
+namespace rayfarm {
+
+/// What a scene needs, decided once per job (see plan()).
+struct IntegratorPlan {
+  IntegratorType integrator = IntegratorType::kMis;
+  bool sample_lights = false;     ///< NEE / MIS light sampling at non-specular vertices
+  bool weight_emission = false;   ///< MIS weights on emitters hit by BSDF rays
+  bool emitters_reachable = false;  ///< area lights or a background that BSDF rays can find
+  uint32_t max_depth = 0;
+};
+
+class PathIntegrator {
+ public:
+  PathIntegrator(const SceneData& data, const LightSet& lights, const RenderSettings& settings);
+
+  /// Radiance arriving along `ray` (one sample). `rays` counts traced rays.
+  Vec3 li(Ray ray, Pcg32& rng, uint64_t& rays) const;
+
+  const IntegratorPlan& plan() const { return plan_; }
+
+ private:
+  Vec3 sample_light(const SurfaceHit& hit, const Vec3& wo_local, const Frame& frame,
+                    const Bsdf& bsdf, Pcg32& rng, uint64_t& rays) const;
+  float emission_weight(const SurfaceHit& hit, bool specular_bounce, float bsdf_pdf,
+                        const Vec3& prev_p) const;
+
+  const SceneData& data_;
+  const LightSet& lights_;
+  IntegratorPlan plan_;
+  Vec3 background_;
+};
+
+/// Power heuristic (beta = 2) weight of a strategy with density a against one with density b.
+inline float power_heuristic(float a, float b) {
+  const float a2 = a * a, b2 = b * b;
+  return a2 + b2 > 0.f ? a2 / (a2 + b2) : 0.f;
+}
+
+}  // namespace rayfarm

@@ -1,0 +1,74 @@
+#pragma once
+// The scene prepared for rendering: the BVH, per-triangle normals, and where each hit's
+// material and light live. Built once per job; read-only while rendering.
+#include <cstdint>
+#include <cstring>
+#include <memory>
+#include <vector>
+
+#include "common/scene/scene.h"
+#include "worker/embree/bvh.h"
+
+namespace rayfarm {
+
+/// What the integrator needs to know about a hit point.
+struct SurfaceHit {
+  Vec3 p;          ///< position, recomputed from the primitive (not org + t dir)
+  Vec3 n;          ///< unit geometric normal on the front side
+  float p_error = 0.f;  ///< offset that clears the error bound of p (scene units)
+  uint32_t material = 0;
+  int32_t light = -1;  ///< index into LightSet, or -1
+};
+
+/// An origin for rays leaving `p` towards the side of `n`: moved `p_error` along n, then one ulp
+/// further away per component, so that rounding cannot bring it back. Scale independent, since
+/// p_error follows the floating-point error of p.
+inline Vec3 offset_ray_origin(const Vec3& p, float p_error, const Vec3& n) {
+  const Vec3 po = p + n * p_error;
+  auto away = [](float v, float dir) {
+    if (dir == 0.f || v == 0.f) return v;
+    uint32_t bits;
+    std::memcpy(&bits, &v, sizeof bits);
+    bits += ((v > 0.f) == (dir > 0.f)) ? 1 : -1;  // one ulp in the direction of dir
+    float out;
+    std::memcpy(&out, &bits, sizeof out);
+    return out;
+  };
+  return {away(po.x, n.x), away(po.y, n.y), away(po.z, n.z)};
+}
+
+/// Offset clearing the error of a point on a triangle (interpolated, or found by the
+/// intersector, which mixes coordinates: the bound follows the largest magnitude involved).
+float triangle_point_error(const Vec3& v0, const Vec3& v1, const Vec3& v2);
+/// Offset clearing the error of a point projected onto a sphere.
+float sphere_point_error(const Vec3& center, float radius);
+
+class SceneData {
+ public:
+  explicit SceneData(const Scene& scene);
+
+  const Scene& scene() const { return scene_; }
+  const Bvh& bvh() const { return *bvh_; }
+  const Material& material(uint32_t i) const { return scene_.materials[i]; }
+
+  /// Resolves an Embree hit into position, normal, material and light.
+  SurfaceHit resolve(const Ray& ray, const RayHit& hit) const;
+  /// Light index of a primitive (-1 when it does not emit); set by LightSet.
+  void set_light_index(uint32_t geom, uint32_t prim, int32_t light);
+  /// Number of triangles dropped because they have no area.
+  uint64_t degenerate_triangles() const { return degenerate_; }
+
+ private:
+  Scene scene_;
+  struct TriangleInfo {
+    Vec3 n;          // unit geometric normal, front side
+    float p_error;   // triangle_point_error of its vertices
+  };
+  std::vector<std::vector<TriangleInfo>> triangles_;  // per mesh, per triangle
+  std::vector<std::vector<int32_t>> mesh_lights_;   // per mesh, per triangle
+  std::vector<int32_t> sphere_lights_;
+  std::unique_ptr<Bvh> bvh_;
+  uint64_t degenerate_ = 0;
+};
+
+}  // namespace rayfarm
