@@ -1,0 +1,323 @@
+#include "master/broker.h"
+
+#include <algorithm>
+#include <array>
+#include <vector>
+
+#include "common/protocol/codec.h"
+#include "common/protocol/convert.h"
+#include "common/util/log.h"
+
+namespace rayfarm::master {
+namespace protocol = rayfarm::protocol;
+using protocol::encode;
+using std::chrono::milliseconds;
+
+namespace {
+
+std::shared_ptr<spdlog::logger> log() { return get_logger("master"); }
+
+/// Most messages handled from one socket before the timers and the other socket get a turn.
+constexpr int kBatch = 256;
+
+net::Frames error_frames(const std::string& message, const std::string& job_id = "") {
+  wire::Error e;
+  e.set_message(message);
+  e.set_job_id(job_id);
+  return encode(std::move(e));
+}
+
+net::Frames refusal_frames(uint32_t peer_version, const char* peer_kind) {
+  wire::Refusal r;
+  r.set_master_version(protocol::kProtocolVersion);
+  r.set_peer_version(peer_version);
+  r.set_reason(fmt::format("protocol version mismatch: the master speaks version {}, the {} sent "
+                           "version {}",
+                           protocol::kProtocolVersion, peer_kind, peer_version));
+  return encode(std::move(r));
+}
+
+}  // namespace
+
+Broker::Broker(MasterOptions options)
+    : options_(std::move(options)),
+      store_(options_.data_dir),
+      jobs_(store_, JobManagerOptions{options_.image_interval, 3,
+                                      [this](const WorkerId& w) { return worker_label(w); }}),
+      workers_socket_(options_.worker_endpoint),
+      clients_socket_(options_.client_endpoint),
+      next_heartbeat_(Clock::now()) {
+  const size_t restarted = jobs_.recover();
+  log()->info("master listening: workers on {}, clients on {}; data dir {}{}", worker_endpoint(),
+              client_endpoint(), options_.data_dir.string(),
+              restarted ? fmt::format(" ({} unfinished jobs restarted)", restarted) : "");
+  log()->info("heartbeat every {} ms, a worker is lost after {} ms of silence",
+              options_.heartbeat.interval.count(), options_.heartbeat.expiry().count());
+}
+
+Broker::~Broker() = default;
+
+std::string Broker::worker_label(const net::PeerId& peer) const {
+  const std::string id = net::peer_label(peer);
+  auto it = workers_.find(peer);
+  if (it == workers_.end()) return "worker " + id;
+  return fmt::format("worker {} ({})", it->second.name, id);
+}
+
+void Broker::run(const std::atomic<bool>& stop) {
+  std::array<net::Socket*, 2> sockets{&workers_socket_, &clients_socket_};
+  while (!stop.load()) {
+    const auto until_heartbeat = std::chrono::duration_cast<milliseconds>(next_heartbeat_ - Clock::now());
+    const auto wait = std::clamp(until_heartbeat, milliseconds{0}, milliseconds{100});
+    const auto readable = net::poll(sockets, wait);
+    if (readable[0]) {
+      for (int i = 0; i < kBatch; ++i) {
+        auto delivery = workers_socket_.receive(milliseconds{0});
+        if (!delivery) break;
+        handle_worker(*delivery);
+      }
+    }
+    if (readable[1]) {
+      for (int i = 0; i < kBatch; ++i) {
+        auto delivery = clients_socket_.receive(milliseconds{0});
+        if (!delivery) break;
+        handle_client(*delivery);
+      }
+    }
+    on_timers();
+  }
+  log()->info("master stopping: {} workers connected, {} jobs unfinished (kept in {})", workers_.size(),
+              jobs_.active_jobs(), options_.data_dir.string());
+}
+
+void Broker::on_timers() {
+  const auto now = Clock::now();
+  if (now >= next_heartbeat_) {
+    const net::Frames beat = encode(wire::Heartbeat{});
+    for (const auto& [peer, w] : workers_) workers_socket_.send(peer, beat);
+    next_heartbeat_ = now + options_.heartbeat.interval;
+  }
+  std::vector<net::PeerId> expired;
+  for (const auto& [peer, w] : workers_) {
+    if (now > w.expires) expired.push_back(peer);
+  }
+  for (const auto& peer : expired) {
+    remove_worker(peer, fmt::format("lost: silent for {:.1f} s",
+                                    std::chrono::duration<double>(options_.heartbeat.expiry()).count()));
+  }
+  jobs_.tick();
+}
+
+void Broker::send_worker(const net::PeerId& peer, const net::Frames& frames) {
+  if (!workers_socket_.send(peer, frames)) {
+    log()->debug("cannot send to {}: disconnected or queue full", worker_label(peer));
+  }
+}
+
+void Broker::reply(const net::PeerId& peer, const net::Frames& frames) {
+  if (!clients_socket_.send(peer, frames)) {
+    log()->debug("cannot reply to client {}: disconnected", net::peer_label(peer));
+  }
+}
+
+void Broker::register_worker(const net::PeerId& peer, const wire::Hello& hello) {
+  if (hello.role() != wire::ROLE_WORKER) {
+    log()->warn("worker socket: {} said hello as a client; refused", net::peer_label(peer));
+    send_worker(peer, error_frames("this is the worker endpoint; clients connect to the client endpoint"));
+    return;
+  }
+  if (workers_.count(peer)) {
+    jobs_.release_worker(peer);  // a worker that starts over holds nothing any more
+  }
+  Worker& w = workers_[peer];
+  w.name = hello.name().empty() ? "unnamed" : hello.name();
+  w.threads = hello.threads();
+  w.expires = Clock::now() + options_.heartbeat.expiry();
+  w.waiting = false;
+  log()->info("{} joined: {} threads, {}; {} worker{} connected", worker_label(peer), w.threads,
+              hello.build().empty() ? "unknown build" : hello.build(), workers_.size(),
+              workers_.size() == 1 ? "" : "s");
+  wire::Welcome welcome;
+  welcome.set_build(protocol::kBuildVersion);
+  welcome.set_heartbeat_interval_ms(static_cast<uint32_t>(options_.heartbeat.interval.count()));
+  welcome.set_liveness(static_cast<uint32_t>(options_.heartbeat.liveness));
+  send_worker(peer, encode(std::move(welcome)));
+}
+
+void Broker::remove_worker(const net::PeerId& peer, const std::string& why) {
+  auto it = workers_.find(peer);
+  if (it == workers_.end()) return;
+  const std::string label = worker_label(peer);
+  const size_t requeued = jobs_.release_worker(peer);
+  workers_.erase(it);
+  const auto level = why.rfind("lost", 0) == 0 ? spdlog::level::warn : spdlog::level::info;
+  log()->log(level, "{} {}; {} unit{} requeued; {} worker{} connected", label, why, requeued,
+             requeued == 1 ? "" : "s", workers_.size(), workers_.size() == 1 ? "" : "s");
+  if (requeued) dispatch();
+}
+
+void Broker::dispatch() {
+  if (!jobs_.has_pending()) return;
+  std::vector<net::PeerId> unreachable;
+  for (auto& [peer, w] : workers_) {
+    if (!w.waiting) continue;
+    auto unit = jobs_.next_unit(peer);
+    if (!unit) break;
+    if (!workers_socket_.send(peer, encode(std::move(*unit)))) {
+      unreachable.push_back(peer);
+      continue;
+    }
+    w.waiting = false;
+    ++w.units_sent;
+  }
+  for (const auto& peer : unreachable) remove_worker(peer, "unreachable (disconnected)");
+}
+
+void Broker::handle_worker(const net::Delivery& delivery) {
+  const net::PeerId& peer = delivery.peer;
+  protocol::Decoded msg;
+  try {
+    msg = protocol::decode(delivery.frames);
+  } catch (const protocol::DecodeError& e) {
+    log()->warn("worker socket: ignored a bad message from {}: {}", worker_label(peer), e.what());
+    return;
+  }
+  if (!msg.version_ok()) {
+    log()->warn("worker socket: refused {} ({}): it speaks protocol version {}, this master {}",
+                worker_label(peer), msg.type, msg.version, protocol::kProtocolVersion);
+    send_worker(peer, refusal_frames(msg.version, "worker"));
+    remove_worker(peer, "refused (protocol version)");
+    return;
+  }
+  try {
+    if (const auto* hello = msg.as<wire::Hello>()) {
+      register_worker(peer, *hello);
+      return;
+    }
+    auto it = workers_.find(peer);
+    if (it != workers_.end()) it->second.expires = Clock::now() + options_.heartbeat.expiry();
+
+    if (const auto* result = msg.as<wire::UnitResult>()) {
+      // Merged even from an unknown peer (a worker declared lost): the bits do not depend on who
+      // rendered the unit, and the merger takes each unit once.
+      jobs_.on_result(peer, *result);
+      if (it == workers_.end()) {
+        send_worker(peer, error_frames("unknown worker: send Hello first"));
+      }
+      dispatch();
+      return;
+    }
+    if (it == workers_.end()) {
+      if (msg.as<wire::Goodbye>()) return;
+      log()->debug("worker socket: {} from unknown {}; asking it to say hello", msg.type,
+                   net::peer_label(peer));
+      send_worker(peer, error_frames("unknown worker: send Hello first"));
+      return;
+    }
+    Worker& w = it->second;
+    if (msg.as<wire::Heartbeat>()) return;
+    if (msg.as<wire::WorkRequest>()) {
+      w.waiting = true;
+      dispatch();
+    } else if (const auto* failed = msg.as<wire::UnitFailed>()) {
+      jobs_.on_unit_failed(peer, *failed);
+      dispatch();
+    } else if (const auto* request = msg.as<wire::BundleRequest>()) {
+      wire::BundleReply reply_msg;
+      reply_msg.set_hash(request->hash());
+      if (auto bundle = jobs_.bundle(request->hash())) {
+        *reply_msg.mutable_bundle() = std::move(*bundle);
+        log()->debug("bundle {} sent to {}", request->hash().substr(0, 12), worker_label(peer));
+      } else {
+        reply_msg.set_error("the master has no bundle " + request->hash());
+      }
+      send_worker(peer, encode(std::move(reply_msg)));
+    } else if (const auto* bye = msg.as<wire::Goodbye>()) {
+      remove_worker(peer, "left" + (bye->reason().empty() ? std::string() : " (" + bye->reason() + ")"));
+    } else {
+      log()->warn("worker socket: unexpected {} from {}; ignored", msg.type, worker_label(peer));
+      send_worker(peer, error_frames("unexpected message " + msg.type + " on the worker endpoint"));
+    }
+  } catch (const std::exception& e) {
+    log()->error("worker socket: failed to handle {} from {}: {}", msg.type, worker_label(peer), e.what());
+  }
+}
+
+void Broker::handle_client(const net::Delivery& delivery) {
+  const net::PeerId& peer = delivery.peer;
+  const std::string label = "client " + net::peer_label(peer);
+  protocol::Decoded msg;
+  try {
+    msg = protocol::decode(delivery.frames);
+  } catch (const protocol::DecodeError& e) {
+    log()->warn("client socket: ignored a bad message from {}: {}", label, e.what());
+    reply(peer, error_frames(std::string("cannot decode the request: ") + e.what()));
+    return;
+  }
+  if (!msg.version_ok()) {
+    log()->warn("client socket: refused {} ({}): it speaks protocol version {}, this master {}", label,
+                msg.type, msg.version, protocol::kProtocolVersion);
+    reply(peer, refusal_frames(msg.version, "client"));
+    return;
+  }
+  const uint32_t worker_count = static_cast<uint32_t>(workers_.size());
+  try {
+    if (const auto* hello = msg.as<wire::Hello>()) {
+      if (hello->role() == wire::ROLE_WORKER) {
+        reply(peer, error_frames("this is the client endpoint; workers connect to the worker endpoint"));
+        return;
+      }
+      wire::Welcome welcome;
+      welcome.set_build(protocol::kBuildVersion);
+      welcome.set_heartbeat_interval_ms(static_cast<uint32_t>(options_.heartbeat.interval.count()));
+      welcome.set_liveness(static_cast<uint32_t>(options_.heartbeat.liveness));
+      reply(peer, encode(std::move(welcome)));
+    } else if (const auto* submit = msg.as<wire::SubmitJob>()) {
+      wire::SubmitReply out;
+      try {
+        out.set_job_id(jobs_.submit(*submit));
+      } catch (const JobRejected& e) {
+        log()->warn("job rejected ({}): {}", submit->scene_path(), e.what());
+        out.set_error(e.what());
+      }
+      reply(peer, encode(std::move(out)));
+      dispatch();
+    } else if (const auto* request = msg.as<wire::StatusRequest>()) {
+      if (auto st = jobs_.status(request->job_id(), worker_count)) {
+        reply(peer, encode(std::move(*st)));
+      } else {
+        reply(peer, error_frames("unknown job '" + request->job_id() + "'", request->job_id()));
+      }
+    } else if (msg.as<wire::ListJobs>()) {
+      wire::JobList list;
+      for (auto& st : jobs_.list(worker_count)) {
+        st.set_protocol_version(protocol::kProtocolVersion);
+        *list.add_jobs() = std::move(st);
+      }
+      reply(peer, encode(std::move(list)));
+    } else if (const auto* cancel = msg.as<wire::CancelJob>()) {
+      if (auto state = jobs_.cancel(cancel->job_id())) {
+        wire::CancelReply out;
+        out.set_job_id(cancel->job_id());
+        out.set_state(*state);
+        reply(peer, encode(std::move(out)));
+      } else {
+        reply(peer, error_frames("unknown job '" + cancel->job_id() + "'", cancel->job_id()));
+      }
+    } else if (const auto* fetch = msg.as<wire::FetchImage>()) {
+      try {
+        reply(peer, encode(jobs_.image(fetch->job_id())));
+      } catch (const JobRejected& e) {
+        reply(peer, error_frames(e.what(), fetch->job_id()));
+      }
+    } else {
+      log()->warn("client socket: unexpected {} from {}; ignored", msg.type, label);
+      reply(peer, error_frames("unexpected message " + msg.type + " on the client endpoint"));
+    }
+  } catch (const std::exception& e) {
+    log()->error("client socket: failed to handle {} from {}: {}", msg.type, label, e.what());
+    reply(peer, error_frames(std::string("the master failed to handle the request: ") + e.what()));
+  }
+}
+
+}  // namespace rayfarm::master

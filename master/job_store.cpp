@@ -1,0 +1,216 @@
+#include "master/job_store.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <fstream>
+#include <iterator>
+#include <stdexcept>
+#include <system_error>
+
+#include <nlohmann/json.hpp>
+#include <unistd.h>
+
+#include "common/image/film_output.h"
+#include "common/util/log.h"
+
+namespace rayfarm::master {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+const char* state_key(wire::JobState s) {
+  switch (s) {
+    case wire::JOB_QUEUED: return "queued";
+    case wire::JOB_RUNNING: return "running";
+    case wire::JOB_DONE: return "done";
+    case wire::JOB_FAILED: return "failed";
+    case wire::JOB_CANCELLED: return "cancelled";
+    default: return "queued";
+  }
+}
+
+wire::JobState state_from_key(const std::string& s) {
+  if (s == "running") return wire::JOB_RUNNING;
+  if (s == "done") return wire::JOB_DONE;
+  if (s == "failed") return wire::JOB_FAILED;
+  if (s == "cancelled") return wire::JOB_CANCELLED;
+  return wire::JOB_QUEUED;
+}
+
+json to_json(const JobRecord& r) {
+  const JobSpec& s = r.spec;
+  return json{{"id", s.id},
+              {"name", s.name},
+              {"bundle_hash", s.bundle_hash},
+              {"scene_path", s.scene_path},
+              {"spp", s.settings.spp},
+              {"max_depth", s.settings.max_depth},
+              {"integrator", integrator_name(s.settings.integrator)},
+              {"seed", s.settings.seed},
+              {"width", s.film.width},
+              {"height", s.film.height},
+              {"tile_size", s.tile_size},
+              {"pass_spp", s.pass_spp},
+              {"submitted_unix_ms", s.submitted_unix_ms},
+              {"state", state_key(r.state)},
+              {"error", r.error},
+              {"elapsed_seconds", r.elapsed_seconds}};
+}
+
+JobRecord from_json(const json& j) {
+  JobRecord r;
+  JobSpec& s = r.spec;
+  s.id = j.at("id").get<std::string>();
+  s.name = j.at("name").get<std::string>();
+  s.bundle_hash = j.at("bundle_hash").get<std::string>();
+  s.scene_path = j.at("scene_path").get<std::string>();
+  s.settings.spp = j.at("spp").get<uint32_t>();
+  s.settings.max_depth = j.at("max_depth").get<uint32_t>();
+  const auto integrator = parse_integrator(j.at("integrator").get<std::string>());
+  if (!integrator) throw std::runtime_error("unknown integrator");
+  s.settings.integrator = *integrator;
+  s.settings.seed = j.at("seed").get<uint64_t>();
+  s.film.width = j.at("width").get<uint32_t>();
+  s.film.height = j.at("height").get<uint32_t>();
+  s.tile_size = j.at("tile_size").get<uint32_t>();
+  s.pass_spp = j.at("pass_spp").get<uint32_t>();
+  s.submitted_unix_ms = j.at("submitted_unix_ms").get<int64_t>();
+  r.state = state_from_key(j.at("state").get<std::string>());
+  r.error = j.value("error", "");
+  r.elapsed_seconds = j.value("elapsed_seconds", 0.0);
+  if (s.settings.spp == 0 || s.tile_size == 0 || s.pass_spp == 0 || s.film.width == 0 ||
+      s.film.height == 0) {
+    throw std::runtime_error("zero size, spp, tile or pass");
+  }
+  return r;
+}
+
+std::optional<std::string> slurp(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return std::nullopt;
+  std::string data{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  if (in.bad()) return std::nullopt;
+  return data;
+}
+
+/// The number in a job id "j0042", or 0 when it is not one.
+uint64_t id_number(const std::string& id) {
+  if (id.size() < 2 || id[0] != 'j') return 0;
+  uint64_t n = 0;
+  for (size_t i = 1; i < id.size(); ++i) {
+    if (id[i] < '0' || id[i] > '9' || n > (uint64_t{1} << 40)) return 0;
+    n = n * 10 + static_cast<uint64_t>(id[i] - '0');
+  }
+  return n;
+}
+
+}  // namespace
+
+void write_file_atomic(const fs::path& path, const std::string& bytes) {
+  const fs::path temp = path.string() + ".tmp-" + std::to_string(::getpid());
+  {
+    std::ofstream out(temp, std::ios::binary | std::ios::trunc);
+    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    out.close();
+    if (!out) {
+      std::error_code ec;
+      fs::remove(temp, ec);
+      throw std::runtime_error("cannot write " + temp.string());
+    }
+  }
+  std::error_code ec;
+  fs::rename(temp, path, ec);
+  if (ec) {
+    fs::remove(temp, ec);
+    throw std::runtime_error("cannot rename into " + path.string() + ": " + ec.message());
+  }
+}
+
+JobStore::JobStore(fs::path data_dir) : root_(std::move(data_dir)) {
+  std::error_code ec;
+  fs::create_directories(root_ / "jobs", ec);
+  if (!ec) {
+    fs::remove_all(root_ / "tmp", ec);
+    ec.clear();
+    fs::create_directories(root_ / "tmp", ec);
+  }
+  if (ec) throw std::runtime_error("cannot use data dir " + root_.string() + ": " + ec.message());
+  for (const auto& entry : fs::directory_iterator(root_ / "jobs", ec)) {
+    next_id_ = std::max(next_id_, id_number(entry.path().filename().string()) + 1);
+  }
+}
+
+fs::path JobStore::job_dir(const std::string& id) const { return root_ / "jobs" / id; }
+
+std::string JobStore::allocate_id() {
+  for (;; ++next_id_) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "j%04llu", static_cast<unsigned long long>(next_id_));
+    std::error_code ec;
+    if (fs::create_directory(job_dir(buf), ec) && !ec) {
+      ++next_id_;
+      return buf;
+    }
+    if (ec) throw std::runtime_error("cannot create " + job_dir(buf).string() + ": " + ec.message());
+  }
+}
+
+fs::path JobStore::make_scratch_dir() {
+  const fs::path dir = root_ / "tmp" / fmt::format("s{}", ++scratch_counter_);
+  std::error_code ec;
+  fs::remove_all(dir, ec);
+  fs::create_directories(dir, ec);
+  if (ec) throw std::runtime_error("cannot create " + dir.string() + ": " + ec.message());
+  return dir;
+}
+
+void JobStore::save_record(const JobRecord& record) {
+  write_file_atomic(job_dir(record.spec.id) / "job.json", to_json(record).dump(2) + "\n");
+}
+
+void JobStore::save_bundle(const std::string& id, const wire::Bundle& bundle) {
+  std::string bytes;
+  if (!bundle.SerializeToString(&bytes)) throw std::runtime_error("cannot serialize bundle of " + id);
+  write_file_atomic(job_dir(id) / "bundle.pb", bytes);
+}
+
+std::optional<wire::Bundle> JobStore::load_bundle(const std::string& id) const {
+  auto bytes = slurp(job_dir(id) / "bundle.pb");
+  if (!bytes) return std::nullopt;
+  wire::Bundle bundle;
+  if (!bundle.ParseFromString(*bytes)) return std::nullopt;
+  return bundle;
+}
+
+void JobStore::save_image(const std::string& id, const Film& film,
+                          const std::map<std::string, std::string>& attributes) {
+  write_film(job_dir(id) / "image.exr", film, attributes);
+}
+
+std::optional<std::string> JobStore::read_file(const std::string& id, const std::string& name) const {
+  return slurp(job_dir(id) / name);
+}
+
+std::vector<JobRecord> JobStore::load_records() const {
+  std::vector<JobRecord> records;
+  std::error_code ec;
+  std::vector<fs::path> dirs;
+  for (const auto& entry : fs::directory_iterator(root_ / "jobs", ec)) dirs.push_back(entry.path());
+  std::sort(dirs.begin(), dirs.end());
+  for (const auto& dir : dirs) {
+    const fs::path file = dir / "job.json";
+    auto text = slurp(file);
+    if (!text) continue;  // a job dir whose record was never written: a submit that failed
+    try {
+      JobRecord r = from_json(json::parse(*text));
+      if (r.spec.id != dir.filename().string()) throw std::runtime_error("id does not match its folder");
+      records.push_back(std::move(r));
+    } catch (const std::exception& e) {
+      get_logger("master")->warn("skipping {}: {}", file.string(), e.what());
+    }
+  }
+  return records;
+}
+
+}  // namespace rayfarm::master

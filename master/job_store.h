@@ -1,0 +1,81 @@
+#pragma once
+// The master's data dir. Every file is written to a temporary name and renamed into place, so a
+// reader (or a crash) never sees half a file.
+//
+//   <data>/jobs/<id>/job.json    the job: settings, state, error (job_store.cpp lists the keys)
+//   <data>/jobs/<id>/bundle.pb   the scene bundle (a serialized rayfarm.wire.Bundle)
+//   <data>/jobs/<id>/image.exr   the current estimate, float32 RGB, rewritten as passes complete
+//   <data>/jobs/<id>/image.png   its sRGB preview
+//   <data>/tmp/                  scratch space (scene validation), emptied at start
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/image/film.h"
+#include "common/scene/scene.h"
+#include "proto/rayfarm.pb.h"
+
+namespace rayfarm::master {
+
+/// What a job is: fixed when it is accepted.
+struct JobSpec {
+  std::string id;
+  std::string name;
+  std::string bundle_hash;
+  std::string scene_path;  ///< the scene file inside the bundle
+  RenderSettings settings;
+  FilmSize film;
+  uint32_t tile_size = 64;
+  uint32_t pass_spp = 1;
+  int64_t submitted_unix_ms = 0;
+};
+
+/// A job as stored: its spec and where it stands.
+struct JobRecord {
+  JobSpec spec;
+  wire::JobState state = wire::JOB_QUEUED;
+  std::string error;
+  double elapsed_seconds = 0.0;  ///< from the first unit handed out to the end
+};
+
+class JobStore {
+ public:
+  /// Opens (creating) the data dir. Throws std::runtime_error naming the folder on failure.
+  explicit JobStore(std::filesystem::path data_dir);
+
+  const std::filesystem::path& root() const { return root_; }
+  std::filesystem::path job_dir(const std::string& id) const;
+  /// A new job id ("j0001", "j0002", ...), never one in use in the data dir.
+  std::string allocate_id();
+  /// A fresh empty folder under tmp/.
+  std::filesystem::path make_scratch_dir();
+
+  /// Writes job.json. Throws std::runtime_error on an I/O error.
+  void save_record(const JobRecord& record);
+  /// Writes bundle.pb. Throws std::runtime_error on an I/O error.
+  void save_bundle(const std::string& id, const wire::Bundle& bundle);
+  /// Reads bundle.pb; nullopt when missing or unreadable.
+  std::optional<wire::Bundle> load_bundle(const std::string& id) const;
+  /// Writes the film's estimate to image.exr and its preview to image.png, exactly as
+  /// `rayfarm render` writes its output (common/image/film_output.h). Throws ImageError.
+  void save_image(const std::string& id, const Film& film,
+                  const std::map<std::string, std::string>& attributes);
+  /// The bytes of image.exr or image.png (`name`), nullopt when not written yet.
+  std::optional<std::string> read_file(const std::string& id, const std::string& name) const;
+  /// Every readable job.json, in id order; unreadable ones are logged and skipped.
+  std::vector<JobRecord> load_records() const;
+
+ private:
+  std::filesystem::path root_;
+  uint64_t next_id_ = 1;
+  uint64_t scratch_counter_ = 0;
+};
+
+/// Writes `bytes` to a temporary file beside `path` and renames it into place. Throws
+/// std::runtime_error naming the file.
+void write_file_atomic(const std::filesystem::path& path, const std::string& bytes);
+
+}  // namespace rayfarm::master

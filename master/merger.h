@@ -1,0 +1,47 @@
+#pragma once
+// Merges the results of one job into its Film, each unit exactly once. A result is checked against
+// the unit it claims to be (tile, sample range, sizes) before Film::add, which CHECKs; a second
+// result for a merged unit is a duplicate and is dropped. The film's fixed-point sums make the
+// image independent of the order of arrival (common/image/film.h).
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "common/image/film.h"
+#include "master/unit_grid.h"
+
+namespace rayfarm::master {
+
+enum class MergeOutcome {
+  kMerged,     ///< added to the film
+  kDuplicate,  ///< the unit was merged before; the result is dropped
+  kRejected,   ///< the result does not match its unit; nothing is added
+};
+
+class Merger {
+ public:
+  explicit Merger(UnitGrid grid);
+
+  /// Merges `result` as unit `unit`. On kRejected, `why` (when given) names the mismatch.
+  MergeOutcome add(uint64_t unit, const TileResult& result, std::string* why = nullptr);
+
+  bool merged(uint64_t unit) const { return unit < merged_.size() && merged_[unit]; }
+  uint64_t merged_count() const { return merged_count_; }
+  bool complete() const { return merged_count_ == grid_.size(); }
+  /// Passes merged over the whole image, counting from pass 0 without a gap.
+  uint32_t passes_complete() const;
+  /// Pixel samples merged so far.
+  uint64_t samples_merged() const { return samples_merged_; }
+  const Film& film() const { return film_; }
+  const UnitGrid& grid() const { return grid_; }
+
+ private:
+  UnitGrid grid_;
+  Film film_;
+  std::vector<bool> merged_;
+  std::vector<uint32_t> merged_per_pass_;
+  uint64_t merged_count_ = 0;
+  uint64_t samples_merged_ = 0;
+};
+
+}  // namespace rayfarm::master

@@ -1,0 +1,29 @@
+#include "master/unit_grid.h"
+
+#include "common/util/check.h"
+
+namespace rayfarm::master {
+
+UnitGrid::UnitGrid(FilmSize film, uint32_t tile_size, uint32_t spp, uint32_t pass_spp)
+    : film_(film), spp_(spp), tiles_(split_tiles(film, tile_size)),
+      passes_(split_passes(spp, pass_spp)) {}
+
+UnitGrid::Unit UnitGrid::unit(uint64_t id) const {
+  RAYFARM_CHECK(id < size(), "unit number out of range");
+  const uint64_t tiles = tiles_.size();
+  Unit u;
+  u.id = id;
+  u.pass = static_cast<uint32_t>(id / tiles);
+  u.rect = tiles_[id % tiles];
+  u.samples = passes_[u.pass];
+  return u;
+}
+
+uint64_t UnitGrid::samples_in(uint64_t id) const {
+  const Unit u = unit(id);
+  return uint64_t{u.rect.pixel_count()} * u.samples.count();
+}
+
+uint64_t UnitGrid::samples_total() const { return uint64_t{film_.width} * film_.height * spp_; }
+
+}  // namespace rayfarm::master

@@ -1,0 +1,43 @@
+#pragma once
+// The units of work of one job: every tile for every sample pass. Units are numbered pass-major
+// (unit = pass * tiles + tile), so handing them out in number order finishes pass 0 over the whole
+// image before pass 1 starts, and the image converges uniformly.
+#include <cstdint>
+#include <vector>
+
+#include "common/image/film.h"
+
+namespace rayfarm::master {
+
+class UnitGrid {
+ public:
+  /// One unit: its number, its pass, the tile and the sample range.
+  struct Unit {
+    uint64_t id = 0;
+    uint32_t pass = 0;
+    TileRect rect;
+    SampleRange samples;
+  };
+
+  /// Splits `film` into tiles of at most tile_size and [0, spp) into passes of pass_spp.
+  UnitGrid(FilmSize film, uint32_t tile_size, uint32_t spp, uint32_t pass_spp);
+
+  uint64_t size() const { return uint64_t{tiles_.size()} * passes_.size(); }
+  uint32_t tile_count() const { return static_cast<uint32_t>(tiles_.size()); }
+  uint32_t pass_count() const { return static_cast<uint32_t>(passes_.size()); }
+  FilmSize film() const { return film_; }
+  /// Unit `id` (CHECKs id < size()).
+  Unit unit(uint64_t id) const;
+  /// Pixel samples in one unit (pixels of the tile x samples of the pass).
+  uint64_t samples_in(uint64_t id) const;
+  /// Pixel samples of the whole job.
+  uint64_t samples_total() const;
+
+ private:
+  FilmSize film_;
+  uint32_t spp_;
+  std::vector<TileRect> tiles_;
+  std::vector<SampleRange> passes_;
+};
+
+}  // namespace rayfarm::master

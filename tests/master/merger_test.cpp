@@ -1,0 +1,100 @@
+// The merger without sockets: each unit merges once (a duplicate is dropped, the film untouched),
+// a result that does not match its unit is rejected before Film::add, and any order of arrival
+// gives the same bits as merging in unit order.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <random>
+
+#include "master/merger.h"
+
+namespace rayfarm::master {
+namespace {
+
+/// A deterministic fake result for unit `id`: sums from a generator seeded by the unit.
+TileResult fake_result(const UnitGrid& grid, uint64_t id) {
+  const UnitGrid::Unit u = grid.unit(id);
+  TileResult r(u.rect, u.samples);
+  std::mt19937_64 rng(id * 7919 + 1);
+  for (size_t i = 0; i < r.sum.size(); ++i) {
+    r.sum[i] = to_fixed(static_cast<double>(rng() % 100000) / 4096.0 * u.samples.count());
+    r.sum_sq[i] = to_fixed(static_cast<double>(rng() % 100000) / 1024.0);
+  }
+  r.rays = u.rect.pixel_count();
+  return r;
+}
+
+const UnitGrid kGrid({70, 40}, 32, 24, 8);  // 3 x 2 tiles x 3 passes = 18 units
+
+TEST(Merger, MergesEachUnitOnceAndDropsDuplicates) {
+  Merger m(kGrid);
+  const TileResult r = fake_result(kGrid, 4);
+  EXPECT_EQ(m.add(4, r), MergeOutcome::kMerged);
+  const std::vector<Fixed> before = m.film().sum();
+  EXPECT_EQ(m.add(4, r), MergeOutcome::kDuplicate);
+  EXPECT_TRUE(m.film().sum() == before);
+  EXPECT_EQ(m.merged_count(), 1u);
+  EXPECT_TRUE(m.merged(4));
+  EXPECT_FALSE(m.merged(5));
+}
+
+TEST(Merger, RejectsResultsThatDoNotMatchTheirUnit) {
+  Merger m(kGrid);
+  std::string why;
+  // Another unit's tile.
+  EXPECT_EQ(m.add(0, fake_result(kGrid, 1), &why), MergeOutcome::kRejected);
+  EXPECT_NE(why.find("unit 0"), std::string::npos) << why;
+  // The right tile, another pass.
+  EXPECT_EQ(m.add(0, fake_result(kGrid, 6), &why), MergeOutcome::kRejected);
+  // The right tile and samples, sums of the wrong size.
+  TileResult short_sums = fake_result(kGrid, 0);
+  short_sums.sum.pop_back();
+  EXPECT_EQ(m.add(0, short_sums, &why), MergeOutcome::kRejected);
+  EXPECT_NE(why.find("malformed"), std::string::npos) << why;
+  // A unit that does not exist.
+  EXPECT_EQ(m.add(18, fake_result(kGrid, 0), &why), MergeOutcome::kRejected);
+  EXPECT_EQ(m.merged_count(), 0u);
+  EXPECT_EQ(m.film().min_spp(), 0u);
+  // The real result still merges afterwards.
+  EXPECT_EQ(m.add(0, fake_result(kGrid, 0)), MergeOutcome::kMerged);
+}
+
+TEST(Merger, AnyOrderOfArrivalGivesTheSameBits) {
+  Merger in_order(kGrid);
+  for (uint64_t u = 0; u < kGrid.size(); ++u) ASSERT_EQ(in_order.add(u, fake_result(kGrid, u)), MergeOutcome::kMerged);
+  ASSERT_TRUE(in_order.complete());
+  const std::vector<float> reference = in_order.film().mean_rgb();
+
+  std::vector<uint64_t> order(kGrid.size());
+  for (uint64_t u = 0; u < order.size(); ++u) order[u] = u;
+  std::mt19937 rng(3);
+  for (int trial = 0; trial < 5; ++trial) {
+    std::shuffle(order.begin(), order.end(), rng);
+    Merger shuffled(kGrid);
+    for (uint64_t u : order) {
+      shuffled.add(u, fake_result(kGrid, u));
+      shuffled.add(u, fake_result(kGrid, u));  // every result twice: duplicates change nothing
+    }
+    ASSERT_TRUE(shuffled.complete());
+    EXPECT_TRUE(shuffled.film().sum() == in_order.film().sum());
+    EXPECT_TRUE(shuffled.film().sum_sq() == in_order.film().sum_sq());
+    EXPECT_TRUE(shuffled.film().mean_rgb() == reference);
+    EXPECT_EQ(shuffled.film().min_spp(), 24u);
+  }
+}
+
+TEST(Merger, CountsPassesCompleteFromPassZero) {
+  Merger m(kGrid);
+  EXPECT_EQ(m.passes_complete(), 0u);
+  for (uint64_t u = 6; u < 12; ++u) m.add(u, fake_result(kGrid, u));  // all of pass 1
+  EXPECT_EQ(m.passes_complete(), 0u);  // pass 0 still missing
+  for (uint64_t u = 0; u < 5; ++u) m.add(u, fake_result(kGrid, u));
+  EXPECT_EQ(m.passes_complete(), 0u);
+  m.add(5, fake_result(kGrid, 5));
+  EXPECT_EQ(m.passes_complete(), 2u);
+  EXPECT_EQ(m.samples_merged(), 70u * 40u * 16u);
+  EXPECT_FALSE(m.complete());
+}
+
+}  // namespace
+}  // namespace rayfarm::master
