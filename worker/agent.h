@@ -1,0 +1,49 @@
+#pragma once
+// The worker's loop (the reliable-worker pattern): a DEALER socket to the master, Hello, then one
+// WorkRequest per unit. Units render on a separate thread inside a TBB arena of the chosen size,
+// so heartbeats keep flowing while a unit renders. A bundle the worker lacks is fetched from the
+// master and cached; the Renderer of the current job is kept between units. When the master is
+// silent for its liveness window the worker reconnects with exponential back-off. Stopping
+// finishes the unit in hand, returns its result and says goodbye.
+#include <atomic>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <string>
+
+#include "common/protocol/heartbeat.h"
+
+namespace rayfarm::worker {
+
+struct AgentOptions {
+  std::string master = "tcp://localhost:5555";  ///< the master's worker endpoint
+  uint32_t threads = 0;                           ///< render threads; 0 = all hardware threads
+  std::filesystem::path cache_dir = "rayfarm-cache";
+  std::string name;                               ///< for the master's logs; "" = host-pid
+  protocol::HeartbeatOptions heartbeat;
+};
+
+class Agent {
+ public:
+  /// Throws std::runtime_error when the cache dir cannot be created.
+  explicit Agent(AgentOptions options);
+  ~Agent();
+  Agent(const Agent&) = delete;
+  Agent& operator=(const Agent&) = delete;
+
+  /// Serves the master until `stop` becomes true; returns 0 after a clean stop, 1 when the master
+  /// refused this worker (another protocol version) or the endpoint is invalid.
+  int run(const std::atomic<bool>& stop);
+
+  /// Units rendered and returned so far.
+  uint64_t units_rendered() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// "<hostname>-<pid>": a worker's default name.
+std::string default_worker_name();
+
+}  // namespace rayfarm::worker

@@ -1,0 +1,70 @@
+// rayfarm-worker: connects to a master, renders the units it is given, and stops cleanly on
+// SIGINT or SIGTERM after the unit in hand.
+#include <atomic>
+#include <csignal>
+#include <exception>
+#include <iostream>
+
+#include <CLI/CLI.hpp>
+
+#include "common/util/log.h"
+#include "worker/agent.h"
+
+namespace {
+
+std::atomic<bool> g_stop{false};
+void on_signal(int) { g_stop.store(true); }
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"rayfarm-worker: renders units of work for a rayfarm master"};
+  rayfarm::worker::AgentOptions options;
+  std::string cache_dir = options.cache_dir.string();
+  std::string log_level = "info";
+  std::string log_format = "text";
+  int64_t heartbeat_ms = options.heartbeat.interval.count();
+  int64_t reconnect_max_ms = options.heartbeat.reconnect_max.count();
+  app.add_option("--master", options.master, "the master's worker endpoint")->capture_default_str();
+  app.add_option("--threads", options.threads, "render threads (0 = all hardware threads)")
+      ->capture_default_str();
+  app.add_option("--cache-dir", cache_dir, "where scene bundles are cached")->capture_default_str();
+  app.add_option("--name", options.name, "name in the master's logs (default host-pid)");
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off")->capture_default_str();
+  app.add_option("--log-format", log_format, "text or json")
+      ->check(CLI::IsMember({"text", "json"}))
+      ->capture_default_str();
+  app.add_option("--heartbeat-ms", heartbeat_ms, "heartbeat interval in milliseconds")
+      ->check(CLI::Range(int64_t{10}, int64_t{60000}))
+      ->capture_default_str();
+  app.add_option("--liveness", options.heartbeat.liveness,
+                 "heartbeat intervals of silence before the master is considered gone")
+      ->check(CLI::Range(1, 100))
+      ->capture_default_str();
+  app.add_option("--reconnect-max-ms", reconnect_max_ms, "longest back-off between reconnections")
+      ->check(CLI::Range(int64_t{10}, int64_t{600000}))
+      ->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+
+  try {
+    rayfarm::configure_logging(log_level, log_format == "json" ? rayfarm::LogFormat::kJson
+                                                               : rayfarm::LogFormat::kText);
+  } catch (const std::exception& e) {
+    std::cerr << "rayfarm-worker: error: " << e.what() << "\n";
+    return 2;
+  }
+  options.cache_dir = cache_dir;
+  options.heartbeat.interval = std::chrono::milliseconds{heartbeat_ms};
+  options.heartbeat.reconnect_max = std::chrono::milliseconds{reconnect_max_ms};
+  options.heartbeat.reconnect_min = std::min(options.heartbeat.reconnect_min, options.heartbeat.reconnect_max);
+
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+  try {
+    rayfarm::worker::Agent agent(options);
+    return agent.run(g_stop);
+  } catch (const std::exception& e) {
+    rayfarm::get_logger("worker")->critical("{}", e.what());
+    return 1;
+  }
+}
