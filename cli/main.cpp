@@ -24,6 +24,7 @@ int main(int argc, char** argv) {
   int exit_code = 0;
   rayfarm::cli::add_render_command(app, exit_code);
   rayfarm::cli::add_compare_command(app, exit_code);
+  rayfarm::cli::add_farm_commands(app, exit_code);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -1,0 +1,435 @@
+// The farm's client commands: submit, status, list, watch, cancel, fetch. Each talks to the
+// master's client endpoint over one DEALER socket: Hello, then one request and its reply, every
+// wait bounded by --timeout so that an unreachable master is an error (exit 3), never a hang.
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <optional>
+#include <stdexcept>
+#include <thread>
+
+#include <fmt/format.h>
+
+#include "cli/commands.h"
+#include "common/bundle/bundle.h"
+#include "common/image/film_output.h"
+#include "common/net/socket.h"
+#include "common/protocol/codec.h"
+#include "common/protocol/convert.h"
+#include "common/scene/parser.h"
+
+namespace rayfarm::cli {
+namespace {
+namespace fs = std::filesystem;
+namespace protocol = rayfarm::protocol;
+namespace wire = rayfarm::wire;
+using protocol::encode;
+
+constexpr int kExitError = 1;
+constexpr int kExitJobUnsuccessful = 2;  // the job failed or was cancelled
+constexpr int kExitUnreachable = 3;
+constexpr int kExitInterrupted = 130;
+constexpr auto kWatchPeriod = std::chrono::milliseconds{500};
+
+/// The master did not answer in time.
+class Unreachable : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// The master answered with an error (or a refusal); what() is its message.
+class MasterError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+std::atomic<bool> g_interrupted{false};
+void on_sigint(int) { g_interrupted.store(true); }
+
+std::string default_master() {
+  const char* env = std::getenv("RAYFARM_MASTER");
+  return env && *env ? env : "tcp://localhost:5556";
+}
+
+struct ClientArgs {
+  std::string master = default_master();
+  double timeout = 10.0;
+};
+
+void add_client_options(CLI::App* cmd, ClientArgs& args) {
+  cmd->add_option("--master", args.master, "the master's client endpoint (env RAYFARM_MASTER)")
+      ->capture_default_str();
+  cmd->add_option("--timeout", args.timeout, "seconds to wait for the master")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+}
+
+/// One connection to the master's client endpoint.
+class FarmClient {
+ public:
+  explicit FarmClient(const ClientArgs& args)
+      : endpoint_(args.master), timeout_(std::chrono::duration_cast<std::chrono::milliseconds>(
+                                    std::chrono::duration<double>(args.timeout))),
+        socket_(args.master) {
+    wire::Hello hello;
+    hello.set_role(wire::ROLE_CLIENT);
+    hello.set_name("rayfarm-cli");
+    hello.set_build(protocol::kBuildVersion);
+    call<wire::Welcome>(encode(std::move(hello)));
+  }
+
+  /// Sends a request and waits for a reply of type Reply. Throws Unreachable after the timeout
+  /// and MasterError on an Error or Refusal.
+  template <class Reply>
+  Reply call(const net::Frames& request) {
+    if (!socket_.send(request)) throw Unreachable(unreachable_message());
+    const auto deadline = std::chrono::steady_clock::now() + timeout_;
+    while (true) {
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+          deadline - std::chrono::steady_clock::now());
+      if (left.count() <= 0) throw Unreachable(unreachable_message());
+      auto frames = socket_.receive(std::min(left, std::chrono::milliseconds{100}));
+      if (!frames) {
+        if (g_interrupted.load()) throw MasterError("interrupted");
+        continue;
+      }
+      protocol::Decoded msg = protocol::decode(*frames);
+      if (const auto* refusal = msg.as<wire::Refusal>()) throw MasterError(refusal->reason());
+      if (const auto* error = msg.as<wire::Error>()) throw MasterError(error->message());
+      if (const auto* reply = msg.as<Reply>()) return *reply;
+      throw MasterError("unexpected reply " + msg.type + " from the master");
+    }
+  }
+
+ private:
+  std::string endpoint_;
+  std::chrono::milliseconds timeout_;
+  net::Dealer socket_;
+
+  std::string unreachable_message() const {
+    return fmt::format("cannot reach master at {} within {:g} s", endpoint_, timeout_.count() / 1000.0);
+  }
+};
+
+/// Runs `body`, turning the farm's failures into messages and exit codes.
+template <class Body>
+int guarded(const char* command, Body&& body) {
+  try {
+    return body();
+  } catch (const Unreachable& e) {
+    std::cerr << "rayfarm " << command << ": error: " << e.what() << "\n";
+    return kExitUnreachable;
+  } catch (const std::exception& e) {
+    if (g_interrupted.load()) return kExitInterrupted;
+    std::cerr << "rayfarm " << command << ": error: " << e.what() << "\n";
+    return kExitError;
+  }
+}
+
+std::string format_duration(double seconds) {
+  if (seconds < 0) return "?";
+  if (seconds < 60) return fmt::format("{:.1f} s", seconds);
+  if (seconds < 3600) return fmt::format("{}m{:02}s", static_cast<int>(seconds) / 60, static_cast<int>(seconds) % 60);
+  return fmt::format("{}h{:02}m", static_cast<int>(seconds) / 3600, (static_cast<int>(seconds) / 60) % 60);
+}
+
+std::string format_rate(double samples_per_second) {
+  if (samples_per_second >= 1e6) return fmt::format("{:.2f} Msamples/s", samples_per_second / 1e6);
+  if (samples_per_second >= 1e3) return fmt::format("{:.1f} ksamples/s", samples_per_second / 1e3);
+  return fmt::format("{:.0f} samples/s", samples_per_second);
+}
+
+double percent(const wire::JobStatus& st) {
+  return st.units_total() ? 100.0 * static_cast<double>(st.units_done()) / static_cast<double>(st.units_total())
+                          : 0.0;
+}
+
+bool finished(wire::JobState state) {
+  return state == wire::JOB_DONE || state == wire::JOB_FAILED || state == wire::JOB_CANCELLED;
+}
+
+std::string progress_line(const wire::JobStatus& st) {
+  std::string line = fmt::format("{} {:<9} pass {}/{}  {}/{} spp  {:5.1f}%", st.job_id(),
+                                 protocol::job_state_name(st.state()), st.passes_done(), st.passes_total(),
+                                 st.spp_done(), st.settings().spp(), percent(st));
+  if (st.state() == wire::JOB_RUNNING) {
+    line += fmt::format("  {}  ETA {}  workers {} busy/{}", format_rate(st.samples_per_second()),
+                        format_duration(st.eta_seconds()), st.workers_busy(), st.workers_total());
+  } else if (st.state() == wire::JOB_DONE) {
+    line += fmt::format("  in {}", format_duration(st.elapsed_seconds()));
+  }
+  return line;
+}
+
+const char* integrator_label(wire::Integrator value) {
+  try {
+    return integrator_name(protocol::integrator_from_wire(value));
+  } catch (const protocol::ProtocolError&) {
+    return "unknown integrator";
+  }
+}
+
+void print_status(const wire::JobStatus& st) {
+  std::cout << fmt::format("job        {} ({})\n", st.job_id(), st.name());
+  std::cout << fmt::format("state      {}\n", protocol::job_state_name(st.state()));
+  if (!st.error().empty()) std::cout << fmt::format("error      {}\n", st.error());
+  std::cout << fmt::format("image      {}x{}, {} spp, {}, max depth {}, seed {}\n", st.width(), st.height(),
+                           st.settings().spp(), integrator_label(st.settings().integrator()),
+                           st.settings().max_depth(), st.settings().seed());
+  std::cout << fmt::format("work       tiles of {} px, passes of {} spp: {}/{} units ({:.1f}%), {} leased\n",
+                           st.tile_size(), st.pass_spp(), st.units_done(), st.units_total(), percent(st),
+                           st.units_leased());
+  std::cout << fmt::format("progress   pass {}/{}, {}/{} spp\n", st.passes_done(), st.passes_total(),
+                           st.spp_done(), st.settings().spp());
+  std::cout << fmt::format("time       {} elapsed, ETA {}, {}\n", format_duration(st.elapsed_seconds()),
+                           format_duration(st.eta_seconds()), format_rate(st.samples_per_second()));
+  std::cout << fmt::format("workers    {} busy on this job, {} connected\n", st.workers_busy(),
+                           st.workers_total());
+}
+
+void print_table(const wire::JobList& list) {
+  if (list.jobs().empty()) {
+    std::cout << "no jobs\n";
+    return;
+  }
+  std::cout << fmt::format("{:<8} {:<20} {:<9} {:>7} {:>11} {:>11} {:>10}\n", "JOB", "NAME", "STATE",
+                           "DONE", "SPP", "SIZE", "ELAPSED");
+  for (const auto& st : list.jobs()) {
+    std::cout << fmt::format("{:<8} {:<20} {:<9} {:>6.1f}% {:>11} {:>11} {:>10}\n", st.job_id(),
+                             st.name().substr(0, 20), protocol::job_state_name(st.state()), percent(st),
+                             fmt::format("{}/{}", st.spp_done(), st.settings().spp()),
+                             fmt::format("{}x{}", st.width(), st.height()),
+                             format_duration(st.elapsed_seconds()));
+  }
+}
+
+wire::JobStatus query_status(FarmClient& client, const std::string& job) {
+  wire::StatusRequest request;
+  request.set_job_id(job);
+  return client.call<wire::JobStatus>(encode(std::move(request)));
+}
+
+/// Shows a live progress line until the job ends; returns the exit code for its final state.
+int watch_job(FarmClient& client, const std::string& job) {
+  const bool tty = isatty(STDOUT_FILENO) != 0;
+  std::signal(SIGINT, on_sigint);
+  std::string last_line;
+  auto last_print = std::chrono::steady_clock::now() - std::chrono::hours(1);
+  while (true) {
+    const wire::JobStatus st = query_status(client, job);
+    const std::string line = progress_line(st);
+    const auto now = std::chrono::steady_clock::now();
+    if (tty) {
+      std::cout << "\r\033[K" << line << std::flush;
+    } else if (st.passes_done() != 0 && line != last_line &&
+               (now - last_print >= std::chrono::seconds(2) || finished(st.state()))) {
+      std::cout << line << "\n" << std::flush;
+      last_print = now;
+    } else if (last_line.empty() || finished(st.state())) {
+      std::cout << line << "\n" << std::flush;
+      last_print = now;
+    }
+    last_line = line;
+    if (finished(st.state())) {
+      if (tty) std::cout << "\n";
+      if (!st.error().empty()) std::cerr << "job " << job << " failed: " << st.error() << "\n";
+      return st.state() == wire::JOB_DONE ? 0 : kExitJobUnsuccessful;
+    }
+    for (auto waited = std::chrono::milliseconds{0}; waited < kWatchPeriod; waited += std::chrono::milliseconds{50}) {
+      if (g_interrupted.load()) {
+        if (tty) std::cout << "\n";
+        return kExitInterrupted;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds{50});
+    }
+  }
+}
+
+void write_bytes_atomic(const fs::path& path, const std::string& bytes) {
+  const fs::path temp = path.string() + ".tmp-" + std::to_string(::getpid());
+  {
+    std::ofstream out(temp, std::ios::binary | std::ios::trunc);
+    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    out.close();
+    if (!out) {
+      std::error_code ec;
+      fs::remove(temp, ec);
+      throw std::runtime_error("cannot write " + path.string());
+    }
+  }
+  std::error_code ec;
+  fs::rename(temp, path, ec);
+  if (ec) {
+    fs::remove(temp, ec);
+    throw std::runtime_error("cannot write " + path.string() + ": " + ec.message());
+  }
+}
+
+// --- Commands ---
+
+struct SubmitArgs {
+  ClientArgs client;
+  std::string scene;
+  std::optional<uint32_t> spp, max_depth, tile, pass_spp;
+  std::optional<uint64_t> seed;
+  std::optional<std::string> integrator;
+  std::string name;
+  bool wait = false;
+};
+
+int run_submit(const SubmitArgs& args) {
+  const PackedScene packed = pack_scene(args.scene);
+  wire::SubmitJob request;
+  protocol::bundle_to_wire(packed.bundle, request.mutable_bundle());
+  request.set_scene_path(packed.scene_path);
+  // Default name: the scene's folder and file, e.g. "cornell-box/scene.json".
+  const fs::path scene_file(args.scene);
+  const fs::path folder = fs::absolute(scene_file).parent_path().filename();
+  request.set_name(!args.name.empty() ? args.name : (folder / scene_file.filename()).generic_string());
+  wire::JobOverrides* o = request.mutable_overrides();
+  if (args.spp) o->set_spp(*args.spp);
+  if (args.max_depth) o->set_max_depth(*args.max_depth);
+  if (args.seed) o->set_seed(*args.seed);
+  if (args.integrator) o->set_integrator(protocol::integrator_to_wire(*parse_integrator(*args.integrator)));
+  if (args.tile) o->set_tile_size(*args.tile);
+  if (args.pass_spp) o->set_pass_spp(*args.pass_spp);
+
+  FarmClient client(args.client);
+  const auto reply = client.call<wire::SubmitReply>(encode(std::move(request)));
+  if (!reply.error().empty()) throw MasterError("the master rejected the job: " + reply.error());
+  std::cout << reply.job_id() << "\n" << std::flush;
+  if (!args.wait) return 0;
+  return watch_job(client, reply.job_id());
+}
+
+void add_submit(CLI::App& app, int& exit_code) {
+  auto args = std::make_shared<SubmitArgs>();
+  CLI::App* cmd = app.add_subcommand("submit", "Submit a scene to a farm; prints the job id");
+  cmd->add_option("scene", args->scene, "Scene file (JSON); it and every file it uses travel with the job")
+      ->required();
+  add_client_options(cmd, args->client);
+  cmd->add_option("--spp", args->spp, "Samples per pixel (default: the scene's)");
+  cmd->add_option("--integrator", args->integrator, "naive, nee or mis (default: the scene's)")
+      ->check(CLI::IsMember({"naive", "nee", "mis"}));
+  cmd->add_option("--max-depth", args->max_depth, "Most scattering vertices per path");
+  cmd->add_option("--seed", args->seed, "Random seed (default: the scene's)");
+  cmd->add_option("--tile", args->tile, "Tile size in pixels (default 64); does not change the image")
+      ->check(CLI::Range(1u, 4096u));
+  cmd->add_option("--pass-spp", args->pass_spp, "Samples per pass (default: automatic); does not change the image")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--name", args->name, "Job name (default: the scene file's name)");
+  cmd->add_flag("--wait", args->wait, "Show progress until the job ends; exit 0 only when it is done");
+  cmd->callback([args, &exit_code] { exit_code = guarded("submit", [&] { return run_submit(*args); }); });
+}
+
+void add_status(CLI::App& app, int& exit_code) {
+  auto args = std::make_shared<ClientArgs>();
+  auto job = std::make_shared<std::string>();
+  CLI::App* cmd = app.add_subcommand("status", "Show one job in detail, or every job");
+  cmd->add_option("job", *job, "Job id (default: every job)");
+  add_client_options(cmd, *args);
+  cmd->callback([args, job, &exit_code] {
+    exit_code = guarded("status", [&] {
+      FarmClient client(*args);
+      if (job->empty()) {
+        print_table(client.call<wire::JobList>(encode(wire::ListJobs{})));
+      } else {
+        print_status(query_status(client, *job));
+      }
+      return 0;
+    });
+  });
+}
+
+void add_list(CLI::App& app, int& exit_code) {
+  auto args = std::make_shared<ClientArgs>();
+  CLI::App* cmd = app.add_subcommand("list", "List the farm's jobs");
+  add_client_options(cmd, *args);
+  cmd->callback([args, &exit_code] {
+    exit_code = guarded("list", [&] {
+      FarmClient client(*args);
+      print_table(client.call<wire::JobList>(encode(wire::ListJobs{})));
+      return 0;
+    });
+  });
+}
+
+void add_watch(CLI::App& app, int& exit_code) {
+  auto args = std::make_shared<ClientArgs>();
+  auto job = std::make_shared<std::string>();
+  CLI::App* cmd = app.add_subcommand("watch", "Follow a job's progress until it ends (Ctrl-C to stop watching)");
+  cmd->add_option("job", *job, "Job id")->required();
+  add_client_options(cmd, *args);
+  cmd->callback([args, job, &exit_code] {
+    exit_code = guarded("watch", [&] {
+      FarmClient client(*args);
+      return watch_job(client, *job);
+    });
+  });
+}
+
+void add_cancel(CLI::App& app, int& exit_code) {
+  auto args = std::make_shared<ClientArgs>();
+  auto job = std::make_shared<std::string>();
+  CLI::App* cmd = app.add_subcommand("cancel", "Cancel a job; its image keeps the samples merged so far");
+  cmd->add_option("job", *job, "Job id")->required();
+  add_client_options(cmd, *args);
+  cmd->callback([args, job, &exit_code] {
+    exit_code = guarded("cancel", [&] {
+      FarmClient client(*args);
+      wire::CancelJob request;
+      request.set_job_id(*job);
+      const auto reply = client.call<wire::CancelReply>(encode(std::move(request)));
+      std::cout << fmt::format("job {} {}\n", reply.job_id(), protocol::job_state_name(reply.state()));
+      return 0;
+    });
+  });
+}
+
+void add_fetch(CLI::App& app, int& exit_code) {
+  auto args = std::make_shared<ClientArgs>();
+  auto job = std::make_shared<std::string>();
+  auto output = std::make_shared<std::string>();
+  CLI::App* cmd = app.add_subcommand("fetch", "Download a job's current or final EXR (and a PNG preview beside it)");
+  cmd->add_option("job", *job, "Job id")->required();
+  cmd->add_option("-o,--output", *output, "Output EXR file")->required();
+  add_client_options(cmd, *args);
+  cmd->callback([args, job, output, &exit_code] {
+    exit_code = guarded("fetch", [&] {
+      FarmClient client(*args);
+      wire::FetchImage request;
+      request.set_job_id(*job);
+      const auto image = client.call<wire::ImageData>(encode(std::move(request)));
+      write_bytes_atomic(*output, image.exr());
+      std::string wrote = *output;
+      if (!image.png().empty()) {
+        const fs::path png = preview_path(*output);
+        write_bytes_atomic(png, image.png());
+        wrote += " and " + png.string();
+      }
+      std::cout << fmt::format("wrote {} (job {} {}, {} spp)\n", wrote, image.job_id(),
+                               protocol::job_state_name(image.state()), image.spp_done());
+      return 0;
+    });
+  });
+}
+
+}  // namespace
+
+void add_farm_commands(CLI::App& app, int& exit_code) {
+  add_submit(app, exit_code);
+  add_status(app, exit_code);
+  add_list(app, exit_code);
+  add_watch(app, exit_code);
+  add_cancel(app, exit_code);
+  add_fetch(app, exit_code);
+}
+
+}  // namespace rayfarm::cli
