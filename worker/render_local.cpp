@@ -1,7 +1,10 @@
 #include <tbb/global_control.h>
 #include <tbb/task_arena.h>
 
+#include <tbb/parallel_for.h>
+
 #include <chrono>
+#include <mutex>
 
 #include "worker/renderer.h"
 
@@ -23,14 +26,19 @@ Film render_local(const Renderer& renderer, const LocalRenderOptions& options) {
 
   tbb::task_arena arena(options.threads > 0 ? static_cast<int>(options.threads)
                                             : tbb::task_arena::automatic);
+  std::mutex film_mutex;
   arena.execute([&] {
     for (const SampleRange& pass : passes) {
-      for (const TileRect& tile : tiles) {
-        film.add(renderer.render(tile, pass));
+      // Tiles of one pass in parallel (each also splits its rows); merging is exact, so the
+      // order in which they finish does not matter.
+      tbb::parallel_for(size_t{0}, tiles.size(), [&](size_t t) {
+        TileResult result = renderer.render(tiles[t], pass);
+        std::lock_guard lock(film_mutex);
+        film.add(result);
         ++progress.units_done;
         progress.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         if (options.on_progress) options.on_progress(progress, film);
-      }
+      });
       ++progress.passes_done;
     }
   });

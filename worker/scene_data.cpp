@@ -25,26 +25,22 @@ float sphere_point_error(const Vec3& center, float radius) {
 
 SceneData::SceneData(const Scene& scene) : scene_(scene) {
   std::vector<Bvh::Mesh> meshes;
-  triangles_.resize(scene_.meshes.size());
-  mesh_lights_.resize(scene_.meshes.size());
-  for (size_t m = 0; m < scene_.meshes.size(); ++m) {
-    const TriangleMesh& mesh = scene_.meshes[m];
-    auto& info = triangles_[m];
-    info.resize(mesh.triangle_count());
-    mesh_lights_[m].assign(mesh.triangle_count(), -1);
+  for (const TriangleMesh& mesh : scene_.meshes) {
+    mesh_offset_.push_back(triangles_.size());
     for (size_t t = 0; t < mesh.triangle_count(); ++t) {
       const Vec3& a = mesh.positions[mesh.indices[3 * t]];
       const Vec3& b = mesh.positions[mesh.indices[3 * t + 1]];
       const Vec3& c = mesh.positions[mesh.indices[3 * t + 2]];
-      const Vec3 ng = cross(b - a, c - a);
+      TriangleInfo info{a, b - a, c - a, Vec3(0.f, 0.f, 1.f), triangle_point_error(a, b, c),
+                        mesh.materials[t], -1};
+      const Vec3 ng = cross(info.e1, info.e2);
       const float len = length(ng);
-      info[t].p_error = triangle_point_error(a, b, c);
-      if (!(len > 0.f) || !std::isfinite(len)) {
-        ++degenerate_;
-        info[t].n = Vec3(0.f, 0.f, 1.f);
-        continue;
+      if (len > 0.f && std::isfinite(len)) {
+        info.n = ng / len;
+      } else {
+        ++degenerate_;  // never hit in practice; a fixed normal keeps the shading finite
       }
-      info[t].n = ng / len;
+      triangles_.push_back(info);
     }
     meshes.push_back({&mesh.positions, &mesh.indices});
   }
@@ -58,37 +54,23 @@ void SceneData::set_light_index(uint32_t geom, uint32_t prim, int32_t light) {
   if (geom == kSphereGeometry) {
     sphere_lights_[prim] = light;
   } else {
-    mesh_lights_[geom][prim] = light;
+    triangles_[mesh_offset_[geom] + prim].light = light;
   }
 }
 
-SurfaceHit SceneData::resolve(const Ray& ray, const RayHit& hit) const {
+SurfaceHit SceneData::resolve_sphere(const Ray& ray, const RayHit& hit) const {
   SurfaceHit s;
-  if (hit.geom == kSphereGeometry) {
-    const Sphere& sphere = scene_.spheres[hit.prim];
-    const Vec3 raw = ray.org + ray.dir * hit.t;
-    Vec3 n = raw - sphere.center;
-    const float len = length(n);
-    n = len > 0.f ? n / len : Vec3(0.f, 0.f, 1.f);
-    s.p = sphere.center + n * sphere.radius;
-    s.n = n;
-    s.p_error = sphere_point_error(sphere.center, sphere.radius);
-    s.material = sphere.material;
-    s.light = sphere_lights_[hit.prim];
-    return s;
-  }
-  const TriangleMesh& mesh = scene_.meshes[hit.geom];
-  const uint32_t* idx = &mesh.indices[3 * size_t{hit.prim}];
-  const Vec3& v0 = mesh.positions[idx[0]];
-  const Vec3& v1 = mesh.positions[idx[1]];
-  const Vec3& v2 = mesh.positions[idx[2]];
-  const float b0 = 1.f - hit.u - hit.v;
-  s.p = v0 * b0 + v1 * hit.u + v2 * hit.v;
-  const TriangleInfo& info = triangles_[hit.geom][hit.prim];
-  s.p_error = info.p_error;
-  s.n = info.n;
-  s.material = mesh.materials[hit.prim];
-  s.light = mesh_lights_[hit.geom][hit.prim];
+  const Sphere& sphere = scene_.spheres[hit.prim];
+  const Vec3 raw = ray.org + ray.dir * hit.t;
+  Vec3 n = raw - sphere.center;
+  const float len = length(n);
+  n = len > 0.f ? n / len : Vec3(0.f, 0.f, 1.f);
+  // Reproject onto the sphere: the error then follows the sphere's size, not the ray's length.
+  s.p = sphere.center + n * sphere.radius;
+  s.n = n;
+  s.p_error = sphere_point_error(sphere.center, sphere.radius);
+  s.material = sphere.material;
+  s.light = sphere_lights_[hit.prim];
   return s;
 }
 

@@ -52,7 +52,17 @@ class SceneData {
   const Material& material(uint32_t i) const { return scene_.materials[i]; }
 
   /// Resolves an Embree hit into position, normal, material and light.
-  SurfaceHit resolve(const Ray& ray, const RayHit& hit) const;
+  SurfaceHit resolve(const Ray& ray, const RayHit& hit) const {
+    if (hit.geom == kSphereGeometry) return resolve_sphere(ray, hit);
+    const TriangleInfo& tri = triangles_[mesh_offset_[hit.geom] + hit.prim];
+    SurfaceHit s;
+    s.p = tri.v0 + tri.e1 * hit.u + tri.e2 * hit.v;
+    s.n = tri.n;
+    s.p_error = tri.p_error;
+    s.material = tri.material;
+    s.light = tri.light;
+    return s;
+  }
   /// Light index of a primitive (-1 when it does not emit); set by LightSet.
   void set_light_index(uint32_t geom, uint32_t prim, int32_t light);
   /// Number of triangles dropped because they have no area.
@@ -60,12 +70,18 @@ class SceneData {
 
  private:
   Scene scene_;
+  // Everything a hit on a triangle needs, in one cache-friendly record.
   struct TriangleInfo {
-    Vec3 n;          // unit geometric normal, front side
-    float p_error;   // triangle_point_error of its vertices
+    Vec3 v0, e1, e2;  // p = v0 + u e1 + v e2
+    Vec3 n;           // unit geometric normal, front side
+    float p_error;    // triangle_point_error of its vertices
+    uint32_t material;
+    int32_t light;
   };
-  std::vector<std::vector<TriangleInfo>> triangles_;  // per mesh, per triangle
-  std::vector<std::vector<int32_t>> mesh_lights_;   // per mesh, per triangle
+  SurfaceHit resolve_sphere(const Ray& ray, const RayHit& hit) const;
+
+  std::vector<TriangleInfo> triangles_;  // all meshes, mesh after mesh
+  std::vector<size_t> mesh_offset_;      // index of each mesh's first triangle in triangles_
   std::vector<int32_t> sphere_lights_;
   std::unique_ptr<Bvh> bvh_;
   uint64_t degenerate_ = 0;

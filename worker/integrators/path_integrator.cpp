@@ -62,7 +62,7 @@ Vec3 PathIntegrator::li(Ray ray, Pcg32& rng, uint64_t& rays) const {
     }
     const SurfaceHit hit = data_.resolve(ray, rh);
     const Material& material = data_.material(hit.material);
-    const Vec3 wo = -normalize(ray.dir);
+    const Vec3 wo = -ray.dir;  // camera and BSDF directions are unit vectors
 
     // Emission reached by BSDF sampling, weighted against light sampling.
     if (material.is_emissive()) {
