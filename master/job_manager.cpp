@@ -5,6 +5,7 @@
 #include <system_error>
 
 #include "common/bundle/bundle.h"
+#include "common/image/film_output.h"
 #include "common/net/frames.h"
 #include "common/protocol/convert.h"
 #include "common/scene/parser.h"
@@ -340,7 +341,8 @@ std::optional<wire::JobState> JobManager::cancel(const std::string& id) {
 void JobManager::finish(Job& job, wire::JobState state, const std::string& error) {
   JobSpec& s = job.record.spec;
   if (job.merger) {
-    if (state == wire::JOB_DONE || job.dirty) write_image(job);
+    // The final image is on disk before the job is reported finished.
+    if (state == wire::JOB_DONE || job.dirty) write_image(job, /*wait=*/true);
     job.units_done = job.merger->merged_count();
     job.spp_done = job.merger->film().min_spp();
   }
@@ -364,7 +366,7 @@ void JobManager::finish(Job& job, wire::JobState state, const std::string& error
   }
 }
 
-void JobManager::write_image(Job& job) {
+void JobManager::write_image(Job& job, bool wait) {
   const JobSpec& s = job.record.spec;
   // The same attributes as `rayfarm render`, plus the job's own.
   const std::map<std::string, std::string> attributes{
@@ -374,11 +376,9 @@ void JobManager::write_image(Job& job) {
       {"rayfarm:scene", fs::path(s.scene_path).filename().string()},
       {"rayfarm:job", s.id},
       {"rayfarm:spp_target", std::to_string(s.settings.spp)}};
-  try {
-    store_.save_image(s.id, job.merger->film(), attributes);
-  } catch (const std::exception& e) {
-    log_jobs()->error("job {}: cannot write its image: {}", s.id, e.what());
-  }
+  // The same pixels as `rayfarm render` (film_to_image), written on the writer's thread.
+  writer_.submit(store_.image_path(s.id), film_to_image(job.merger->film(), attributes));
+  if (wait) writer_.flush();
   job.dirty = false;
   job.last_write = Clock::now();
 }

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "master/image_writer.h"
 #include "master/job_store.h"
 #include "master/merger.h"
 #include "master/scheduler.h"
@@ -93,12 +94,14 @@ class JobManager {
 
   JobStore& store_;
   JobManagerOptions options_;
+  ImageWriter writer_;
   Scheduler scheduler_;
   std::map<std::string, Job> jobs_;
   std::map<std::string, std::string> bundle_owner_;  // bundle hash -> a job that has it
 
   void activate(Job& job);
-  void write_image(Job& job);
+  /// Queues the job's image; `wait` returns only once it is on disk.
+  void write_image(Job& job, bool wait = false);
   void on_pass_done(Job& job);
   void finish(Job& job, wire::JobState state, const std::string& error);
   void save(const Job& job);

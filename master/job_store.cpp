@@ -10,7 +10,6 @@
 #include <nlohmann/json.hpp>
 #include <unistd.h>
 
-#include "common/image/film_output.h"
 #include "common/util/log.h"
 
 namespace rayfarm::master {
@@ -181,11 +180,6 @@ std::optional<wire::Bundle> JobStore::load_bundle(const std::string& id) const {
   wire::Bundle bundle;
   if (!bundle.ParseFromString(*bytes)) return std::nullopt;
   return bundle;
-}
-
-void JobStore::save_image(const std::string& id, const Film& film,
-                          const std::map<std::string, std::string>& attributes) {
-  write_film(job_dir(id) / "image.exr", film, attributes);
 }
 
 std::optional<std::string> JobStore::read_file(const std::string& id, const std::string& name) const {

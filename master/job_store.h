@@ -9,12 +9,10 @@
 //   <data>/tmp/                  scratch space (scene validation), emptied at start
 #include <cstdint>
 #include <filesystem>
-#include <map>
 #include <optional>
 #include <string>
 #include <vector>
 
-#include "common/image/film.h"
 #include "common/scene/scene.h"
 #include "proto/rayfarm.pb.h"
 
@@ -59,10 +57,8 @@ class JobStore {
   void save_bundle(const std::string& id, const wire::Bundle& bundle);
   /// Reads bundle.pb; nullopt when missing or unreadable.
   std::optional<wire::Bundle> load_bundle(const std::string& id) const;
-  /// Writes the film's estimate to image.exr and its preview to image.png, exactly as
-  /// `rayfarm render` writes its output (common/image/film_output.h). Throws ImageError.
-  void save_image(const std::string& id, const Film& film,
-                  const std::map<std::string, std::string>& attributes);
+  /// Where the job's image goes; its preview is image.png beside it.
+  std::filesystem::path image_path(const std::string& id) const { return job_dir(id) / "image.exr"; }
   /// The bytes of image.exr or image.png (`name`), nullopt when not written yet.
   std::optional<std::string> read_file(const std::string& id, const std::string& name) const;
   /// Every readable job.json, in id order; unreadable ones are logged and skipped.

@@ -1,0 +1,45 @@
+#pragma once
+// Writes job images (EXR + PNG preview) on a thread of its own, so that the broker's reactor keeps
+// serving heartbeats and results while a large image is compressed. Only the newest image of each
+// file matters: one queued for a file that already has an unwritten one replaces it.
+#include <condition_variable>
+#include <deque>
+#include <filesystem>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <utility>
+
+#include "common/image/exr.h"
+
+namespace rayfarm::master {
+
+class ImageWriter {
+ public:
+  ImageWriter();
+  /// Writes whatever is still queued, then stops the thread.
+  ~ImageWriter();
+  ImageWriter(const ImageWriter&) = delete;
+  ImageWriter& operator=(const ImageWriter&) = delete;
+
+  /// Queues `image` for `exr` and its preview (common/image/film_output.h's preview_path).
+  void submit(const std::filesystem::path& exr, Image image);
+  /// Returns when everything queued before the call is written (or failed, which is logged).
+  void flush();
+
+ private:
+  struct Task {
+    std::filesystem::path exr;
+    Image image;
+  };
+  std::mutex mutex_;
+  std::condition_variable wake_, idle_;
+  std::deque<Task> queue_;
+  bool busy_ = false;
+  bool stopping_ = false;
+  std::thread thread_;
+
+  void loop();
+};
+
+}  // namespace rayfarm::master
