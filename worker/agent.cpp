@@ -299,7 +299,13 @@ struct Agent::Impl {
       on_bundle(*reply);
     } else if (const auto* error = msg.as<wire::Error>()) {
       log()->warn("the master says: {}", error->message());
-      if (error->message().rfind("unknown worker", 0) == 0) say_hello();
+      if (error->message().rfind("unknown worker", 0) == 0 && welcomed) {
+        // The master restarted (or declared us lost) and the connection came back by itself:
+        // start over. What we asked for went to the old master; a unit in hand still returns.
+        asked = false;
+        needs_bundle.reset();
+        say_hello();
+      }
     } else {
       log()->warn("ignored an unexpected {} from the master", msg.type);
     }

@@ -117,12 +117,13 @@ class FarmTest : public ::testing::Test {
   std::string client_endpoint() const { return "tcp://127.0.0.1:" + std::to_string(client_port_); }
   const fs::path& dir() const { return dir_; }
 
-  void start_master() {
+  /// Starts the master (again, after a crash, with `log` another file: the log is appended to).
+  void start_master(const std::string& log = "master.log") {
     master_ = std::make_unique<Process>(
         std::vector<std::string>{bin("master/rayfarm-master"), "--worker-endpoint", worker_endpoint(),
                                  "--client-endpoint", client_endpoint(), "--data-dir", (dir_ / "data").string(),
                                  "--heartbeat-ms", "200", "--liveness", "3", "--image-interval-ms", "500"},
-        dir_ / "master.log");
+        dir_ / log);
     ASSERT_TRUE(wait_until([&] { return master_->log().find("master listening") != std::string::npos; },
                            milliseconds{10000}))
         << "master did not start:\n" << master_->log();
@@ -314,6 +315,35 @@ TEST_F(FarmTest, AWorkerThatJoinsLateTakesWork) {
   ASSERT_TRUE(std::regex_search(late_log, m, std::regex("job j0001: rendered ([0-9]+) units"))) << late_log;
   EXPECT_GT(std::stoi(m[1]), 0);
   EXPECT_TRUE(std::regex_search(master().log(), std::regex("worker late \\([0-9a-f]+\\) joined")));
+  EXPECT_TRUE(bit_identical(fetch(job), local_render(scene, settings)));
+}
+
+TEST_F(FarmTest, WorkersReconnectWhenTheMasterRestarts) {
+  start_master();
+  Process& worker = start_worker("steady");
+  const fs::path scene = small_scene("cornell-box", 64);
+  const std::vector<std::string> settings{"--spp", "512", "--seed", "2"};
+  std::vector<std::string> job_settings = settings;
+  job_settings.insert(job_settings.end(), {"--tile", "32", "--pass-spp", "32"});  // 64 units
+  const std::string job = submit(scene, job_settings);
+  wait_for_units(job, 4);
+
+  // A master that comes back at once: the connection heals by itself, the worker says hello again.
+  master().signal(SIGKILL);
+  ASSERT_TRUE(master().wait(milliseconds{5000}));
+  start_master("master-2.log");  // same ports, same data dir: the job is restarted from the beginning
+  EXPECT_NE(master().log().find("job j0001 restarted from the beginning"), std::string::npos) << master().log();
+  wait_for_units(job, 4);
+
+  // A master away for longer than the liveness window: the worker reconnects with back-off.
+  master().signal(SIGKILL);
+  ASSERT_TRUE(master().wait(milliseconds{5000}));
+  ASSERT_TRUE(wait_until([&] { return worker.log().find("is silent for") != std::string::npos; }, milliseconds{10000}));
+  std::this_thread::sleep_for(milliseconds{1500});
+  start_master("master-3.log");
+  wait_for_state(job, wire::JOB_DONE);
+  EXPECT_TRUE(std::regex_search(master().log(), std::regex("worker steady \\([0-9a-f]+\\) joined")));
+  EXPECT_EQ(count_of(worker.log(), "connected to the master"), 3u) << worker.log();
   EXPECT_TRUE(bit_identical(fetch(job), local_render(scene, settings)));
 }
 
