@@ -199,11 +199,11 @@ void print_table(const wire::JobList& list) {
     std::cout << "no jobs\n";
     return;
   }
-  std::cout << fmt::format("{:<8} {:<20} {:<9} {:>7} {:>11} {:>11} {:>10}\n", "JOB", "NAME", "STATE",
+  std::cout << fmt::format("{:<8} {:<24} {:<9} {:>7} {:>11} {:>11} {:>10}\n", "JOB", "NAME", "STATE",
                            "DONE", "SPP", "SIZE", "ELAPSED");
   for (const auto& st : list.jobs()) {
-    std::cout << fmt::format("{:<8} {:<20} {:<9} {:>6.1f}% {:>11} {:>11} {:>10}\n", st.job_id(),
-                             st.name().substr(0, 20), protocol::job_state_name(st.state()), percent(st),
+    std::cout << fmt::format("{:<8} {:<24} {:<9} {:>6.1f}% {:>11} {:>11} {:>10}\n", st.job_id(),
+                             st.name().substr(0, 24), protocol::job_state_name(st.state()), percent(st),
                              fmt::format("{}/{}", st.spp_done(), st.settings().spp()),
                              fmt::format("{}x{}", st.width(), st.height()),
                              format_duration(st.elapsed_seconds()));
