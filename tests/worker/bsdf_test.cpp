@@ -733,11 +733,10 @@ TEST(DielectricTest, IndexOneIsInvisible) {
   }
 }
 
-// Disabled: fresnel_dielectric computes sin_t^2 = (1 - cos_i^2) / eta^2, which rounds to exactly 1
-// for eta = 1 and cos_i below about 1.7e-4, and then reports total internal reflection (F = 1):
-// an index-matched interface reflects grazing rays instead of letting them through. Enable once
-// cos_t^2 is computed without the cancellation, e.g. as (eta^2 - 1 + cos_i^2) / eta^2.
-TEST(DielectricTest, DISABLED_IndexOneAtGrazingIncidence) {
+// An index-matched interface lets grazing rays through: computing sin_t^2 = (1 - cos_i^2) / eta^2
+// rounds to exactly 1 for eta = 1 and cos_i below about 1.7e-4 and would report total internal
+// reflection; cos_t^2 is computed as (eta^2 - 1 + cos_i^2) / eta^2 instead.
+TEST(DielectricTest, IndexOneAtGrazingIncidence) {
   for (const float cos_i : {1e-4f, 1.5e-4f, 1e-5f}) {
     float cos_t = -1.f;
     EXPECT_NEAR(fresnel_dielectric(cos_i, 1.f, cos_t), 0.f, 1e-6f) << cos_i;

@@ -64,12 +64,14 @@ bool sample_dielectric(const Material& m, const Vec3& wo, float u_lobe, BsdfSamp
 }  // namespace
 
 float fresnel_dielectric(float cos_i, float eta, float& cos_t) {
-  const float sin2_t = (1.f - cos_i * cos_i) / (eta * eta);
-  if (sin2_t >= 1.f) {
+  // cos_t^2 = 1 - sin_i^2 / eta^2, written without the cancellation of 1 - (1 - cos_i^2) that
+  // would turn grazing rays at eta = 1 into total internal reflection.
+  const float cos2_t = (eta * eta - 1.f + cos_i * cos_i) / (eta * eta);
+  if (cos2_t <= 0.f) {
     cos_t = 0.f;
     return 1.f;  // total internal reflection
   }
-  cos_t = std::sqrt(1.f - sin2_t);
+  cos_t = std::sqrt(cos2_t);
   const float r_parl = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
   const float r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
   return 0.5f * (r_parl * r_parl + r_perp * r_perp);
