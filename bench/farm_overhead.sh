@@ -1,0 +1,119 @@
+#!/usr/bin/env bash
+# The farm's overhead over `rayfarm render`, and how it scales from 1 to 2 workers.
+#
+#   bench/farm_overhead.sh [--scene FILE] [--size N] [--spp N] [--threads T] [--build DIR]
+#
+# Defaults: scenes/cornell-box/scene.json at 512x512, 256 spp, T = 2, binaries from ./build (or
+# $RAYFARM_BIN). Runs, on this machine, the same job:
+#   1. rayfarm render with T threads                       (the reference time and image)
+#   2. a master and 1 worker with T threads                 -> the farm's overhead (ratio to 1)
+#   3. a master and 1 worker with 1 thread, then 2 workers with 1 thread each -> 1 vs 2 workers
+# Farm times are the master's (first unit handed out to final image written) and the client's
+# (`rayfarm submit --wait` from start to exit). Every farm image is compared with the reference;
+# they must be bit-identical. Prints figures only; nothing here is a test.
+set -euo pipefail
+
+repo_root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+scene="$repo_root/scenes/cornell-box/scene.json"
+size=512
+spp=256
+threads=2
+build="${RAYFARM_BIN:-$repo_root/build}"
+
+while [ $# -gt 0 ]; do
+  case $1 in
+    --scene) scene=$2; shift 2 ;;
+    --size) size=$2; shift 2 ;;
+    --spp) spp=$2; shift 2 ;;
+    --threads) threads=$2; shift 2 ;;
+    --build) build=$2; shift 2 ;;
+    -h|--help) sed -n '2,15p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    *) echo "farm_overhead: unknown option '$1'" >&2; exit 2 ;;
+  esac
+done
+
+bin() {
+  local c
+  for c in "$build/$2/$1" "$build/$1"; do [ -x "$c" ] && { echo "$c"; return; }; done
+  command -v "$1" || { echo "farm_overhead: cannot find $1 (build first, or --build DIR)" >&2; exit 1; }
+}
+rayfarm=$(bin rayfarm cli)
+master_bin=$(bin rayfarm-master master)
+worker_bin=$(bin rayfarm-worker worker)
+
+work=$(mktemp -d "${TMPDIR:-/tmp}/rayfarm-overhead.XXXXXX")
+pids=()
+cleanup() {
+  local p
+  for p in "${pids[@]}"; do kill -TERM "$p" 2>/dev/null || true; done
+  sleep 0.5
+  for p in "${pids[@]}"; do kill -KILL "$p" 2>/dev/null || true; done
+  rm -rf "$work"
+}
+trap cleanup EXIT
+
+# The scene with the requested film size, in a copy of its folder (its files travel along).
+cp -r "$(dirname "$scene")" "$work/scene"
+job_scene="$work/scene/$(basename "$scene")"
+python3 - "$job_scene" "$size" <<'PY'
+import json, sys
+path, size = sys.argv[1], int(sys.argv[2])
+scene = json.load(open(path))
+scene["film"] = {"width": size, "height": size}
+json.dump(scene, open(path, "w"), indent=2)
+PY
+
+free_port() { python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])'; }
+now() { date +%s.%N; }
+calc() { python3 -c "print($1)"; }
+
+echo "scene $(basename "$(dirname "$scene")")/$(basename "$scene") at ${size}x${size}, $spp spp; $(nproc) cores"
+
+start=$(now)
+"$rayfarm" --log-level warn render "$job_scene" -o "$work/local.exr" --spp "$spp" --threads "$threads" >/dev/null 2>&1
+local_s=$(calc "$(now) - $start")
+printf 'rayfarm render, %d threads:            %7.2f s\n' "$threads" "$local_s"
+
+# run_farm WORKERS THREADS: sets master_s and client_s after checking the image.
+run_farm() {
+  local n=$1 t=$2 wport cport data i start_s job
+  wport=$(free_port); cport=$(free_port)
+  data="$work/data-$n-$t"
+  "$master_bin" --worker-endpoint "tcp://127.0.0.1:$wport" --client-endpoint "tcp://127.0.0.1:$cport" \
+    --data-dir "$data" --log-level warn >"$work/master-$n-$t.log" 2>&1 &
+  pids+=($!)
+  local farm_pids=($!)
+  for i in $(seq 1 "$n"); do
+    "$worker_bin" --master "tcp://127.0.0.1:$wport" --threads "$t" --cache-dir "$work/cache-$n-$t-$i" \
+      --log-level warn >"$work/worker-$n-$t-$i.log" 2>&1 &
+    pids+=($!); farm_pids+=($!)
+  done
+  # Every worker says hello before the clock starts.
+  for _ in $(seq 100); do
+    "$rayfarm" status --master "tcp://127.0.0.1:$cport" --timeout 1 >/dev/null 2>&1 && break
+    sleep 0.1
+  done
+  sleep 0.5
+  start_s=$(now)
+  job=$("$rayfarm" submit "$job_scene" --spp "$spp" --master "tcp://127.0.0.1:$cport" --wait 2>/dev/null)
+  job=${job%%$'\n'*}  # the first line is the job id; progress follows
+  client_s=$(calc "$(now) - $start_s")
+  master_s=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["elapsed_seconds"])' "$data/jobs/$job/job.json")
+  "$rayfarm" fetch "$job" -o "$work/farm-$n-$t.exr" --master "tcp://127.0.0.1:$cport" >/dev/null
+  if ! "$rayfarm" compare "$work/farm-$n-$t.exr" "$work/local.exr" >/dev/null 2>&1; then
+    echo "farm_overhead: the farm's image ($n x $t threads) differs from rayfarm render's" >&2
+    exit 1
+  fi
+  kill -TERM "${farm_pids[@]}" 2>/dev/null || true
+  wait "${farm_pids[@]}" 2>/dev/null || true
+}
+
+run_farm 1 "$threads"; m1=$master_s; c1=$client_s
+printf 'farm, 1 worker x %d threads:           %7.2f s (master), %7.2f s (client)  overhead %.3f (master), %.3f (client)\n' \
+  "$threads" "$m1" "$c1" "$(calc "$m1 / $local_s")" "$(calc "$c1 / $local_s")"
+run_farm 1 1; ma=$master_s; ca=$client_s
+printf 'farm, 1 worker x 1 thread:             %7.2f s (master), %7.2f s (client)\n' "$ma" "$ca"
+run_farm 2 1; mb=$master_s; cb=$client_s
+printf 'farm, 2 workers x 1 thread:            %7.2f s (master), %7.2f s (client)  speed-up %.2f over 1 worker\n' \
+  "$mb" "$cb" "$(calc "$ma / $mb")"
+echo "every farm image is bit-identical to rayfarm render's"
