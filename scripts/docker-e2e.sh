@@ -151,7 +151,7 @@ t_up=$(now)
 
 # ---- submit, wait, fetch -----------------------------------------------------------------------
 log "submitting $SCENE at $SPP spp"
-submit_out="$(cli rayfarm submit "$SCENE" --spp "$SPP")" || die "submit failed: $submit_out"
+submit_out="$(cli rayfarm submit "$SCENE" --spp "$SPP")" || die "submit failed (its error is above)"
 JOB="$(printf '%s\n' "$submit_out" | tail -n 1 | tr -d '[:space:]')"
 [ -n "$JOB" ] || die "submit printed no job id"
 log "job $JOB"
@@ -166,7 +166,9 @@ t_fetch=$(now)
 
 # ---- the same render on one machine, and the comparison ----------------------------------------
 log "rendering the same scene locally in the image"
-cli rayfarm render "$SCENE" --spp "$SPP" -o /out/local.exr >&2 || die "local render failed"
+render_out="$(cli rayfarm render "$SCENE" --spp "$SPP" -o /out/local.exr 2>&1)" \
+  || { echo "$render_out" >&2; die "local render failed"; }
+echo "$render_out" >&2
 t_local=$(now)
 if cli rayfarm compare /out/farm.exr /out/local.exr; then
   identical=yes
@@ -175,7 +177,11 @@ else
 fi
 
 log "master log for the job:"
-compose logs --no-color master 2>/dev/null | grep -F "$JOB" | tail -n 15 >&2 || true
+master_log="$(compose logs --no-color master 2>/dev/null | grep -F "job $JOB " || true)"
+echo "$master_log" | tail -n 15 >&2
+# The processes' own clocks, without the cost of starting a container for each CLI call.
+farm_s="$(echo "$master_log" | sed -n 's/.* done: .* in \([0-9.]*\) s .*/\1/p' | tail -n 1)"
+local_s="$(echo "$render_out" | sed -n 's/^time \([0-9.]*\) s.*/\1/p' | tail -n 1)"
 
 cat <<EOF
 docker-e2e summary
@@ -185,9 +191,12 @@ docker-e2e summary
   rayfarm image build  $(elapsed "$t_base" "$t_build") s
   cluster up           $(elapsed "$t_build" "$t_up") s
   submit               $(elapsed "$t_up" "$t_submit") s
-  job (submit → done)  $(elapsed "$t_submit" "$t_done") s
-  fetch                $(elapsed "$t_done" "$t_fetch") s
-  local render         $(elapsed "$t_fetch" "$t_local") s  (one container, all cores, including container start)
+  watch until done     $(elapsed "$t_submit" "$t_done") s
+  status + fetch       $(elapsed "$t_done" "$t_fetch") s
+  local render         $(elapsed "$t_fetch" "$t_local") s
+  (each CLI call above includes starting a container)
+  job on the farm      ${farm_s:-?} s  (master's log: accepted → done)
+  rayfarm render       ${local_s:-?} s  (one process, all cores of this host)
   EXR on the host      $OUT/farm.exr
   bit-identical        $identical
 EOF
