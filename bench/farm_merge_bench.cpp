@@ -14,10 +14,10 @@
 #include <thread>
 #include <vector>
 
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
-#include <nlohmann/json.hpp>
 #include <unistd.h>
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 
 #include "common/bundle/bundle.h"
 #include "common/net/socket.h"
@@ -34,10 +34,13 @@ namespace wire = rayfarm::wire;
 using Clock = std::chrono::steady_clock;
 using std::chrono::milliseconds;
 
-double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+double seconds_since(Clock::time_point t) {
+  return std::chrono::duration<double>(Clock::now() - t).count();
+}
 
 /// A result of the right shape for the unit, with non-trivial sums.
-rayfarm::TileResult fake_result(const rayfarm::TileRect& rect, const rayfarm::SampleRange& samples) {
+rayfarm::TileResult fake_result(const rayfarm::TileRect& rect,
+                                const rayfarm::SampleRange& samples) {
   rayfarm::TileResult r(rect, samples);
   for (size_t i = 0; i < r.sum.size(); ++i) {
     r.sum[i] = rayfarm::to_fixed(0.25 * samples.count() + static_cast<double>(i % 7));
@@ -52,7 +55,8 @@ void bench_in_process(uint32_t size, uint32_t tile, uint32_t spp, uint32_t pass_
   size_t bytes = 0;
   for (uint64_t u = 0; u < grid.size(); ++u) {
     const auto unit = grid.unit(u);
-    messages.push_back(protocol::encode(protocol::result_to_wire("j", u, fake_result(unit.rect, unit.samples), 0.0)));
+    messages.push_back(protocol::encode(
+        protocol::result_to_wire("j", u, fake_result(unit.rect, unit.samples), 0.0)));
     bytes += messages.back()[1].size();
   }
   rayfarm::master::Merger merger(grid);
@@ -60,11 +64,13 @@ void bench_in_process(uint32_t size, uint32_t tile, uint32_t spp, uint32_t pass_
   for (uint64_t u = 0; u < grid.size(); ++u) {
     const protocol::Decoded d = protocol::decode(messages[u]);
     const rayfarm::TileResult r = protocol::result_from_wire(*d.as<wire::UnitResult>());
-    if (merger.add(u, r) != rayfarm::master::MergeOutcome::kMerged) throw std::runtime_error("merge failed");
+    if (merger.add(u, r) != rayfarm::master::MergeOutcome::kMerged)
+      throw std::runtime_error("merge failed");
   }
   const double s = seconds_since(start);
   std::cout << fmt::format(
-      "in process (decode + check + merge, no sockets): {} units of {}x{} px ({:.1f} KB each) in {:.3f} s: "
+      "in process (decode + check + merge, no sockets): {} units of {}x{} px ({:.1f} KB each) in "
+      "{:.3f} s: "
       "{:.0f} units/s, {:.0f} MB/s\n",
       grid.size(), tile, tile, bytes / 1e3 / grid.size(), s, grid.size() / s, bytes / 1e6 / s);
 }
@@ -74,7 +80,8 @@ std::string read_text(const fs::path& file) {
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
-void fake_worker(const std::string& endpoint, int index, std::atomic<bool>& stop, std::atomic<uint64_t>& sent) {
+void fake_worker(const std::string& endpoint, int index, std::atomic<bool>& stop,
+                 std::atomic<uint64_t>& sent) {
   rayfarm::net::Dealer socket(endpoint);
   wire::Hello hello;
   hello.set_role(wire::ROLE_WORKER);
@@ -108,10 +115,12 @@ void fake_worker(const std::string& endpoint, int index, std::atomic<bool>& stop
 }
 
 void bench_broker(int workers, uint32_t size, uint32_t tile, uint32_t spp, uint32_t pass_spp) {
-  const fs::path dir = fs::temp_directory_path() / ("rayfarm-merge-bench-" + std::to_string(::getpid()));
+  const fs::path dir =
+      fs::temp_directory_path() / ("rayfarm-merge-bench-" + std::to_string(::getpid()));
   fs::create_directories(dir);
   // The furnace scene with a bigger film; it is only parsed, never rendered.
-  nlohmann::json scene = nlohmann::json::parse(read_text(fs::path(RAYFARM_SOURCE_DIR) / "scenes/furnace/scene.json"));
+  nlohmann::json scene =
+      nlohmann::json::parse(read_text(fs::path(RAYFARM_SOURCE_DIR) / "scenes/furnace/scene.json"));
   scene["film"] = {{"width", size}, {"height", size}};
   const rayfarm::Bundle bundle = rayfarm::make_bundle({{"scene.json", scene.dump()}});
 
@@ -140,7 +149,8 @@ void bench_broker(int workers, uint32_t size, uint32_t tile, uint32_t spp, uint3
   const auto start = Clock::now();
   std::vector<std::thread> threads;
   for (int i = 0; i < workers; ++i) {
-    threads.emplace_back(fake_worker, broker.worker_endpoint(), i, std::ref(stop_workers), std::ref(sent));
+    threads.emplace_back(fake_worker, broker.worker_endpoint(), i, std::ref(stop_workers),
+                         std::ref(sent));
   }
   wire::JobStatus status;
   while (true) {
@@ -160,7 +170,8 @@ void bench_broker(int workers, uint32_t size, uint32_t tile, uint32_t spp, uint3
   master.join();
   const double unit_kb = static_cast<double>(tile) * tile * 3 * 32 / 1e3;
   std::cout << fmt::format(
-      "through the broker ({} fake workers on loopback): {} units of {}x{} px ({:.1f} KB each) in {:.3f} s: "
+      "through the broker ({} fake workers on loopback): {} units of {}x{} px ({:.1f} KB each) in "
+      "{:.3f} s: "
       "{:.0f} units/s, {:.0f} MB/s, including {} progressive EXR+PNG writes of {}x{}\n",
       workers, status.units_total(), tile, tile, unit_kb, s, status.units_total() / s,
       status.units_total() * unit_kb / 1e3 / s, status.passes_total(), size, size);

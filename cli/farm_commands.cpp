@@ -75,8 +75,9 @@ void add_client_options(CLI::App* cmd, ClientArgs& args) {
 class FarmClient {
  public:
   explicit FarmClient(const ClientArgs& args)
-      : endpoint_(args.master), timeout_(std::chrono::duration_cast<std::chrono::milliseconds>(
-                                    std::chrono::duration<double>(args.timeout))),
+      : endpoint_(args.master),
+        timeout_(std::chrono::duration_cast<std::chrono::milliseconds>(
+            std::chrono::duration<double>(args.timeout))),
         socket_(args.master) {
     wire::Hello hello;
     hello.set_role(wire::ROLE_CLIENT);
@@ -114,7 +115,8 @@ class FarmClient {
   net::Dealer socket_;
 
   std::string unreachable_message() const {
-    return fmt::format("cannot reach master at {} within {:g} s", endpoint_, timeout_.count() / 1000.0);
+    return fmt::format("cannot reach master at {} within {:g} s", endpoint_,
+                       timeout_.count() / 1000.0);
   }
 };
 
@@ -136,8 +138,10 @@ int guarded(const char* command, Body&& body) {
 std::string format_duration(double seconds) {
   if (seconds < 0) return "?";
   if (seconds < 60) return fmt::format("{:.1f} s", seconds);
-  if (seconds < 3600) return fmt::format("{}m{:02}s", static_cast<int>(seconds) / 60, static_cast<int>(seconds) % 60);
-  return fmt::format("{}h{:02}m", static_cast<int>(seconds) / 3600, (static_cast<int>(seconds) / 60) % 60);
+  if (seconds < 3600)
+    return fmt::format("{}m{:02}s", static_cast<int>(seconds) / 60, static_cast<int>(seconds) % 60);
+  return fmt::format("{}h{:02}m", static_cast<int>(seconds) / 3600,
+                     (static_cast<int>(seconds) / 60) % 60);
 }
 
 std::string format_rate(double samples_per_second) {
@@ -147,8 +151,9 @@ std::string format_rate(double samples_per_second) {
 }
 
 double percent(const wire::JobStatus& st) {
-  return st.units_total() ? 100.0 * static_cast<double>(st.units_done()) / static_cast<double>(st.units_total())
-                          : 0.0;
+  return st.units_total()
+             ? 100.0 * static_cast<double>(st.units_done()) / static_cast<double>(st.units_total())
+             : 0.0;
 }
 
 bool finished(wire::JobState state) {
@@ -156,9 +161,9 @@ bool finished(wire::JobState state) {
 }
 
 std::string progress_line(const wire::JobStatus& st) {
-  std::string line = fmt::format("{} {:<9} pass {}/{}  {}/{} spp  {:5.1f}%", st.job_id(),
-                                 protocol::job_state_name(st.state()), st.passes_done(), st.passes_total(),
-                                 st.spp_done(), st.settings().spp(), percent(st));
+  std::string line = fmt::format(
+      "{} {:<9} pass {}/{}  {}/{} spp  {:5.1f}%", st.job_id(), protocol::job_state_name(st.state()),
+      st.passes_done(), st.passes_total(), st.spp_done(), st.settings().spp(), percent(st));
   if (st.state() == wire::JOB_RUNNING) {
     line += fmt::format("  {}  ETA {}  workers {} busy/{}", format_rate(st.samples_per_second()),
                         format_duration(st.eta_seconds()), st.workers_busy(), st.workers_total());
@@ -180,16 +185,19 @@ void print_status(const wire::JobStatus& st) {
   std::cout << fmt::format("job        {} ({})\n", st.job_id(), st.name());
   std::cout << fmt::format("state      {}\n", protocol::job_state_name(st.state()));
   if (!st.error().empty()) std::cout << fmt::format("error      {}\n", st.error());
-  std::cout << fmt::format("image      {}x{}, {} spp, {}, max depth {}, seed {}\n", st.width(), st.height(),
-                           st.settings().spp(), integrator_label(st.settings().integrator()),
-                           st.settings().max_depth(), st.settings().seed());
-  std::cout << fmt::format("work       tiles of {} px, passes of {} spp: {}/{} units ({:.1f}%), {} leased\n",
-                           st.tile_size(), st.pass_spp(), st.units_done(), st.units_total(), percent(st),
-                           st.units_leased());
-  std::cout << fmt::format("progress   pass {}/{}, {}/{} spp\n", st.passes_done(), st.passes_total(),
-                           st.spp_done(), st.settings().spp());
-  std::cout << fmt::format("time       {} elapsed, ETA {}, {}\n", format_duration(st.elapsed_seconds()),
-                           format_duration(st.eta_seconds()), format_rate(st.samples_per_second()));
+  std::cout << fmt::format("image      {}x{}, {} spp, {}, max depth {}, seed {}\n", st.width(),
+                           st.height(), st.settings().spp(),
+                           integrator_label(st.settings().integrator()), st.settings().max_depth(),
+                           st.settings().seed());
+  std::cout << fmt::format(
+      "work       tiles of {} px, passes of {} spp: {}/{} units ({:.1f}%), {} leased\n",
+      st.tile_size(), st.pass_spp(), st.units_done(), st.units_total(), percent(st),
+      st.units_leased());
+  std::cout << fmt::format("progress   pass {}/{}, {}/{} spp\n", st.passes_done(),
+                           st.passes_total(), st.spp_done(), st.settings().spp());
+  std::cout << fmt::format("time       {} elapsed, ETA {}, {}\n",
+                           format_duration(st.elapsed_seconds()), format_duration(st.eta_seconds()),
+                           format_rate(st.samples_per_second()));
   std::cout << fmt::format("workers    {} busy on this job, {} connected\n", st.workers_busy(),
                            st.workers_total());
 }
@@ -199,12 +207,12 @@ void print_table(const wire::JobList& list) {
     std::cout << "no jobs\n";
     return;
   }
-  std::cout << fmt::format("{:<8} {:<24} {:<9} {:>7} {:>11} {:>11} {:>10}\n", "JOB", "NAME", "STATE",
-                           "DONE", "SPP", "SIZE", "ELAPSED");
+  std::cout << fmt::format("{:<8} {:<24} {:<9} {:>7} {:>11} {:>11} {:>10}\n", "JOB", "NAME",
+                           "STATE", "DONE", "SPP", "SIZE", "ELAPSED");
   for (const auto& st : list.jobs()) {
     std::cout << fmt::format("{:<8} {:<24} {:<9} {:>6.1f}% {:>11} {:>11} {:>10}\n", st.job_id(),
-                             st.name().substr(0, 24), protocol::job_state_name(st.state()), percent(st),
-                             fmt::format("{}/{}", st.spp_done(), st.settings().spp()),
+                             st.name().substr(0, 24), protocol::job_state_name(st.state()),
+                             percent(st), fmt::format("{}/{}", st.spp_done(), st.settings().spp()),
                              fmt::format("{}x{}", st.width(), st.height()),
                              format_duration(st.elapsed_seconds()));
   }
@@ -242,7 +250,8 @@ int watch_job(FarmClient& client, const std::string& job) {
       if (!st.error().empty()) std::cerr << "job " << job << " failed: " << st.error() << "\n";
       return st.state() == wire::JOB_DONE ? 0 : kExitJobUnsuccessful;
     }
-    for (auto waited = std::chrono::milliseconds{0}; waited < kWatchPeriod; waited += std::chrono::milliseconds{50}) {
+    for (auto waited = std::chrono::milliseconds{0}; waited < kWatchPeriod;
+         waited += std::chrono::milliseconds{50}) {
       if (g_interrupted.load()) {
         if (tty) std::cout << "\n";
         return kExitInterrupted;
@@ -292,12 +301,14 @@ int run_submit(const SubmitArgs& args) {
   // Default name: the scene's folder and file, e.g. "cornell-box/scene.json".
   const fs::path scene_file(args.scene);
   const fs::path folder = fs::absolute(scene_file).parent_path().filename();
-  request.set_name(!args.name.empty() ? args.name : (folder / scene_file.filename()).generic_string());
+  request.set_name(!args.name.empty() ? args.name
+                                      : (folder / scene_file.filename()).generic_string());
   wire::JobOverrides* o = request.mutable_overrides();
   if (args.spp) o->set_spp(*args.spp);
   if (args.max_depth) o->set_max_depth(*args.max_depth);
   if (args.seed) o->set_seed(*args.seed);
-  if (args.integrator) o->set_integrator(protocol::integrator_to_wire(*parse_integrator(*args.integrator)));
+  if (args.integrator)
+    o->set_integrator(protocol::integrator_to_wire(*parse_integrator(*args.integrator)));
   if (args.tile) o->set_tile_size(*args.tile);
   if (args.pass_spp) o->set_pass_spp(*args.pass_spp);
 
@@ -312,7 +323,8 @@ int run_submit(const SubmitArgs& args) {
 void add_submit(CLI::App& app, int& exit_code) {
   auto args = std::make_shared<SubmitArgs>();
   CLI::App* cmd = app.add_subcommand("submit", "Submit a scene to a farm; prints the job id");
-  cmd->add_option("scene", args->scene, "Scene file (JSON); it and every file it uses travel with the job")
+  cmd->add_option("scene", args->scene,
+                  "Scene file (JSON); it and every file it uses travel with the job")
       ->required();
   add_client_options(cmd, args->client);
   cmd->add_option("--spp", args->spp, "Samples per pixel (default: the scene's)");
@@ -320,13 +332,17 @@ void add_submit(CLI::App& app, int& exit_code) {
       ->check(CLI::IsMember({"naive", "nee", "mis"}));
   cmd->add_option("--max-depth", args->max_depth, "Most scattering vertices per path");
   cmd->add_option("--seed", args->seed, "Random seed (default: the scene's)");
-  cmd->add_option("--tile", args->tile, "Tile size in pixels (default 64); does not change the image")
+  cmd->add_option("--tile", args->tile,
+                  "Tile size in pixels (default 64); does not change the image")
       ->check(CLI::Range(1u, 4096u));
-  cmd->add_option("--pass-spp", args->pass_spp, "Samples per pass (default: automatic); does not change the image")
+  cmd->add_option("--pass-spp", args->pass_spp,
+                  "Samples per pass (default: automatic); does not change the image")
       ->check(CLI::PositiveNumber);
   cmd->add_option("--name", args->name, "Job name (default: the scene file's name)");
-  cmd->add_flag("--wait", args->wait, "Show progress until the job ends; exit 0 only when it is done");
-  cmd->callback([args, &exit_code] { exit_code = guarded("submit", [&] { return run_submit(*args); }); });
+  cmd->add_flag("--wait", args->wait,
+                "Show progress until the job ends; exit 0 only when it is done");
+  cmd->callback(
+      [args, &exit_code] { exit_code = guarded("submit", [&] { return run_submit(*args); }); });
 }
 
 void add_status(CLI::App& app, int& exit_code) {
@@ -364,7 +380,8 @@ void add_list(CLI::App& app, int& exit_code) {
 void add_watch(CLI::App& app, int& exit_code) {
   auto args = std::make_shared<ClientArgs>();
   auto job = std::make_shared<std::string>();
-  CLI::App* cmd = app.add_subcommand("watch", "Follow a job's progress until it ends (Ctrl-C to stop watching)");
+  CLI::App* cmd = app.add_subcommand(
+      "watch", "Follow a job's progress until it ends (Ctrl-C to stop watching)");
   cmd->add_option("job", *job, "Job id")->required();
   add_client_options(cmd, *args);
   cmd->callback([args, job, &exit_code] {
@@ -378,7 +395,8 @@ void add_watch(CLI::App& app, int& exit_code) {
 void add_cancel(CLI::App& app, int& exit_code) {
   auto args = std::make_shared<ClientArgs>();
   auto job = std::make_shared<std::string>();
-  CLI::App* cmd = app.add_subcommand("cancel", "Cancel a job; its image keeps the samples merged so far");
+  CLI::App* cmd =
+      app.add_subcommand("cancel", "Cancel a job; its image keeps the samples merged so far");
   cmd->add_option("job", *job, "Job id")->required();
   add_client_options(cmd, *args);
   cmd->callback([args, job, &exit_code] {
@@ -387,7 +405,8 @@ void add_cancel(CLI::App& app, int& exit_code) {
       wire::CancelJob request;
       request.set_job_id(*job);
       const auto reply = client.call<wire::CancelReply>(encode(std::move(request)));
-      std::cout << fmt::format("job {} {}\n", reply.job_id(), protocol::job_state_name(reply.state()));
+      std::cout << fmt::format("job {} {}\n", reply.job_id(),
+                               protocol::job_state_name(reply.state()));
       return 0;
     });
   });
@@ -397,7 +416,8 @@ void add_fetch(CLI::App& app, int& exit_code) {
   auto args = std::make_shared<ClientArgs>();
   auto job = std::make_shared<std::string>();
   auto output = std::make_shared<std::string>();
-  CLI::App* cmd = app.add_subcommand("fetch", "Download a job's current or final EXR (and a PNG preview beside it)");
+  CLI::App* cmd = app.add_subcommand(
+      "fetch", "Download a job's current or final EXR (and a PNG preview beside it)");
   cmd->add_option("job", *job, "Job id")->required();
   cmd->add_option("-o,--output", *output, "Output EXR file")->required();
   add_client_options(cmd, *args);

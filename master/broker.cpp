@@ -31,9 +31,10 @@ net::Frames refusal_frames(uint32_t peer_version, const char* peer_kind) {
   wire::Refusal r;
   r.set_master_version(protocol::kProtocolVersion);
   r.set_peer_version(peer_version);
-  r.set_reason(fmt::format("protocol version mismatch: the master speaks version {}, the {} sent "
-                           "version {}",
-                           protocol::kProtocolVersion, peer_kind, peer_version));
+  r.set_reason(
+      fmt::format("protocol version mismatch: the master speaks version {}, the {} sent "
+                  "version {}",
+                  protocol::kProtocolVersion, peer_kind, peer_version));
   return encode(std::move(r));
 }
 
@@ -67,7 +68,8 @@ std::string Broker::worker_label(const net::PeerId& peer) const {
 void Broker::run(const std::atomic<bool>& stop) {
   std::array<net::Socket*, 2> sockets{&workers_socket_, &clients_socket_};
   while (!stop.load()) {
-    const auto until_heartbeat = std::chrono::duration_cast<milliseconds>(next_heartbeat_ - Clock::now());
+    const auto until_heartbeat =
+        std::chrono::duration_cast<milliseconds>(next_heartbeat_ - Clock::now());
     const auto wait = std::clamp(until_heartbeat, milliseconds{0}, milliseconds{100});
     const auto readable = net::poll(sockets, wait);
     if (readable[0]) {
@@ -86,8 +88,8 @@ void Broker::run(const std::atomic<bool>& stop) {
     }
     on_timers();
   }
-  log()->info("master stopping: {} workers connected, {} jobs unfinished (kept in {})", workers_.size(),
-              jobs_.active_jobs(), options_.data_dir.string());
+  log()->info("master stopping: {} workers connected, {} jobs unfinished (kept in {})",
+              workers_.size(), jobs_.active_jobs(), options_.data_dir.string());
 }
 
 void Broker::on_timers() {
@@ -102,8 +104,9 @@ void Broker::on_timers() {
     if (now > w.expires) expired.push_back(peer);
   }
   for (const auto& peer : expired) {
-    remove_worker(peer, fmt::format("lost: silent for {:.1f} s",
-                                    std::chrono::duration<double>(options_.heartbeat.expiry()).count()));
+    remove_worker(peer,
+                  fmt::format("lost: silent for {:.1f} s",
+                              std::chrono::duration<double>(options_.heartbeat.expiry()).count()));
   }
   jobs_.tick();
 }
@@ -123,7 +126,8 @@ void Broker::reply(const net::PeerId& peer, const net::Frames& frames) {
 void Broker::register_worker(const net::PeerId& peer, const wire::Hello& hello) {
   if (hello.role() != wire::ROLE_WORKER) {
     log()->warn("worker socket: {} said hello as a client; refused", net::peer_label(peer));
-    send_worker(peer, error_frames("this is the worker endpoint; clients connect to the client endpoint"));
+    send_worker(
+        peer, error_frames("this is the worker endpoint; clients connect to the client endpoint"));
     return;
   }
   if (workers_.count(peer)) {
@@ -233,13 +237,15 @@ void Broker::handle_worker(const net::Delivery& delivery) {
       }
       send_worker(peer, encode(std::move(reply_msg)));
     } else if (const auto* bye = msg.as<wire::Goodbye>()) {
-      remove_worker(peer, "left" + (bye->reason().empty() ? std::string() : " (" + bye->reason() + ")"));
+      remove_worker(peer,
+                    "left" + (bye->reason().empty() ? std::string() : " (" + bye->reason() + ")"));
     } else {
       log()->warn("worker socket: unexpected {} from {}; ignored", msg.type, worker_label(peer));
       send_worker(peer, error_frames("unexpected message " + msg.type + " on the worker endpoint"));
     }
   } catch (const std::exception& e) {
-    log()->error("worker socket: failed to handle {} from {}: {}", msg.type, worker_label(peer), e.what());
+    log()->error("worker socket: failed to handle {} from {}: {}", msg.type, worker_label(peer),
+                 e.what());
   }
 }
 
@@ -255,8 +261,8 @@ void Broker::handle_client(const net::Delivery& delivery) {
     return;
   }
   if (!msg.version_ok()) {
-    log()->warn("client socket: refused {} ({}): it speaks protocol version {}, this master {}", label,
-                msg.type, msg.version, protocol::kProtocolVersion);
+    log()->warn("client socket: refused {} ({}): it speaks protocol version {}, this master {}",
+                label, msg.type, msg.version, protocol::kProtocolVersion);
     reply(peer, refusal_frames(msg.version, "client"));
     return;
   }
@@ -264,7 +270,8 @@ void Broker::handle_client(const net::Delivery& delivery) {
   try {
     if (const auto* hello = msg.as<wire::Hello>()) {
       if (hello->role() == wire::ROLE_WORKER) {
-        reply(peer, error_frames("this is the client endpoint; workers connect to the worker endpoint"));
+        reply(peer,
+              error_frames("this is the client endpoint; workers connect to the worker endpoint"));
         return;
       }
       wire::Welcome welcome;

@@ -22,7 +22,8 @@ ImageWriter::~ImageWriter() {
 void ImageWriter::submit(const std::filesystem::path& exr, Image image) {
   {
     std::lock_guard lock(mutex_);
-    auto same = std::find_if(queue_.begin(), queue_.end(), [&](const Task& t) { return t.exr == exr; });
+    auto same =
+        std::find_if(queue_.begin(), queue_.end(), [&](const Task& t) { return t.exr == exr; });
     if (same != queue_.end()) {
       same->image = std::move(image);
     } else {

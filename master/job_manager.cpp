@@ -31,7 +31,8 @@ std::shared_ptr<spdlog::logger> log_scheduler() { return get_logger("scheduler")
 
 std::string replace_all(std::string text, const std::string& from, const std::string& to) {
   if (from.empty()) return text;
-  for (size_t pos = text.find(from); pos != std::string::npos; pos = text.find(from, pos + to.size())) {
+  for (size_t pos = text.find(from); pos != std::string::npos;
+       pos = text.find(from, pos + to.size())) {
     text.replace(pos, from.size(), to);
   }
   return text;
@@ -93,10 +94,11 @@ size_t JobManager::recover() {
         activate(job);
         save(job);
         ++restarted;
-        log_jobs()->info("job {} restarted from the beginning ('{}', {}x{}, {} spp): partial sums "
-                         "are not kept across master restarts",
-                         id, job.record.spec.name, job.record.spec.film.width,
-                         job.record.spec.film.height, job.record.spec.settings.spp);
+        log_jobs()->info(
+            "job {} restarted from the beginning ('{}', {}x{}, {} spp): partial sums "
+            "are not kept across master restarts",
+            id, job.record.spec.name, job.record.spec.film.width, job.record.spec.film.height,
+            job.record.spec.settings.spp);
       }
     } else if (job.record.state == wire::JOB_DONE) {
       const JobSpec& s = job.record.spec;
@@ -147,7 +149,8 @@ std::string JobManager::submit(const wire::SubmitJob& request) {
 
   // Settings: the scene's, with the job's overrides.
   JobSpec spec;
-  spec.name = request.name().empty() ? fs::path(request.scene_path()).stem().string() : request.name();
+  spec.name =
+      request.name().empty() ? fs::path(request.scene_path()).stem().string() : request.name();
   spec.bundle_hash = hash;
   spec.scene_path = request.scene_path();
   spec.film = scene.film;
@@ -167,19 +170,22 @@ std::string JobManager::submit(const wire::SubmitJob& request) {
     throw JobRejected(fmt::format("spp must be in [1, {}], got {}", kMaxSpp, spec.settings.spp));
   }
   if (spec.settings.max_depth > kMaxDepth) {
-    throw JobRejected(fmt::format("max depth must be at most {}, got {}", kMaxDepth, spec.settings.max_depth));
+    throw JobRejected(
+        fmt::format("max depth must be at most {}, got {}", kMaxDepth, spec.settings.max_depth));
   }
   spec.tile_size = o.tile_size() == 0 ? kDefaultTileSize : o.tile_size();
   if (spec.tile_size > kMaxTileSize) {
-    throw JobRejected(fmt::format("tile size must be in [1, {}], got {}", kMaxTileSize, spec.tile_size));
+    throw JobRejected(
+        fmt::format("tile size must be in [1, {}], got {}", kMaxTileSize, spec.tile_size));
   }
   spec.pass_spp = o.pass_spp() == 0 ? default_pass_spp(spec.tile_size, spec.settings.spp)
                                     : std::min(o.pass_spp(), spec.settings.spp);
   if (spec.film.width == 0 || spec.film.height == 0) throw JobRejected("the scene's film is empty");
   const UnitGrid grid(spec.film, spec.tile_size, spec.settings.spp, spec.pass_spp);
   if (grid.size() > kMaxUnits) {
-    throw JobRejected(fmt::format("{} units of work is too many (limit {}); use larger tiles or passes",
-                                  grid.size(), kMaxUnits));
+    throw JobRejected(
+        fmt::format("{} units of work is too many (limit {}); use larger tiles or passes",
+                    grid.size(), kMaxUnits));
   }
   spec.submitted_unix_ms = unix_ms_now();
 
@@ -234,7 +240,8 @@ std::optional<wire::WorkUnit> JobManager::next_unit(const WorkerId& worker) {
   out.set_bundle_hash(s.bundle_hash);
   out.set_scene_path(s.scene_path);
   out.set_pass(u.pass);
-  log_scheduler()->debug("job {} unit {} (pass {}) leased to {}", s.id, u.id, u.pass, name_of(worker));
+  log_scheduler()->debug("job {} unit {} (pass {}) leased to {}", s.id, u.id, u.pass,
+                         name_of(worker));
   return out;
 }
 
@@ -253,8 +260,9 @@ MergeOutcome JobManager::on_result(const WorkerId& worker, const wire::UnitResul
                          result.unit_id(), name_of(worker));
       return MergeOutcome::kDuplicate;
     }
-    log_merger()->info("job {} unit {}: result from {} dropped (the job is {})", id, result.unit_id(),
-                       name_of(worker), protocol::job_state_name(job.record.state));
+    log_merger()->info("job {} unit {}: result from {} dropped (the job is {})", id,
+                       result.unit_id(), name_of(worker),
+                       protocol::job_state_name(job.record.state));
     return MergeOutcome::kRejected;
   }
   auto reject = [&](const std::string& why) {
@@ -293,14 +301,16 @@ void JobManager::on_pass_done(Job& job) {
   const Merger& m = *job.merger;
   const JobSpec& s = job.record.spec;
   job.passes_logged = m.passes_complete();
-  const uint32_t spp_done = m.grid().unit(uint64_t{job.passes_logged} * m.grid().tile_count() - 1).samples.end;
+  const uint32_t spp_done =
+      m.grid().unit(uint64_t{job.passes_logged} * m.grid().tile_count() - 1).samples.end;
   const double seconds = elapsed(job);
   const double rate = seconds > 0 ? static_cast<double>(m.samples_merged()) / seconds : 0.0;
   const double remaining = static_cast<double>(m.grid().samples_total() - m.samples_merged());
-  log_jobs()->info("job {} pass {}/{} done: {}/{} spp ({:.0f}%), {}, ETA {:.1f} s, {} workers active", s.id,
-                   job.passes_logged, m.grid().pass_count(), spp_done, s.settings.spp,
-                   100.0 * spp_done / s.settings.spp, human_rate(rate),
-                   rate > 0 ? remaining / rate : 0.0, workers_active(job));
+  log_jobs()->info(
+      "job {} pass {}/{} done: {}/{} spp ({:.0f}%), {}, ETA {:.1f} s, {} workers active", s.id,
+      job.passes_logged, m.grid().pass_count(), spp_done, s.settings.spp,
+      100.0 * spp_done / s.settings.spp, human_rate(rate), rate > 0 ? remaining / rate : 0.0,
+      workers_active(job));
   write_image(job);
 }
 
@@ -310,8 +320,8 @@ void JobManager::on_unit_failed(const WorkerId& worker, const wire::UnitFailed& 
   Job& job = it->second;
   const UnitRef ref{failed.job_id(), failed.unit_id()};
   const int count = ++job.failures[failed.unit_id()];
-  log_jobs()->warn("job {} unit {} failed on {} (attempt {} of {}): {}", ref.job, ref.unit, name_of(worker),
-                   count, options_.max_unit_failures, failed.reason());
+  log_jobs()->warn("job {} unit {} failed on {} (attempt {} of {}): {}", ref.job, ref.unit,
+                   name_of(worker), count, options_.max_unit_failures, failed.reason());
   if (scheduler_.holder(ref) == worker) scheduler_.requeue(ref);
   if (count >= options_.max_unit_failures) {
     finish(job, wire::JOB_FAILED,
@@ -325,7 +335,8 @@ size_t JobManager::release_worker(const WorkerId& worker) {
   const auto units = scheduler_.release_worker(worker);
   if (units.empty()) return 0;
   std::string list;
-  for (const auto& u : units) list += fmt::format("{}{} unit {}", list.empty() ? "" : ", ", u.job, u.unit);
+  for (const auto& u : units)
+    list += fmt::format("{}{} unit {}", list.empty() ? "" : ", ", u.job, u.unit);
   log_scheduler()->warn("requeued {} unit{} of {}: {}", units.size(), units.size() == 1 ? "" : "s",
                         name_of(worker), list);
   return units.size();
@@ -386,13 +397,14 @@ void JobManager::write_image(Job& job, bool wait) {
 void JobManager::tick() {
   const auto now = Clock::now();
   for (auto& [id, job] : jobs_) {
-    if (job.merger && job.dirty && now - job.last_write >= options_.image_interval) write_image(job);
+    if (job.merger && job.dirty && now - job.last_write >= options_.image_interval)
+      write_image(job);
   }
 }
 
 size_t JobManager::active_jobs() const {
-  return static_cast<size_t>(std::count_if(jobs_.begin(), jobs_.end(),
-                                           [](const auto& kv) { return kv.second.merger != nullptr; }));
+  return static_cast<size_t>(std::count_if(
+      jobs_.begin(), jobs_.end(), [](const auto& kv) { return kv.second.merger != nullptr; }));
 }
 
 void JobManager::save(const Job& job) {
@@ -464,7 +476,8 @@ wire::JobStatus JobManager::make_status(const Job& job, uint32_t workers_total) 
   return st;
 }
 
-std::optional<wire::JobStatus> JobManager::status(const std::string& id, uint32_t workers_total) const {
+std::optional<wire::JobStatus> JobManager::status(const std::string& id,
+                                                  uint32_t workers_total) const {
   auto it = jobs_.find(id);
   if (it == jobs_.end()) return std::nullopt;
   return make_status(it->second, workers_total);

@@ -84,10 +84,10 @@ class JobManager {
     bool started = false;
     Clock::time_point start_time;
     Clock::time_point last_write;
-    bool dirty = false;               // merged since the last image write
+    bool dirty = false;  // merged since the last image write
     uint32_t passes_logged = 0;
     std::map<uint64_t, int> failures;
-    uint64_t units_done = 0;          // kept when the merger is released
+    uint64_t units_done = 0;  // kept when the merger is released
     uint32_t spp_done = 0;
     std::map<WorkerId, Clock::time_point> contributors;  // last result from each worker
   };

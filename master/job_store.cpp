@@ -7,8 +7,8 @@
 #include <stdexcept>
 #include <system_error>
 
-#include <nlohmann/json.hpp>
 #include <unistd.h>
+#include <nlohmann/json.hpp>
 
 #include "common/util/log.h"
 
@@ -20,12 +20,18 @@ namespace {
 
 const char* state_key(wire::JobState s) {
   switch (s) {
-    case wire::JOB_QUEUED: return "queued";
-    case wire::JOB_RUNNING: return "running";
-    case wire::JOB_DONE: return "done";
-    case wire::JOB_FAILED: return "failed";
-    case wire::JOB_CANCELLED: return "cancelled";
-    default: return "queued";
+    case wire::JOB_QUEUED:
+      return "queued";
+    case wire::JOB_RUNNING:
+      return "running";
+    case wire::JOB_DONE:
+      return "done";
+    case wire::JOB_FAILED:
+      return "failed";
+    case wire::JOB_CANCELLED:
+      return "cancelled";
+    default:
+      return "queued";
   }
 }
 
@@ -151,7 +157,8 @@ std::string JobStore::allocate_id() {
       ++next_id_;
       return buf;
     }
-    if (ec) throw std::runtime_error("cannot create " + job_dir(buf).string() + ": " + ec.message());
+    if (ec)
+      throw std::runtime_error("cannot create " + job_dir(buf).string() + ": " + ec.message());
   }
 }
 
@@ -170,7 +177,8 @@ void JobStore::save_record(const JobRecord& record) {
 
 void JobStore::save_bundle(const std::string& id, const wire::Bundle& bundle) {
   std::string bytes;
-  if (!bundle.SerializeToString(&bytes)) throw std::runtime_error("cannot serialize bundle of " + id);
+  if (!bundle.SerializeToString(&bytes))
+    throw std::runtime_error("cannot serialize bundle of " + id);
   write_file_atomic(job_dir(id) / "bundle.pb", bytes);
 }
 
@@ -182,7 +190,8 @@ std::optional<wire::Bundle> JobStore::load_bundle(const std::string& id) const {
   return bundle;
 }
 
-std::optional<std::string> JobStore::read_file(const std::string& id, const std::string& name) const {
+std::optional<std::string> JobStore::read_file(const std::string& id,
+                                               const std::string& name) const {
   return slurp(job_dir(id) / name);
 }
 
@@ -198,7 +207,8 @@ std::vector<JobRecord> JobStore::load_records() const {
     if (!text) continue;  // a job dir whose record was never written: a submit that failed
     try {
       JobRecord r = from_json(json::parse(*text));
-      if (r.spec.id != dir.filename().string()) throw std::runtime_error("id does not match its folder");
+      if (r.spec.id != dir.filename().string())
+        throw std::runtime_error("id does not match its folder");
       records.push_back(std::move(r));
     } catch (const std::exception& e) {
       get_logger("master")->warn("skipping {}: {}", file.string(), e.what());

@@ -58,7 +58,9 @@ class JobStore {
   /// Reads bundle.pb; nullopt when missing or unreadable.
   std::optional<wire::Bundle> load_bundle(const std::string& id) const;
   /// Where the job's image goes; its preview is image.png beside it.
-  std::filesystem::path image_path(const std::string& id) const { return job_dir(id) / "image.exr"; }
+  std::filesystem::path image_path(const std::string& id) const {
+    return job_dir(id) / "image.exr";
+  }
   /// The bytes of image.exr or image.png (`name`), nullopt when not written yet.
   std::optional<std::string> read_file(const std::string& id, const std::string& name) const;
   /// Every readable job.json, in id order; unreadable ones are logged and skipped.

@@ -26,10 +26,12 @@ int main(int argc, char** argv) {
   int64_t image_interval_ms = options.image_interval.count();
   app.add_option("--worker-endpoint", options.worker_endpoint, "endpoint workers connect to")
       ->capture_default_str();
-  app.add_option("--client-endpoint", options.client_endpoint, "endpoint clients (rayfarm) connect to")
+  app.add_option("--client-endpoint", options.client_endpoint,
+                 "endpoint clients (rayfarm) connect to")
       ->capture_default_str();
   app.add_option("--data-dir", data_dir, "jobs, bundles and images")->capture_default_str();
-  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off")->capture_default_str();
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off")
+      ->capture_default_str();
   app.add_option("--log-format", log_format, "text or json")
       ->check(CLI::IsMember({"text", "json"}))
       ->capture_default_str();
@@ -47,8 +49,8 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
 
   try {
-    rayfarm::configure_logging(log_level, log_format == "json" ? rayfarm::LogFormat::kJson
-                                                               : rayfarm::LogFormat::kText);
+    rayfarm::configure_logging(
+        log_level, log_format == "json" ? rayfarm::LogFormat::kJson : rayfarm::LogFormat::kText);
   } catch (const std::exception& e) {
     std::cerr << "rayfarm-master: error: " << e.what() << "\n";
     return 2;

@@ -57,8 +57,8 @@ class Scheduler {
   struct Job {
     uint64_t total = 0;
     uint64_t done_count = 0;
-    uint64_t next_fresh = 0;       // units below it were handed out at least once
-    std::set<uint64_t> requeued;   // units handed out, taken back, not done
+    uint64_t next_fresh = 0;      // units below it were handed out at least once
+    std::set<uint64_t> requeued;  // units handed out, taken back, not done
     std::map<uint64_t, WorkerId> leased;
     std::vector<bool> done;
   };

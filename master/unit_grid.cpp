@@ -5,7 +5,9 @@
 namespace rayfarm::master {
 
 UnitGrid::UnitGrid(FilmSize film, uint32_t tile_size, uint32_t spp, uint32_t pass_spp)
-    : film_(film), spp_(spp), tiles_(split_tiles(film, tile_size)),
+    : film_(film),
+      spp_(spp),
+      tiles_(split_tiles(film, tile_size)),
       passes_(split_passes(spp, pass_spp)) {}
 
 UnitGrid::Unit UnitGrid::unit(uint64_t id) const {

@@ -80,30 +80,33 @@ struct Agent::Impl {
   Clock::time_point next_heartbeat;
   milliseconds backoff;
 
-  bool asked = false;                         // a WorkRequest is outstanding
+  bool asked = false;                          // a WorkRequest is outstanding
   std::optional<wire::WorkUnit> needs_bundle;  // a unit waiting for its bundle
   std::optional<wire::WorkUnit> rendering;     // the unit in flight
   std::future<Outcome> render;
-  std::optional<net::Frames> outbox;          // a result to send once welcomed again
-  Loaded loaded;                               // touched by the render thread only while one runs
+  std::optional<net::Frames> outbox;  // a result to send once welcomed again
+  Loaded loaded;                      // touched by the render thread only while one runs
   std::atomic<uint64_t> units_done{0};
 
   explicit Impl(AgentOptions o)
       : options(std::move(o)),
-        arena(options.threads == 0 ? tbb::task_arena::automatic : static_cast<int>(options.threads)),
+        arena(options.threads == 0 ? tbb::task_arena::automatic
+                                   : static_cast<int>(options.threads)),
         backoff(options.heartbeat.reconnect_min) {
     if (options.name.empty()) options.name = default_worker_name();
     std::error_code ec;
     fs::create_directories(options.cache_dir, ec);
     if (ec) {
-      throw std::runtime_error("cannot create cache dir " + options.cache_dir.string() + ": " + ec.message());
+      throw std::runtime_error("cannot create cache dir " + options.cache_dir.string() + ": " +
+                               ec.message());
     }
   }
 
   int threads() const { return arena.max_concurrency(); }
 
   void send(const net::Frames& frames) {
-    if (socket && !socket->send(frames)) log()->warn("send queue to the master is full; message dropped");
+    if (socket && !socket->send(frames))
+      log()->warn("send queue to the master is full; message dropped");
   }
 
   void connect() {
@@ -153,16 +156,17 @@ struct Agent::Impl {
     std::unique_ptr<Renderer> renderer;
     arena.execute([&] { renderer = std::make_unique<Renderer>(*scene, settings); });
     loaded = Loaded{key, unit.job_id(), std::move(scene), std::move(renderer)};
-    log()->info("job {}: {} {}x{}, {} spp, {}, seed {}; renderer ready in {:.2f} s ({} threads): {}",
-                unit.job_id(), unit.scene_path(), loaded.scene->film.width, loaded.scene->film.height,
-                settings.spp, integrator_name(settings.integrator), settings.seed, seconds_since(start),
-                threads(), loaded.renderer->plan());
+    log()->info(
+        "job {}: {} {}x{}, {} spp, {}, seed {}; renderer ready in {:.2f} s ({} threads): {}",
+        unit.job_id(), unit.scene_path(), loaded.scene->film.width, loaded.scene->film.height,
+        settings.spp, integrator_name(settings.integrator), settings.seed, seconds_since(start),
+        threads(), loaded.renderer->plan());
   }
 
   void finish_job_log() {
     if (loaded.key.empty() || loaded.units == 0) return;
-    log()->info("job {}: rendered {} units, {:.3g} samples in {:.2f} s", loaded.job_id, loaded.units,
-                static_cast<double>(loaded.samples), loaded.render_seconds);
+    log()->info("job {}: rendered {} units, {:.3g} samples in {:.2f} s", loaded.job_id,
+                loaded.units, static_cast<double>(loaded.samples), loaded.render_seconds);
   }
 
   Outcome render_unit(const wire::WorkUnit& unit) {
@@ -170,7 +174,8 @@ struct Agent::Impl {
     try {
       prepare(unit);
       const TileRect rect = protocol::rect_from_wire(unit.tile());
-      if (unit.sample_end() <= unit.sample_begin()) throw protocol::ProtocolError("empty sample range");
+      if (unit.sample_end() <= unit.sample_begin())
+        throw protocol::ProtocolError("empty sample range");
       const SampleRange samples{unit.sample_begin(), unit.sample_end()};
       const auto start = Clock::now();
       TileResult result;
@@ -201,7 +206,8 @@ struct Agent::Impl {
     }
     std::error_code ec;
     if (!fs::is_directory(options.cache_dir / unit.bundle_hash(), ec)) {
-      log()->info("job {}: fetching bundle {} from the master", unit.job_id(), unit.bundle_hash().substr(0, 12));
+      log()->info("job {}: fetching bundle {} from the master", unit.job_id(),
+                  unit.bundle_hash().substr(0, 12));
       wire::BundleRequest request;
       request.set_hash(unit.bundle_hash());
       send(encode(std::move(request)));
@@ -227,8 +233,8 @@ struct Agent::Impl {
     try {
       const Bundle bundle = protocol::bundle_from_wire(reply.bundle());
       const fs::path dir = unpack_bundle(bundle, options.cache_dir, unit.bundle_hash());
-      log()->info("bundle {} cached in {} ({} files)", unit.bundle_hash().substr(0, 12), dir.string(),
-                  bundle.files.size());
+      log()->info("bundle {} cached in {} ({} files)", unit.bundle_hash().substr(0, 12),
+                  dir.string(), bundle.files.size());
     } catch (const std::exception& e) {
       fail_unit(unit, std::string("cannot unpack the bundle: ") + e.what());
       request_work();

@@ -17,9 +17,9 @@ namespace rayfarm::worker {
 
 struct AgentOptions {
   std::string master = "tcp://localhost:5555";  ///< the master's worker endpoint
-  uint32_t threads = 0;                           ///< render threads; 0 = all hardware threads
+  uint32_t threads = 0;                         ///< render threads; 0 = all hardware threads
   std::filesystem::path cache_dir = "rayfarm-cache";
-  std::string name;                               ///< for the master's logs; "" = host-pid
+  std::string name;  ///< for the master's logs; "" = host-pid
   protocol::HeartbeatOptions heartbeat;
 };
 

@@ -30,7 +30,8 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--cache-dir", cache_dir, "where scene bundles are cached")->capture_default_str();
   app.add_option("--name", options.name, "name in the master's logs (default host-pid)");
-  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off")->capture_default_str();
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off")
+      ->capture_default_str();
   app.add_option("--log-format", log_format, "text or json")
       ->check(CLI::IsMember({"text", "json"}))
       ->capture_default_str();
@@ -47,8 +48,8 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
 
   try {
-    rayfarm::configure_logging(log_level, log_format == "json" ? rayfarm::LogFormat::kJson
-                                                               : rayfarm::LogFormat::kText);
+    rayfarm::configure_logging(
+        log_level, log_format == "json" ? rayfarm::LogFormat::kJson : rayfarm::LogFormat::kText);
   } catch (const std::exception& e) {
     std::cerr << "rayfarm-worker: error: " << e.what() << "\n";
     return 2;
@@ -56,7 +57,8 @@ int main(int argc, char** argv) {
   options.cache_dir = cache_dir;
   options.heartbeat.interval = std::chrono::milliseconds{heartbeat_ms};
   options.heartbeat.reconnect_max = std::chrono::milliseconds{reconnect_max_ms};
-  options.heartbeat.reconnect_min = std::min(options.heartbeat.reconnect_min, options.heartbeat.reconnect_max);
+  options.heartbeat.reconnect_min =
+      std::min(options.heartbeat.reconnect_min, options.heartbeat.reconnect_max);
 
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);

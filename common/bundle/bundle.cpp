@@ -140,7 +140,8 @@ PackedScene pack_scene(const fs::path& scene_file) {
   std::vector<BundleFile> files;
   for (const auto& s : sources) {
     const std::string rel = s.lexically_relative(root).generic_string();
-    if (std::any_of(files.begin(), files.end(), [&](const BundleFile& f) { return f.path == rel; })) {
+    if (std::any_of(files.begin(), files.end(),
+                    [&](const BundleFile& f) { return f.path == rel; })) {
       continue;  // referenced twice
     }
     files.push_back({rel, read_file(s)});

@@ -55,16 +55,17 @@ Decoded decode(const net::Frames& frames) {
   const std::string& type = frames[0];
   const std::string& body = frames[1];
   if (type.size() > kMaxTypeBytes) {
-    throw DecodeError(DecodeError::Kind::kTooLarge,
-                      "type frame of " + std::to_string(type.size()) + " bytes (limit " +
-                          std::to_string(kMaxTypeBytes) + ")");
+    throw DecodeError(DecodeError::Kind::kTooLarge, "type frame of " + std::to_string(type.size()) +
+                                                        " bytes (limit " +
+                                                        std::to_string(kMaxTypeBytes) + ")");
   }
   if (body.size() > kMaxBodyBytes) {
     throw DecodeError(DecodeError::Kind::kTooLarge,
                       "body of " + std::to_string(body.size()) + " bytes for '" + printable(type) +
                           "' (limit " + std::to_string(kMaxBodyBytes) + ")");
   }
-  const gp::Descriptor* descriptor = gp::DescriptorPool::generated_pool()->FindMessageTypeByName(type);
+  const gp::Descriptor* descriptor =
+      gp::DescriptorPool::generated_pool()->FindMessageTypeByName(type);
   if (!is_wire_message(descriptor)) {
     throw DecodeError(DecodeError::Kind::kUnknownType,
                       "unknown message type '" + printable(type) + "'");
@@ -74,8 +75,9 @@ Decoded decode(const net::Frames& frames) {
   out.type = type;
   out.message.reset(prototype->New());
   if (!out.message->ParseFromString(body)) {
-    throw DecodeError(DecodeError::Kind::kMalformedBody,
-                      "malformed body for '" + type + "' (" + std::to_string(body.size()) + " bytes)");
+    throw DecodeError(
+        DecodeError::Kind::kMalformedBody,
+        "malformed body for '" + type + "' (" + std::to_string(body.size()) + " bytes)");
   }
   out.version = out.message->GetReflection()->GetUInt32(*out.message, version_field(descriptor));
   return out;

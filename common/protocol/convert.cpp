@@ -4,19 +4,26 @@ namespace rayfarm::protocol {
 
 wire::Integrator integrator_to_wire(IntegratorType type) {
   switch (type) {
-    case IntegratorType::kNaive: return wire::INTEGRATOR_NAIVE;
-    case IntegratorType::kNee: return wire::INTEGRATOR_NEE;
-    case IntegratorType::kMis: return wire::INTEGRATOR_MIS;
+    case IntegratorType::kNaive:
+      return wire::INTEGRATOR_NAIVE;
+    case IntegratorType::kNee:
+      return wire::INTEGRATOR_NEE;
+    case IntegratorType::kMis:
+      return wire::INTEGRATOR_MIS;
   }
   return wire::INTEGRATOR_UNSPECIFIED;
 }
 
 IntegratorType integrator_from_wire(wire::Integrator value) {
   switch (value) {
-    case wire::INTEGRATOR_NAIVE: return IntegratorType::kNaive;
-    case wire::INTEGRATOR_NEE: return IntegratorType::kNee;
-    case wire::INTEGRATOR_MIS: return IntegratorType::kMis;
-    default: break;
+    case wire::INTEGRATOR_NAIVE:
+      return IntegratorType::kNaive;
+    case wire::INTEGRATOR_NEE:
+      return IntegratorType::kNee;
+    case wire::INTEGRATOR_MIS:
+      return IntegratorType::kMis;
+    default:
+      break;
   }
   throw ProtocolError("unknown integrator " + std::to_string(static_cast<int>(value)));
 }
@@ -90,8 +97,8 @@ std::vector<Fixed> unpack_fixed(std::string_view bytes, size_t count) {
   return out;
 }
 
-wire::UnitResult result_to_wire(const std::string& job_id, uint64_t unit_id, const TileResult& result,
-                                double render_seconds) {
+wire::UnitResult result_to_wire(const std::string& job_id, uint64_t unit_id,
+                                const TileResult& result, double render_seconds) {
   wire::UnitResult out;
   out.set_job_id(job_id);
   out.set_unit_id(unit_id);
@@ -145,12 +152,18 @@ Bundle bundle_from_wire(const wire::Bundle& bundle) {
 
 const char* job_state_name(wire::JobState state) {
   switch (state) {
-    case wire::JOB_QUEUED: return "queued";
-    case wire::JOB_RUNNING: return "running";
-    case wire::JOB_DONE: return "done";
-    case wire::JOB_FAILED: return "failed";
-    case wire::JOB_CANCELLED: return "cancelled";
-    default: return "unknown";
+    case wire::JOB_QUEUED:
+      return "queued";
+    case wire::JOB_RUNNING:
+      return "running";
+    case wire::JOB_DONE:
+      return "done";
+    case wire::JOB_FAILED:
+      return "failed";
+    case wire::JOB_CANCELLED:
+      return "cancelled";
+    default:
+      return "unknown";
   }
 }
 

@@ -42,8 +42,8 @@ std::string pack_fixed(const std::vector<Fixed>& values);
 std::vector<Fixed> unpack_fixed(std::string_view bytes, size_t count);
 
 /// The wire form of a rendered unit.
-wire::UnitResult result_to_wire(const std::string& job_id, uint64_t unit_id, const TileResult& result,
-                                double render_seconds);
+wire::UnitResult result_to_wire(const std::string& job_id, uint64_t unit_id,
+                                const TileResult& result, double render_seconds);
 /// A rendered unit read back; throws ProtocolError when the rectangle, sample range or sum sizes
 /// are inconsistent. The result is well_formed().
 TileResult result_from_wire(const wire::UnitResult& result);

@@ -65,8 +65,8 @@ TEST(BundlePath, CleanRelativePathsAreAccepted) {
 }
 
 TEST(BundlePath, EscapingOrOddPathsAreRejected) {
-  for (const char* bad : {"", "/etc/passwd", "..", "../x", "a/../../x", "a/..", "./a", "a/./b", "a//b",
-                          "a/", "a\\b", "..\\x"}) {
+  for (const char* bad : {"", "/etc/passwd", "..", "../x", "a/../../x", "a/..", "./a", "a/./b",
+                          "a//b", "a/", "a\\b", "..\\x"}) {
     EXPECT_THROW(check_bundle_path(bad), BundleError) << bad;
   }
   EXPECT_THROW(check_bundle_path(std::string("a\0b", 3)), BundleError);
@@ -81,9 +81,9 @@ TEST(BundleHash, Sha256MatchesTheStandardVector) {
 
 TEST(BundleHash, CanonicalFormIsLengthPrefixedInPathOrder) {
   const Bundle b = make_bundle({{"b", "2"}, {"a", "xy"}});
-  const std::string expected = std::string("\x01\0\0\0\0\0\0\0", 8) + "a" + std::string("\x02\0\0\0\0\0\0\0", 8) +
-                               "xy" + std::string("\x01\0\0\0\0\0\0\0", 8) + "b" +
-                               std::string("\x01\0\0\0\0\0\0\0", 8) + "2";
+  const std::string expected =
+      std::string("\x01\0\0\0\0\0\0\0", 8) + "a" + std::string("\x02\0\0\0\0\0\0\0", 8) + "xy" +
+      std::string("\x01\0\0\0\0\0\0\0", 8) + "b" + std::string("\x01\0\0\0\0\0\0\0", 8) + "2";
   EXPECT_EQ(canonical_bytes(b), expected);
 }
 
@@ -109,7 +109,8 @@ TEST(Bundle, PacksASceneWithEveryFileItReferences) {
   EXPECT_EQ(packed.scene_path, "scene.json");
   std::vector<std::string> paths;
   for (const auto& f : packed.bundle.files) paths.push_back(f.path);
-  EXPECT_EQ(paths, (std::vector<std::string>{"meshes/cornell_box.mtl", "meshes/cornell_box.obj", "scene.json"}));
+  EXPECT_EQ(paths, (std::vector<std::string>{"meshes/cornell_box.mtl", "meshes/cornell_box.obj",
+                                             "scene.json"}));
   EXPECT_EQ(packed.hash, bundle_hash(packed.bundle));
   // Packing again, from another working directory, gives the same hash.
   EXPECT_EQ(pack_scene(fs::relative(scene)).hash, packed.hash);

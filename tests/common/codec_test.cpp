@@ -60,7 +60,8 @@ TEST(Codec, AnotherVersionIsDecodedAndFlagged) {
 
 TEST(Codec, EveryTopLevelMessageCarriesTheVersion) {
   const auto* file = wire::Hello::descriptor()->file();
-  const std::set<std::string> building_blocks{"RenderSettings", "Rect", "BundleFile", "Bundle", "JobOverrides"};
+  const std::set<std::string> building_blocks{"RenderSettings", "Rect", "BundleFile", "Bundle",
+                                              "JobOverrides"};
   int wire_messages = 0;
   for (int i = 0; i < file->message_type_count(); ++i) {
     const auto* d = file->message_type(i);
@@ -123,7 +124,8 @@ TEST(Codec, FixedPointSumsSurviveTheWireBitForBit) {
 }
 
 TEST(Codec, FixedPointLayoutIsLowThenHighLittleEndian) {
-  const std::string bytes = pack_fixed({fixed_from_parts(0x0807060504030201ull, 0x100f0e0d0c0b0a09ll)});
+  const std::string bytes =
+      pack_fixed({fixed_from_parts(0x0807060504030201ull, 0x100f0e0d0c0b0a09ll)});
   ASSERT_EQ(bytes.size(), 16u);
   for (int i = 0; i < 16; ++i) EXPECT_EQ(static_cast<unsigned char>(bytes[i]), i + 1) << i;
   EXPECT_THROW(unpack_fixed(bytes, 2), ProtocolError);
@@ -189,7 +191,8 @@ TEST(Codec, RandomBytesNeverCrash) {
   for (int i = 0; i < 2000; ++i) {
     std::string body(rng() % 64, '\0');
     for (char& c : body) c = static_cast<char>(rng());
-    const std::string type = file->message_type(static_cast<int>(rng() % file->message_type_count()))->full_name();
+    const std::string type =
+        file->message_type(static_cast<int>(rng() % file->message_type_count()))->full_name();
     try {
       const Decoded d = decode({type, body});
       EXPECT_EQ(d.type, type);

@@ -32,7 +32,9 @@ namespace protocol = rayfarm::protocol;
 namespace wire = rayfarm::wire;
 using std::chrono::seconds;
 
-std::string bin(const std::string& relative) { return (fs::path(RAYFARM_BINARY_DIR) / relative).string(); }
+std::string bin(const std::string& relative) {
+  return (fs::path(RAYFARM_BINARY_DIR) / relative).string();
+}
 
 std::string read_text(const fs::path& file) {
   std::ifstream in(file, std::ios::binary);
@@ -51,9 +53,11 @@ struct RunResult {
     return ::testing::AssertionFailure() << "sizes differ: " << x.width << "x" << x.height << " vs "
                                          << y.width << "x" << y.height;
   }
-  if (x.rgb.size() != y.rgb.size() || std::memcmp(x.rgb.data(), y.rgb.data(), x.rgb.size() * sizeof(float)) != 0) {
+  if (x.rgb.size() != y.rgb.size() ||
+      std::memcmp(x.rgb.data(), y.rgb.data(), x.rgb.size() * sizeof(float)) != 0) {
     size_t differing = 0;
-    for (size_t i = 0; i < std::min(x.rgb.size(), y.rgb.size()); ++i) differing += x.rgb[i] != y.rgb[i];
+    for (size_t i = 0; i < std::min(x.rgb.size(), y.rgb.size()); ++i)
+      differing += x.rgb[i] != y.rgb[i];
     return ::testing::AssertionFailure() << differing << " of " << x.rgb.size() << " values differ";
   }
   bool any_light = false;
@@ -82,7 +86,8 @@ class RawPeer {
   template <class T>
   T expect(milliseconds timeout = milliseconds{10000}) {
     auto d = receive(timeout);
-    if (!d) throw std::runtime_error(std::string("no reply, expected ") + T::descriptor()->full_name());
+    if (!d)
+      throw std::runtime_error(std::string("no reply, expected ") + T::descriptor()->full_name());
     if (const T* m = d->as<T>()) return *m;
     throw std::runtime_error("got " + d->type + ", expected " + T::descriptor()->full_name());
   }
@@ -105,12 +110,14 @@ class FarmTest : public ::testing::Test {
   void TearDown() override {
     if (HasFailure()) {
       if (master_) std::cerr << "---- master log ----\n" << master_->log() << "\n";
-      for (const auto& [name, w] : workers_) std::cerr << "---- " << name << " log ----\n" << w->log() << "\n";
+      for (const auto& [name, w] : workers_)
+        std::cerr << "---- " << name << " log ----\n" << w->log() << "\n";
     }
     workers_.clear();  // SIGKILL whatever still runs
     master_.reset();
     std::error_code ec;
-    if (!HasFailure() && !std::getenv("RAYFARM_E2E_KEEP")) fs::remove_all(dir_, ec);  // kept for a look
+    if (!HasFailure() && !std::getenv("RAYFARM_E2E_KEEP"))
+      fs::remove_all(dir_, ec);  // kept for a look
   }
 
   std::string worker_endpoint() const { return "tcp://127.0.0.1:" + std::to_string(worker_port_); }
@@ -120,20 +127,24 @@ class FarmTest : public ::testing::Test {
   /// Starts the master (again, after a crash, with `log` another file: the log is appended to).
   void start_master(const std::string& log = "master.log") {
     master_ = std::make_unique<Process>(
-        std::vector<std::string>{bin("master/rayfarm-master"), "--worker-endpoint", worker_endpoint(),
-                                 "--client-endpoint", client_endpoint(), "--data-dir", (dir_ / "data").string(),
-                                 "--heartbeat-ms", "200", "--liveness", "3", "--image-interval-ms", "500"},
+        std::vector<std::string>{bin("master/rayfarm-master"), "--worker-endpoint",
+                                 worker_endpoint(), "--client-endpoint", client_endpoint(),
+                                 "--data-dir", (dir_ / "data").string(), "--heartbeat-ms", "200",
+                                 "--liveness", "3", "--image-interval-ms", "500"},
         dir_ / log);
-    ASSERT_TRUE(wait_until([&] { return master_->log().find("master listening") != std::string::npos; },
-                           milliseconds{10000}))
-        << "master did not start:\n" << master_->log();
+    ASSERT_TRUE(
+        wait_until([&] { return master_->log().find("master listening") != std::string::npos; },
+                   milliseconds{10000}))
+        << "master did not start:\n"
+        << master_->log();
   }
 
   Process& start_worker(const std::string& name) {
     auto p = std::make_unique<Process>(
-        std::vector<std::string>{bin("worker/rayfarm-worker"), "--master", worker_endpoint(), "--threads", "1",
-                                 "--cache-dir", (dir_ / ("cache-" + name)).string(), "--name", name,
-                                 "--heartbeat-ms", "200", "--liveness", "3", "--reconnect-max-ms", "1000"},
+        std::vector<std::string>{
+            bin("worker/rayfarm-worker"), "--master", worker_endpoint(), "--threads", "1",
+            "--cache-dir", (dir_ / ("cache-" + name)).string(), "--name", name, "--heartbeat-ms",
+            "200", "--liveness", "3", "--reconnect-max-ms", "1000"},
         dir_ / (name + ".log"));
     Process& ref = *p;
     workers_[name] = std::move(p);
@@ -143,7 +154,8 @@ class FarmTest : public ::testing::Test {
   Process& master() { return *master_; }
 
   /// Runs the CLI with `args` (and --master for farm commands) and waits for it.
-  RunResult cli(std::vector<std::string> args, bool farm = true, milliseconds timeout = milliseconds{90000}) {
+  RunResult cli(std::vector<std::string> args, bool farm = true,
+                milliseconds timeout = milliseconds{90000}) {
     static std::atomic<int> counter{0};
     const int n = counter++;
     std::vector<std::string> argv{bin("cli/rayfarm")};
@@ -184,7 +196,8 @@ class FarmTest : public ::testing::Test {
     return out;
   }
 
-  std::string submit(const fs::path& scene, const std::vector<std::string>& settings, bool wait = false) {
+  std::string submit(const fs::path& scene, const std::vector<std::string>& settings,
+                     bool wait = false) {
     std::vector<std::string> args{"submit", scene.string()};
     args.insert(args.end(), settings.begin(), settings.end());
     if (wait) args.push_back("--wait");
@@ -231,7 +244,8 @@ TEST_F(FarmTest, TwoWorkersRenderTheCornellBoxBitIdenticalToALocalRender) {
   Process& a = start_worker("wa");
   Process& b = start_worker("wb");
   const fs::path scene = small_scene("cornell-box", 64);
-  const std::vector<std::string> settings{"--spp", "32", "--seed", "7", "--max-depth", "6", "--integrator", "mis"};
+  const std::vector<std::string> settings{"--spp",       "32", "--seed",       "7",
+                                          "--max-depth", "6",  "--integrator", "mis"};
   std::vector<std::string> job_settings = settings;
   job_settings.insert(job_settings.end(), {"--tile", "16", "--pass-spp", "8"});
   const std::string job = submit(scene, job_settings, /*wait=*/true);
@@ -264,7 +278,8 @@ TEST_F(FarmTest, AWorkerKilledMidJobLosesNothing) {
   start_master();
   Process& victim = start_worker("victim");
   start_worker("survivor");
-  const fs::path scene = small_scene("embree-cornell", 64);  // an OBJ and an MTL travel in the bundle
+  const fs::path scene =
+      small_scene("embree-cornell", 64);  // an OBJ and an MTL travel in the bundle
   const std::vector<std::string> settings{"--spp", "1024", "--seed", "3"};
   std::vector<std::string> job_settings = settings;
   job_settings.insert(job_settings.end(), {"--tile", "32", "--pass-spp", "128"});  // 32 units
@@ -312,7 +327,8 @@ TEST_F(FarmTest, AWorkerThatJoinsLateTakesWork) {
   ASSERT_EQ(late.wait(milliseconds{10000}), std::optional<int>(0));
   std::smatch m;
   const std::string late_log = late.log();
-  ASSERT_TRUE(std::regex_search(late_log, m, std::regex("job j0001: rendered ([0-9]+) units"))) << late_log;
+  ASSERT_TRUE(std::regex_search(late_log, m, std::regex("job j0001: rendered ([0-9]+) units")))
+      << late_log;
   EXPECT_GT(std::stoi(m[1]), 0);
   EXPECT_TRUE(std::regex_search(master().log(), std::regex("worker late \\([0-9a-f]+\\) joined")));
   EXPECT_TRUE(bit_identical(fetch(job), local_render(scene, settings)));
@@ -331,18 +347,22 @@ TEST_F(FarmTest, WorkersReconnectWhenTheMasterRestarts) {
   // A master that comes back at once: the connection heals by itself, the worker says hello again.
   master().signal(SIGKILL);
   ASSERT_TRUE(master().wait(milliseconds{5000}));
-  start_master("master-2.log");  // same ports, same data dir: the job is restarted from the beginning
-  EXPECT_NE(master().log().find("job j0001 restarted from the beginning"), std::string::npos) << master().log();
+  start_master(
+      "master-2.log");  // same ports, same data dir: the job is restarted from the beginning
+  EXPECT_NE(master().log().find("job j0001 restarted from the beginning"), std::string::npos)
+      << master().log();
   wait_for_units(job, 4);
 
   // A master away for longer than the liveness window: the worker reconnects with back-off.
   master().signal(SIGKILL);
   ASSERT_TRUE(master().wait(milliseconds{5000}));
-  ASSERT_TRUE(wait_until([&] { return worker.log().find("is silent for") != std::string::npos; }, milliseconds{10000}));
+  ASSERT_TRUE(wait_until([&] { return worker.log().find("is silent for") != std::string::npos; },
+                         milliseconds{10000}));
   std::this_thread::sleep_for(milliseconds{1500});
   start_master("master-3.log");
   wait_for_state(job, wire::JOB_DONE);
-  EXPECT_TRUE(std::regex_search(master().log(), std::regex("worker steady \\([0-9a-f]+\\) joined")));
+  EXPECT_TRUE(
+      std::regex_search(master().log(), std::regex("worker steady \\([0-9a-f]+\\) joined")));
   EXPECT_EQ(count_of(worker.log(), "connected to the master"), 3u) << worker.log();
   EXPECT_TRUE(bit_identical(fetch(job), local_render(scene, settings)));
 }
@@ -373,20 +393,22 @@ TEST_F(FarmTest, ADuplicateResultIsDroppedAndChangesNothing) {
       fake.send(protocol::encode(request));
       const auto reply = fake.expect<wire::BundleReply>();
       ASSERT_TRUE(reply.error().empty()) << reply.error();
-      const fs::path unpacked = unpack_bundle(protocol::bundle_from_wire(reply.bundle()), dir() / "fake-cache",
-                                              unit.bundle_hash());
+      const fs::path unpacked = unpack_bundle(protocol::bundle_from_wire(reply.bundle()),
+                                              dir() / "fake-cache", unit.bundle_hash());
       loaded = std::make_unique<Scene>(load_scene(unpacked / unit.scene_path()));
       renderer = std::make_unique<Renderer>(*loaded, protocol::settings_from_wire(unit.settings()));
     }
     const TileResult result = renderer->render(protocol::rect_from_wire(unit.tile()),
                                                {unit.sample_begin(), unit.sample_end()});
-    const net::Frames frames = protocol::encode(protocol::result_to_wire(unit.job_id(), unit.unit_id(), result, 0.0));
+    const net::Frames frames =
+        protocol::encode(protocol::result_to_wire(unit.job_id(), unit.unit_id(), result, 0.0));
     fake.send(frames);
     fake.send(frames);
   }
   wait_for_state(job, wire::JOB_DONE);
-  ASSERT_TRUE(wait_until([&] { return count_of(master().log(), "duplicate result from worker twice") == 8; },
-                         milliseconds{5000}))
+  ASSERT_TRUE(wait_until(
+      [&] { return count_of(master().log(), "duplicate result from worker twice") == 8; },
+      milliseconds{5000}))
       << master().log();
   EXPECT_TRUE(bit_identical(fetch(job), local_render(scene, settings)));
 }
@@ -406,7 +428,8 @@ TEST_F(FarmTest, APeerWithAnotherProtocolVersionIsRefused) {
     EXPECT_NE(refusal.reason().find("version 1"), std::string::npos) << refusal.reason();
     EXPECT_NE(refusal.reason().find("version 2"), std::string::npos) << refusal.reason();
   }
-  EXPECT_EQ(count_of(master().log(), "it speaks protocol version 2, this master 1"), 2u) << master().log();
+  EXPECT_EQ(count_of(master().log(), "it speaks protocol version 2, this master 1"), 2u)
+      << master().log();
   EXPECT_EQ(cli({"list"}).code, 0);
 }
 
@@ -435,8 +458,9 @@ TEST_F(FarmTest, GarbageOnEitherSocketIsLoggedAndIgnored) {
     const auto error = client.expect<wire::Error>();
     EXPECT_NE(error.message().find("cannot decode"), std::string::npos) << error.message();
   }
-  EXPECT_TRUE(wait_until([&] { return count_of(master().log(), "ignored a bad message") == 2 * garbage.size(); },
-                         milliseconds{5000}))
+  EXPECT_TRUE(wait_until(
+      [&] { return count_of(master().log(), "ignored a bad message") == 2 * garbage.size(); },
+      milliseconds{5000}))
       << master().log();
   // A valid message on the wrong socket is refused by name.
   worker.send(protocol::encode(wire::ListJobs{}));
@@ -457,12 +481,16 @@ TEST_F(FarmTest, ClientErrorsAreClear) {
     const auto start = Clock::now();
     const RunResult r = cli({"list", "--timeout", "1"});
     EXPECT_EQ(r.code, 3);
-    EXPECT_NE(r.err.find("cannot reach master at " + client_endpoint() + " within 1 s"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("cannot reach master at " + client_endpoint() + " within 1 s"),
+              std::string::npos)
+        << r.err;
     EXPECT_LT(Clock::now() - start, seconds{8});
   }
   start_master();
-  for (const auto& command : {std::vector<std::string>{"status", "j9999"}, {"cancel", "j9999"},
-                              {"watch", "j9999"}, {"fetch", "j9999", "-o", (dir() / "x.exr").string()}}) {
+  for (const auto& command : {std::vector<std::string>{"status", "j9999"},
+                              {"cancel", "j9999"},
+                              {"watch", "j9999"},
+                              {"fetch", "j9999", "-o", (dir() / "x.exr").string()}}) {
     const RunResult r = cli(command);
     EXPECT_EQ(r.code, 1) << command[0];
     EXPECT_NE(r.err.find("unknown job 'j9999'"), std::string::npos) << r.err;
@@ -479,7 +507,8 @@ TEST_F(FarmTest, ClientErrorsAreClear) {
   // ...and by the master, which returns the parser's message.
   RawPeer client(client_endpoint());
   wire::SubmitJob request;
-  protocol::bundle_to_wire(make_bundle({{"scene.json", "{\"film\": {\"width\": -3}}"}}), request.mutable_bundle());
+  protocol::bundle_to_wire(make_bundle({{"scene.json", "{\"film\": {\"width\": -3}}"}}),
+                           request.mutable_bundle());
   request.set_scene_path("scene.json");
   client.send(protocol::encode(request));
   const auto reply = client.expect<wire::SubmitReply>();

@@ -44,7 +44,9 @@ class Process {
       ::prctl(PR_SET_PDEATHSIG, SIGKILL);
       if (::getppid() != parent) ::_exit(127);
       const int fd_out = ::open(out_path.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
-      const int fd_err = err_path == out_path ? fd_out : ::open(err_path.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+      const int fd_err = err_path == out_path
+                             ? fd_out
+                             : ::open(err_path.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
       if (fd_out < 0 || fd_err < 0) ::_exit(126);
       ::dup2(fd_out, STDOUT_FILENO);
       ::dup2(fd_err, STDERR_FILENO);
@@ -55,7 +57,8 @@ class Process {
     }
   }
   /// Both streams to one log file.
-  Process(const std::vector<std::string>& argv, const std::filesystem::path& log) : Process(argv, log, log) {}
+  Process(const std::vector<std::string>& argv, const std::filesystem::path& log)
+      : Process(argv, log, log) {}
 
   ~Process() {
     if (running()) {
@@ -134,7 +137,8 @@ inline bool wait_until(const std::function<bool()>& condition, milliseconds time
 /// Occurrences of `needle` in `text`.
 inline size_t count_of(const std::string& text, const std::string& needle) {
   size_t n = 0;
-  for (size_t pos = text.find(needle); pos != std::string::npos; pos = text.find(needle, pos + 1)) ++n;
+  for (size_t pos = text.find(needle); pos != std::string::npos; pos = text.find(needle, pos + 1))
+    ++n;
   return n;
 }
 

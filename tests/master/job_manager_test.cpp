@@ -47,7 +47,8 @@ std::string read_file(const fs::path& file) {
 
 /// A submit request for the bundled furnace (32x32) with these overrides.
 wire::SubmitJob furnace_job(uint32_t spp, uint32_t tile, uint32_t pass_spp) {
-  const PackedScene packed = pack_scene(fs::path(RAYFARM_SOURCE_DIR) / "scenes" / "furnace" / "scene.json");
+  const PackedScene packed =
+      pack_scene(fs::path(RAYFARM_SOURCE_DIR) / "scenes" / "furnace" / "scene.json");
   wire::SubmitJob request;
   protocol::bundle_to_wire(packed.bundle, request.mutable_bundle());
   request.set_scene_path(packed.scene_path);
@@ -129,7 +130,8 @@ TEST_F(JobManagerTest, AJobRunsToCompletionAndWritesItsImage) {
   for (uint32_t i = 0; i < 8; ++i) EXPECT_EQ(units[i].pass(), i / 4);
   EXPECT_EQ(jobs.status(id, 1)->state(), wire::JOB_RUNNING);
 
-  for (const auto& unit : units) EXPECT_EQ(jobs.on_result("w1", result_for(unit)), MergeOutcome::kMerged);
+  for (const auto& unit : units)
+    EXPECT_EQ(jobs.on_result("w1", result_for(unit)), MergeOutcome::kMerged);
   st = jobs.status(id, 1);
   EXPECT_EQ(st->state(), wire::JOB_DONE);
   EXPECT_EQ(st->units_done(), 8u);

@@ -61,7 +61,8 @@ TEST(Merger, RejectsResultsThatDoNotMatchTheirUnit) {
 
 TEST(Merger, AnyOrderOfArrivalGivesTheSameBits) {
   Merger in_order(kGrid);
-  for (uint64_t u = 0; u < kGrid.size(); ++u) ASSERT_EQ(in_order.add(u, fake_result(kGrid, u)), MergeOutcome::kMerged);
+  for (uint64_t u = 0; u < kGrid.size(); ++u)
+    ASSERT_EQ(in_order.add(u, fake_result(kGrid, u)), MergeOutcome::kMerged);
   ASSERT_TRUE(in_order.complete());
   const std::vector<float> reference = in_order.film().mean_rgb();
 
@@ -87,7 +88,7 @@ TEST(Merger, CountsPassesCompleteFromPassZero) {
   Merger m(kGrid);
   EXPECT_EQ(m.passes_complete(), 0u);
   for (uint64_t u = 6; u < 12; ++u) m.add(u, fake_result(kGrid, u));  // all of pass 1
-  EXPECT_EQ(m.passes_complete(), 0u);  // pass 0 still missing
+  EXPECT_EQ(m.passes_complete(), 0u);                                 // pass 0 still missing
   for (uint64_t u = 0; u < 5; ++u) m.add(u, fake_result(kGrid, u));
   EXPECT_EQ(m.passes_complete(), 0u);
   m.add(5, fake_result(kGrid, 5));

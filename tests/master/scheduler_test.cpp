@@ -60,9 +60,9 @@ TEST(Scheduler, NothingPendingMeansNoLease) {
 TEST(Scheduler, LostWorkerUnitsAreRequeuedAheadOfFreshOnes) {
   Scheduler s;
   s.add_job("a", 10);
-  lease_unit(s, "w1");            // 0
-  lease_unit(s, "w2");            // 1
-  lease_unit(s, "w1");            // 2
+  lease_unit(s, "w1");  // 0
+  lease_unit(s, "w2");  // 1
+  lease_unit(s, "w1");  // 2
   const auto released = s.release_worker("w1");
   EXPECT_EQ(released, (std::vector<UnitRef>{{"a", 0}, {"a", 2}}));
   EXPECT_EQ(s.leases_of("w1"), 0u);
