@@ -30,8 +30,6 @@ namespace {
 
 std::shared_ptr<spdlog::logger> log() { return get_logger("worker"); }
 
-/// How often the reactor looks at a unit in flight; bounds the delay before its result leaves.
-constexpr milliseconds kRenderPoll{2};
 /// How long a stopping worker waits for its last messages to leave.
 constexpr milliseconds kFinalLinger{2000};
 
@@ -348,7 +346,13 @@ struct Agent::Impl {
       if (stop.load() && !rendering) break;
 
       auto wait = std::chrono::duration_cast<milliseconds>(next_heartbeat - Clock::now());
-      wait = std::clamp(wait, milliseconds{0}, rendering ? kRenderPoll : milliseconds{100});
+      wait = std::clamp(wait, milliseconds{0}, milliseconds{100});
+      if (rendering) {
+        // Wait on the unit itself, so that its result leaves the moment it is ready; what the
+        // master sent meanwhile (heartbeats) is read right after.
+        if (render.wait_for(wait) == std::future_status::ready) collect_render(stop.load());
+        wait = milliseconds{0};
+      }
       if (auto frames = socket->receive(wait)) {
         last_heard = Clock::now();
         handle(*frames, stop);
@@ -357,9 +361,6 @@ struct Agent::Impl {
           if (!more) break;
           handle(*more, stop);
         }
-      }
-      if (rendering && render.wait_for(milliseconds{0}) == std::future_status::ready) {
-        collect_render(stop.load());
       }
       const auto now = Clock::now();
       if (now >= next_heartbeat) {
