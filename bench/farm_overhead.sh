@@ -42,6 +42,10 @@ master_bin=$(bin rayfarm-master master)
 worker_bin=$(bin rayfarm-worker worker)
 
 work=$(mktemp -d "${TMPDIR:-/tmp}/rayfarm-overhead.XXXXXX")
+# Run copies, so that a rebuild during the benchmark cannot mix two versions of the renderer.
+mkdir "$work/bin"
+cp "$rayfarm" "$master_bin" "$worker_bin" "$work/bin/"
+rayfarm="$work/bin/rayfarm" master_bin="$work/bin/rayfarm-master" worker_bin="$work/bin/rayfarm-worker"
 pids=()
 cleanup() {
   local p
