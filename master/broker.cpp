@@ -134,13 +134,13 @@ void Broker::register_worker(const net::PeerId& peer, const wire::Hello& hello) 
     jobs_.release_worker(peer);  // a worker that starts over holds nothing any more
   }
   Worker& w = workers_[peer];
-  w.name = hello.name().empty() ? "unnamed" : hello.name();
+  w.name = hello.name().empty() ? "unnamed" : protocol::printable(hello.name());
   w.threads = hello.threads();
   w.expires = Clock::now() + options_.heartbeat.expiry();
   w.waiting = false;
   log()->info("{} joined: {} threads, {}; {} worker{} connected", worker_label(peer), w.threads,
-              hello.build().empty() ? "unknown build" : hello.build(), workers_.size(),
-              workers_.size() == 1 ? "" : "s");
+              hello.build().empty() ? "unknown build" : protocol::printable(hello.build()),
+              workers_.size(), workers_.size() == 1 ? "" : "s");
   wire::Welcome welcome;
   welcome.set_build(protocol::kBuildVersion);
   welcome.set_heartbeat_interval_ms(static_cast<uint32_t>(options_.heartbeat.interval.count()));
@@ -237,8 +237,9 @@ void Broker::handle_worker(const net::Delivery& delivery) {
       }
       send_worker(peer, encode(std::move(reply_msg)));
     } else if (const auto* bye = msg.as<wire::Goodbye>()) {
-      remove_worker(peer,
-                    "left" + (bye->reason().empty() ? std::string() : " (" + bye->reason() + ")"));
+      remove_worker(
+          peer, "left" + (bye->reason().empty() ? std::string()
+                                                : " (" + protocol::printable(bye->reason()) + ")"));
     } else {
       log()->warn("worker socket: unexpected {} from {}; ignored", msg.type, worker_label(peer));
       send_worker(peer, error_frames("unexpected message " + msg.type + " on the worker endpoint"));

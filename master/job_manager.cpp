@@ -7,6 +7,7 @@
 #include "common/bundle/bundle.h"
 #include "common/image/film_output.h"
 #include "common/net/frames.h"
+#include "common/protocol/codec.h"
 #include "common/protocol/convert.h"
 #include "common/scene/parser.h"
 #include "common/util/log.h"
@@ -150,7 +151,7 @@ std::string JobManager::submit(const wire::SubmitJob& request) {
   // Settings: the scene's, with the job's overrides.
   JobSpec spec;
   spec.name =
-      request.name().empty() ? fs::path(request.scene_path()).stem().string() : request.name();
+      protocol::printable(request.name().empty() ? request.scene_path() : request.name(), 128);
   spec.bundle_hash = hash;
   spec.scene_path = request.scene_path();
   spec.film = scene.film;

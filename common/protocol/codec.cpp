@@ -16,16 +16,6 @@ const gp::FieldDescriptor* version_field(const gp::Descriptor* d) {
   return f;
 }
 
-std::string printable(const std::string& s, size_t limit = 48) {
-  std::string out;
-  for (size_t i = 0; i < s.size() && i < limit; ++i) {
-    const unsigned char c = static_cast<unsigned char>(s[i]);
-    out.push_back(c >= 0x20 && c < 0x7f ? static_cast<char>(c) : '?');
-  }
-  if (s.size() > limit) out += "...";
-  return out;
-}
-
 }  // namespace
 
 bool is_wire_message(const gp::Descriptor* descriptor) {
@@ -61,14 +51,14 @@ Decoded decode(const net::Frames& frames) {
   }
   if (body.size() > kMaxBodyBytes) {
     throw DecodeError(DecodeError::Kind::kTooLarge,
-                      "body of " + std::to_string(body.size()) + " bytes for '" + printable(type) +
-                          "' (limit " + std::to_string(kMaxBodyBytes) + ")");
+                      "body of " + std::to_string(body.size()) + " bytes for '" +
+                          printable(type, 48) + "' (limit " + std::to_string(kMaxBodyBytes) + ")");
   }
   const gp::Descriptor* descriptor =
       gp::DescriptorPool::generated_pool()->FindMessageTypeByName(type);
   if (!is_wire_message(descriptor)) {
     throw DecodeError(DecodeError::Kind::kUnknownType,
-                      "unknown message type '" + printable(type) + "'");
+                      "unknown message type '" + printable(type, 48) + "'");
   }
   const gp::Message* prototype = gp::MessageFactory::generated_factory()->GetPrototype(descriptor);
   Decoded out;
@@ -83,9 +73,20 @@ Decoded decode(const net::Frames& frames) {
   return out;
 }
 
+std::string printable(std::string_view text, size_t limit) {
+  std::string out;
+  for (size_t i = 0; i < text.size() && i < limit; ++i) {
+    const unsigned char c = static_cast<unsigned char>(text[i]);
+    const bool safe = c >= 0x20 && c < 0x7f && c != '"' && c != '\\';
+    out.push_back(safe ? static_cast<char>(c) : '?');
+  }
+  if (text.size() > limit) out += "...";
+  return out;
+}
+
 std::string describe_frames(const net::Frames& frames) {
   if (frames.empty()) return "";
-  return printable(frames[0]);
+  return printable(frames[0], 48);
 }
 
 }  // namespace rayfarm::protocol

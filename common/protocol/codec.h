@@ -8,6 +8,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <utility>
 
 #include <google/protobuf/message.h>
@@ -75,5 +76,9 @@ bool is_wire_message(const google::protobuf::Descriptor* descriptor);
 
 /// The frames' type name for logs, made printable and cut short; "" when there is none.
 std::string describe_frames(const net::Frames& frames);
+
+/// Text from a peer (a name, a type frame) made safe for one log line: anything but printable
+/// ASCII, and quotes and backslashes, become '?'; longer text is cut at `limit` and marked "...".
+std::string printable(std::string_view text, size_t limit = 64);
 
 }  // namespace rayfarm::protocol

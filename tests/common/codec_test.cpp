@@ -203,6 +203,12 @@ TEST(Codec, RandomBytesNeverCrash) {
   EXPECT_GT(rejected, 0);
 }
 
+TEST(Codec, PeerTextIsMadeSafeForOneLogLine) {
+  EXPECT_EQ(printable("worker-1"), "worker-1");
+  EXPECT_EQ(printable("a\nb\"c\\d\x01"), "a?b?c?d?");
+  EXPECT_EQ(printable(std::string(100, 'x'), 8), "xxxxxxxx...");
+}
+
 TEST(Heartbeat, DefaultsAreConsistent) {
   const HeartbeatOptions o;
   EXPECT_EQ(o.expiry(), kHeartbeatInterval * kHeartbeatLiveness);
