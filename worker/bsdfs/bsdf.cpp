@@ -93,20 +93,16 @@ Vec3 sample_cosine_hemisphere(float u1, float u2) {
   return {x, y, std::sqrt(std::max(0.f, 1.f - x * x - y * y))};
 }
 
-Vec3 Bsdf::eval(const Vec3& wo_in, const Vec3& wi_in) const {
+Vec3 Bsdf::eval_other(const Vec3& wo_in, const Vec3& wi_in) const {
   if (is_specular() || wo_in.z * wi_in.z <= 0.f) return Vec3(0.f);
   const bool flip = wo_in.z < 0.f;
-  const Vec3 wo = to_upper(wo_in, flip), wi = to_upper(wi_in, flip);
-  if (m_->type == MaterialType::kDiffuse) return m_->albedo * (wi.z * kInvPi);
-  return eval_phong(*m_, wo, wi);
+  return eval_phong(*m_, to_upper(wo_in, flip), to_upper(wi_in, flip));
 }
 
-float Bsdf::pdf(const Vec3& wo_in, const Vec3& wi_in) const {
+float Bsdf::pdf_other(const Vec3& wo_in, const Vec3& wi_in) const {
   if (is_specular() || wo_in.z * wi_in.z <= 0.f) return 0.f;
   const bool flip = wo_in.z < 0.f;
-  const Vec3 wo = to_upper(wo_in, flip), wi = to_upper(wi_in, flip);
-  if (m_->type == MaterialType::kDiffuse) return wi.z * kInvPi;
-  return pdf_phong(*m_, wo, wi);
+  return pdf_phong(*m_, to_upper(wo_in, flip), to_upper(wi_in, flip));
 }
 
 bool Bsdf::sample(const Vec3& wo_in, float u_lobe, float u1, float u2, BsdfSample& out) const {

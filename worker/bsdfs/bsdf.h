@@ -3,6 +3,8 @@
 // struct, not a virtual class: it is built and evaluated per path vertex. Directions point away
 // from the surface. Diffuse and Phong surfaces scatter on both sides (they mirror to wo's side);
 // the dielectric uses z > 0 as outside.
+#include <cmath>
+
 #include "common/math/vec3.h"
 #include "common/scene/scene.h"
 
@@ -23,13 +25,23 @@ class Bsdf {
   /// True when every lobe is a Dirac delta (light sampling cannot help).
   bool is_specular() const { return m_->is_specular(); }
   /// f(wo, wi) * |cos(wi)|; zero for specular materials.
-  Vec3 eval(const Vec3& wo, const Vec3& wi) const;
+  Vec3 eval(const Vec3& wo, const Vec3& wi) const {
+    if (m_->type != MaterialType::kDiffuse) return eval_other(wo, wi);
+    return wo.z * wi.z > 0.f ? m_->albedo * (std::fabs(wi.z) * kInvPi) : Vec3(0.f);
+  }
   /// Solid-angle density with which sample() draws wi given wo; zero for specular materials.
-  float pdf(const Vec3& wo, const Vec3& wi) const;
+  float pdf(const Vec3& wo, const Vec3& wi) const {
+    if (m_->type != MaterialType::kDiffuse) return pdf_other(wo, wi);
+    return wo.z * wi.z > 0.f ? std::fabs(wi.z) * kInvPi : 0.f;
+  }
   /// Draws wi from three uniform numbers; false when no direction carries energy.
   bool sample(const Vec3& wo, float u_lobe, float u1, float u2, BsdfSample& out) const;
 
  private:
+  // The non-diffuse cases; diffuse, the common one, is inline above.
+  Vec3 eval_other(const Vec3& wo, const Vec3& wi) const;
+  float pdf_other(const Vec3& wo, const Vec3& wi) const;
+
   const Material* m_;
 };
 

@@ -70,8 +70,11 @@ float LightSet::selection_probability(int32_t light) const {
 
 bool LightSet::sample(const Vec3& ref, float u_select, float u1, float u2, LightSample& out) const {
   if (lights_.empty()) return false;
-  const auto it = std::upper_bound(cdf_.begin(), cdf_.end(), u_select);
-  const auto index = static_cast<int32_t>(std::min<size_t>(it - cdf_.begin(), cdf_.size() - 1));
+  int32_t index = 0;
+  if (cdf_.size() > 1) {
+    const auto it = std::upper_bound(cdf_.begin(), cdf_.end(), u_select);
+    index = static_cast<int32_t>(std::min<size_t>(it - cdf_.begin(), cdf_.size() - 1));
+  }
   const float p_select = selection_probability(index);
   if (!(p_select > 0.f)) return false;
   const Light& light = lights_[index];
