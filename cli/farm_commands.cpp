@@ -24,6 +24,7 @@
 #include "common/protocol/codec.h"
 #include "common/protocol/convert.h"
 #include "common/scene/parser.h"
+#include "common/util/atomic_file.h"
 
 namespace rayfarm::cli {
 namespace {
@@ -261,25 +262,6 @@ int watch_job(FarmClient& client, const std::string& job) {
   }
 }
 
-void write_bytes_atomic(const fs::path& path, const std::string& bytes) {
-  const fs::path temp = path.string() + ".tmp-" + std::to_string(::getpid());
-  {
-    std::ofstream out(temp, std::ios::binary | std::ios::trunc);
-    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-    out.close();
-    if (!out) {
-      std::error_code ec;
-      fs::remove(temp, ec);
-      throw std::runtime_error("cannot write " + path.string());
-    }
-  }
-  std::error_code ec;
-  fs::rename(temp, path, ec);
-  if (ec) {
-    fs::remove(temp, ec);
-    throw std::runtime_error("cannot write " + path.string() + ": " + ec.message());
-  }
-}
 
 // --- Commands ---
 
@@ -427,11 +409,11 @@ void add_fetch(CLI::App& app, int& exit_code) {
       wire::FetchImage request;
       request.set_job_id(*job);
       const auto image = client.call<wire::ImageData>(encode(std::move(request)));
-      write_bytes_atomic(*output, image.exr());
+      write_file_atomically(*output, image.exr());
       std::string wrote = *output;
       if (!image.png().empty()) {
         const fs::path png = preview_path(*output);
-        write_bytes_atomic(png, image.png());
+        write_file_atomically(png, image.png());
         wrote += " and " + png.string();
       }
       std::cout << fmt::format("wrote {} (job {} {}, {} spp)\n", wrote, image.job_id(),

@@ -1,5 +1,7 @@
 #include "master/job_store.h"
 
+#include "common/util/atomic_file.h"
+
 #include <algorithm>
 #include <cstdio>
 #include <fstream>
@@ -112,25 +114,6 @@ uint64_t id_number(const std::string& id) {
 
 }  // namespace
 
-void write_file_atomic(const fs::path& path, const std::string& bytes) {
-  const fs::path temp = path.string() + ".tmp-" + std::to_string(::getpid());
-  {
-    std::ofstream out(temp, std::ios::binary | std::ios::trunc);
-    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-    out.close();
-    if (!out) {
-      std::error_code ec;
-      fs::remove(temp, ec);
-      throw std::runtime_error("cannot write " + temp.string());
-    }
-  }
-  std::error_code ec;
-  fs::rename(temp, path, ec);
-  if (ec) {
-    fs::remove(temp, ec);
-    throw std::runtime_error("cannot rename into " + path.string() + ": " + ec.message());
-  }
-}
 
 JobStore::JobStore(fs::path data_dir) : root_(std::move(data_dir)) {
   std::error_code ec;
@@ -172,14 +155,14 @@ fs::path JobStore::make_scratch_dir() {
 }
 
 void JobStore::save_record(const JobRecord& record) {
-  write_file_atomic(job_dir(record.spec.id) / "job.json", to_json(record).dump(2) + "\n");
+  write_file_atomically(job_dir(record.spec.id) / "job.json", to_json(record).dump(2) + "\n");
 }
 
 void JobStore::save_bundle(const std::string& id, const wire::Bundle& bundle) {
   std::string bytes;
   if (!bundle.SerializeToString(&bytes))
     throw std::runtime_error("cannot serialize bundle of " + id);
-  write_file_atomic(job_dir(id) / "bundle.pb", bytes);
+  write_file_atomically(job_dir(id) / "bundle.pb", bytes);
 }
 
 std::optional<wire::Bundle> JobStore::load_bundle(const std::string& id) const {

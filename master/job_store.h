@@ -72,8 +72,5 @@ class JobStore {
   uint64_t scratch_counter_ = 0;
 };
 
-/// Writes `bytes` to a temporary file beside `path` and renames it into place. Throws
-/// std::runtime_error naming the file.
-void write_file_atomic(const std::filesystem::path& path, const std::string& bytes);
 
 }  // namespace rayfarm::master

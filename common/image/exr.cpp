@@ -1,5 +1,7 @@
 #include "common/image/exr.h"
 
+#include "common/util/atomic_file.h"
+
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -23,24 +25,6 @@ namespace {
 namespace fs = std::filesystem;
 
 /// A name beside `path` that no other writer in this process or another one uses.
-fs::path temporary_path(const fs::path& path) {
-  static std::atomic<uint64_t> counter{0};
-  const std::string name = path.filename().string() + ".tmp-" + std::to_string(::getpid()) + "-" +
-                           std::to_string(counter.fetch_add(1));
-  return path.parent_path() / name;
-}
-
-/// Flushes a closed file's data to the disk, so the rename cannot expose an empty file after a
-/// crash. Throws std::system_error.
-void sync_file(const fs::path& path) {
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) throw std::system_error(errno, std::generic_category(), "cannot reopen to sync");
-  const int result = ::fsync(fd);
-  const int sync_errno = errno;
-  ::close(fd);
-  if (result != 0) throw std::system_error(sync_errno, std::generic_category(), "fsync failed");
-}
-
 [[noreturn]] void fail_read(const fs::path& path, const std::string& cause) {
   throw ImageError("cannot read " + path.string() + ": " + cause);
 }
@@ -162,27 +146,17 @@ Image read_exr_file(const fs::path& path) {
 
 }  // namespace
 
-void write_atomically(const fs::path& path,
-                      const std::function<void(const fs::path& temporary)>& write) {
-  const fs::path temporary = temporary_path(path);
-  try {
-    write(temporary);
-    sync_file(temporary);
-    fs::rename(temporary, path);
-  } catch (const std::exception& e) {
-    std::error_code ignored;
-    fs::remove(temporary, ignored);
-    throw ImageError("cannot write " + path.string() + ": " + e.what());
-  }
-}
-
 void write_exr(const fs::path& path, const Image& image) {
   try {
     check_image_shape(image);
   } catch (const ImageError& e) {
     throw ImageError("cannot write " + path.string() + ": " + e.what());
   }
-  write_atomically(path, [&](const fs::path& temporary) { write_exr_file(temporary, image); });
+  try {
+    write_atomically(path, [&](const fs::path& temporary) { write_exr_file(temporary, image); });
+  } catch (const std::runtime_error& e) {
+    throw ImageError(e.what());
+  }
 }
 
 Image read_exr(const fs::path& path) {

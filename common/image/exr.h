@@ -30,9 +30,4 @@ void write_exr(const std::filesystem::path& path, const Image& image);
 /// Reads an EXR's R, G, B channels (and any others into `extra`) as float32. Throws ImageError.
 Image read_exr(const std::filesystem::path& path);
 
-/// Creates `path` atomically: `write` fills a fresh temporary file beside it, which is synced and
-/// renamed over `path`. On any failure the temporary is removed and ImageError names `path`.
-void write_atomically(const std::filesystem::path& path,
-                      const std::function<void(const std::filesystem::path& temporary)>& write);
-
 }  // namespace rayfarm

@@ -1,5 +1,7 @@
 #include "common/image/png.h"
 
+#include "common/util/atomic_file.h"
+
 #include <png.h>
 
 #include <algorithm>
@@ -100,11 +102,15 @@ void write_png_preview(const std::filesystem::path& path, const Image& image, fl
   std::transform(image.rgb.begin(), image.rgb.end(), pixels.begin(),
                  [exposure](float v) { return to_srgb8(v, exposure); });
 
-  write_atomically(path, [&](const std::filesystem::path& temporary) {
-    const std::string name = temporary.string();
-    PngWriteJob job{name.c_str(), pixels.data(), image.width, image.height, {}};
-    if (!write_png_file(&job)) throw ImageError(job.error);
-  });
+  try {
+    write_atomically(path, [&](const std::filesystem::path& temporary) {
+      const std::string name = temporary.string();
+      PngWriteJob job{name.c_str(), pixels.data(), image.width, image.height, {}};
+      if (!write_png_file(&job)) throw ImageError(job.error);
+    });
+  } catch (const std::runtime_error& e) {
+    throw ImageError(e.what());
+  }
 }
 
 }  // namespace rayfarm
