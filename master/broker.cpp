@@ -19,6 +19,8 @@ std::shared_ptr<spdlog::logger> log() { return get_logger("master"); }
 
 /// Most messages handled from one socket before the timers and the other socket get a turn.
 constexpr int kBatch = 256;
+/// Most WorkRequests a worker may have outstanding (a worker renders a few units at once).
+constexpr uint32_t kMaxWants = 4;
 
 net::Frames error_frames(const std::string& message, const std::string& job_id = "") {
   wire::Error e;
@@ -137,7 +139,7 @@ void Broker::register_worker(const net::PeerId& peer, const wire::Hello& hello) 
   w.name = hello.name().empty() ? "unnamed" : protocol::printable(hello.name());
   w.threads = hello.threads();
   w.expires = Clock::now() + options_.heartbeat.expiry();
-  w.waiting = false;
+  w.wants = 0;
   log()->info("{} joined: {} threads, {}; {} worker{} connected", worker_label(peer), w.threads,
               hello.build().empty() ? "unknown build" : protocol::printable(hello.build()),
               workers_.size(), workers_.size() == 1 ? "" : "s");
@@ -161,18 +163,24 @@ void Broker::remove_worker(const net::PeerId& peer, const std::string& why) {
 }
 
 void Broker::dispatch() {
-  if (!jobs_.has_pending()) return;
+  // One unit per asking worker per round, so that scarce units spread over the workers.
   std::vector<net::PeerId> unreachable;
-  for (auto& [peer, w] : workers_) {
-    if (!w.waiting) continue;
-    auto unit = jobs_.next_unit(peer);
-    if (!unit) break;
-    if (!workers_socket_.send(peer, encode(std::move(*unit)))) {
-      unreachable.push_back(peer);
-      continue;
+  bool sent = true;
+  while (sent && jobs_.has_pending()) {
+    sent = false;
+    for (auto& [peer, w] : workers_) {
+      if (w.wants == 0) continue;
+      auto unit = jobs_.next_unit(peer);
+      if (!unit) break;
+      if (!workers_socket_.send(peer, encode(std::move(*unit)))) {
+        unreachable.push_back(peer);
+        w.wants = 0;
+        continue;
+      }
+      --w.wants;
+      ++w.units_sent;
+      sent = true;
     }
-    w.waiting = false;
-    ++w.units_sent;
   }
   for (const auto& peer : unreachable) remove_worker(peer, "unreachable (disconnected)");
 }
@@ -221,7 +229,7 @@ void Broker::handle_worker(const net::Delivery& delivery) {
     Worker& w = it->second;
     if (msg.as<wire::Heartbeat>()) return;
     if (msg.as<wire::WorkRequest>()) {
-      w.waiting = true;
+      w.wants = std::min(w.wants + 1, kMaxWants);
       dispatch();
     } else if (const auto* failed = msg.as<wire::UnitFailed>()) {
       jobs_.on_unit_failed(peer, *failed);

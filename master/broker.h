@@ -49,7 +49,7 @@ class Broker {
     std::string name;
     uint32_t threads = 0;
     Clock::time_point expires;  // declared lost when silent until then
-    bool waiting = false;       // asked for work and got none yet
+    uint32_t wants = 0;         // WorkRequests not answered yet
     uint64_t units_sent = 0;
   };
 

@@ -2,10 +2,14 @@
 
 #include <algorithm>
 #include <chrono>
+#include <condition_variable>
+#include <deque>
 #include <future>
+#include <mutex>
 #include <optional>
 #include <system_error>
 #include <thread>
+#include <vector>
 
 #include <tbb/task_arena.h>
 #include <unistd.h>
@@ -38,17 +42,22 @@ double seconds_since(Clock::time_point t) {
 }
 
 /// The scene and renderer of one job, identified by everything they depend on.
-struct Loaded {
+struct Prepared {
   std::string key;
   std::string job_id;
   std::unique_ptr<Scene> scene;  // outlives the renderer built from it
   std::unique_ptr<Renderer> renderer;
-  uint64_t units = 0;
-  uint64_t samples = 0;
-  double render_seconds = 0.0;
 };
 
-/// What the render thread hands back: a result or the reason it failed.
+/// What this worker did for one job, for the line logged when it moves on.
+struct JobStats {
+  std::string job_id;
+  uint64_t units = 0;
+  uint64_t samples = 0;
+  double seconds = 0.0;
+};
+
+/// What a render thread hands back: a result or the reason it failed.
 struct Outcome {
   wire::UnitResult result;
   std::string error;
@@ -69,27 +78,46 @@ std::string default_worker_name() {
 }
 
 struct Agent::Impl {
+  struct InFlight {
+    uint64_t seq = 0;
+    wire::WorkUnit unit;
+    std::future<void> thread;  // ends just after it posts its outcome
+  };
+
   AgentOptions options;
   tbb::task_arena arena;
+  size_t capacity;  // units asked for or in hand at most
+
+  // The reactor's state (this thread only).
   std::unique_ptr<net::Dealer> socket;
   bool welcomed = false;
   bool refused = false;
+  bool stopping = false;
   Clock::time_point last_heard;
   Clock::time_point next_heartbeat;
   milliseconds backoff;
-
-  bool asked = false;                          // a WorkRequest is outstanding
-  std::optional<wire::WorkUnit> needs_bundle;  // a unit waiting for its bundle
-  std::optional<wire::WorkUnit> rendering;     // the unit in flight
-  std::future<Outcome> render;
-  std::optional<net::Frames> outbox;  // a result to send once welcomed again
-  Loaded loaded;                      // touched by the render thread only while one runs
+  size_t asked = 0;                          // WorkRequests not answered yet
+  std::vector<wire::WorkUnit> needs_bundle;  // units waiting for their bundle
+  std::string bundle_requested;              // the hash asked for, "" when none
+  std::vector<InFlight> in_flight;
+  uint64_t next_seq = 0;
+  std::deque<net::Frames> outbox;  // results to send once welcomed again
   std::atomic<uint64_t> units_done{0};
+
+  // Shared with the render threads.
+  std::mutex prepare_mutex;  // one job is prepared at a time
+  std::mutex mutex;          // guards what follows
+  std::condition_variable finished_cv;
+  std::vector<std::pair<uint64_t, Outcome>> finished;  // outcomes by seq, not collected yet
+  std::shared_ptr<const Prepared> prepared;
+  JobStats stats;
 
   explicit Impl(AgentOptions o)
       : options(std::move(o)),
         arena(options.threads == 0 ? tbb::task_arena::automatic
                                    : static_cast<int>(options.threads)),
+        capacity(options.units_in_flight != 0 ? options.units_in_flight
+                                              : (arena.max_concurrency() >= 2 ? 2 : 1)),
         backoff(options.heartbeat.reconnect_min) {
     if (options.name.empty()) options.name = default_worker_name();
     std::error_code ec;
@@ -103,33 +131,39 @@ struct Agent::Impl {
   int threads() const { return arena.max_concurrency(); }
 
   void send(const net::Frames& frames) {
-    if (socket && !socket->send(frames))
+    if (socket && !socket->send(frames)) {
       log()->warn("send queue to the master is full; message dropped");
+    }
   }
 
   void connect() {
     socket = std::make_unique<net::Dealer>(options.master);
-    welcomed = false;
-    asked = false;
     last_heard = Clock::now();
     next_heartbeat = last_heard + options.heartbeat.interval;
     say_hello();
   }
 
+  /// Starts over with the master: what was asked of the old one is forgotten; units in hand
+  /// still return their results.
   void say_hello() {
+    welcomed = false;
+    asked = 0;
+    needs_bundle.clear();
+    bundle_requested.clear();
     wire::Hello hello;
     hello.set_role(wire::ROLE_WORKER);
     hello.set_name(options.name);
     hello.set_threads(static_cast<uint32_t>(threads()));
     hello.set_build(protocol::kBuildVersion);
-    welcomed = false;
     send(encode(std::move(hello)));
   }
 
   void request_work() {
-    if (asked || rendering || needs_bundle || !welcomed) return;
-    send(encode(wire::WorkRequest{}));
-    asked = true;
+    if (!welcomed || stopping || refused) return;
+    while (asked + in_flight.size() + needs_bundle.size() < capacity) {
+      send(encode(wire::WorkRequest{}));
+      ++asked;
+    }
   }
 
   void fail_unit(const wire::WorkUnit& unit, const std::string& reason) {
@@ -141,60 +175,90 @@ struct Agent::Impl {
     send(encode(std::move(failed)));
   }
 
-  // --- Rendering (runs on the render thread) ---
+  // --- Rendering (render threads) ---
 
-  void prepare(const wire::WorkUnit& unit) {
-    const std::string key = unit_key(unit);
-    if (loaded.key == key) return;
-    finish_job_log();
-    const auto start = Clock::now();
-    const fs::path scene_file = options.cache_dir / unit.bundle_hash() / unit.scene_path();
-    auto scene = std::make_unique<Scene>(load_scene(scene_file));
-    const RenderSettings settings = protocol::settings_from_wire(unit.settings());
-    std::unique_ptr<Renderer> renderer;
-    arena.execute([&] { renderer = std::make_unique<Renderer>(*scene, settings); });
-    loaded = Loaded{key, unit.job_id(), std::move(scene), std::move(renderer)};
-    log()->info(
-        "job {}: {} {}x{}, {} spp, {}, seed {}; renderer ready in {:.2f} s ({} threads): {}",
-        unit.job_id(), unit.scene_path(), loaded.scene->film.width, loaded.scene->film.height,
-        settings.spp, integrator_name(settings.integrator), settings.seed, seconds_since(start),
-        threads(), loaded.renderer->plan());
+  void log_job_stats() {  // mutex held
+    if (stats.units == 0) return;
+    log()->info("job {}: rendered {} units, {:.3g} samples in {:.2f} s", stats.job_id, stats.units,
+                static_cast<double>(stats.samples), stats.seconds);
   }
 
-  void finish_job_log() {
-    if (loaded.key.empty() || loaded.units == 0) return;
-    log()->info("job {}: rendered {} units, {:.3g} samples in {:.2f} s", loaded.job_id,
-                loaded.units, static_cast<double>(loaded.samples), loaded.render_seconds);
+  /// The scene and renderer for `unit`'s job, loaded on first use and kept while the job lasts.
+  std::shared_ptr<const Prepared> prepare(const wire::WorkUnit& unit) {
+    const std::string key = unit_key(unit);
+    std::lock_guard prepare_lock(prepare_mutex);
+    {
+      std::lock_guard lock(mutex);
+      if (prepared && prepared->key == key) return prepared;
+    }
+    const auto start = Clock::now();
+    auto p = std::make_shared<Prepared>();
+    p->key = key;
+    p->job_id = unit.job_id();
+    p->scene = std::make_unique<Scene>(
+        load_scene(options.cache_dir / unit.bundle_hash() / unit.scene_path()));
+    const RenderSettings settings = protocol::settings_from_wire(unit.settings());
+    arena.execute([&] { p->renderer = std::make_unique<Renderer>(*p->scene, settings); });
+    log()->info(
+        "job {}: {} {}x{}, {} spp, {}, seed {}; renderer ready in {:.2f} s ({} threads, {} units "
+        "at once): {}",
+        unit.job_id(), unit.scene_path(), p->scene->film.width, p->scene->film.height, settings.spp,
+        integrator_name(settings.integrator), settings.seed, seconds_since(start), threads(),
+        capacity, p->renderer->plan());
+    std::lock_guard lock(mutex);
+    if (stats.job_id != p->job_id) {
+      log_job_stats();
+      stats = JobStats{p->job_id};
+    }
+    prepared = p;
+    return p;
   }
 
   Outcome render_unit(const wire::WorkUnit& unit) {
     Outcome out;
     try {
-      prepare(unit);
+      const std::shared_ptr<const Prepared> p = prepare(unit);
       const TileRect rect = protocol::rect_from_wire(unit.tile());
-      if (unit.sample_end() <= unit.sample_begin())
+      if (unit.sample_end() <= unit.sample_begin()) {
         throw protocol::ProtocolError("empty sample range");
+      }
       const SampleRange samples{unit.sample_begin(), unit.sample_end()};
       const auto start = Clock::now();
       TileResult result;
-      arena.execute([&] { result = loaded.renderer->render(rect, samples); });
+      arena.execute([&] { result = p->renderer->render(rect, samples); });
       const double seconds = seconds_since(start);
-      ++loaded.units;
-      loaded.samples += uint64_t{rect.pixel_count()} * samples.count();
-      loaded.render_seconds += seconds;
+      {
+        std::lock_guard lock(mutex);
+        if (stats.job_id == unit.job_id()) {
+          ++stats.units;
+          stats.samples += uint64_t{rect.pixel_count()} * samples.count();
+          stats.seconds += seconds;
+        }
+      }
       log()->debug("job {} unit {} (pass {}): tile [{},{})x[{},{}) samples [{},{}) in {:.3f} s",
                    unit.job_id(), unit.unit_id(), unit.pass(), rect.x0, rect.x1, rect.y0, rect.y1,
                    samples.begin, samples.end, seconds);
       out.result = protocol::result_to_wire(unit.job_id(), unit.unit_id(), result, seconds);
       out.ok = true;
     } catch (const std::exception& e) {
-      loaded = Loaded{};  // a failed load leaves nothing half built behind
       out.error = e.what();
     }
     return out;
   }
 
   // --- The reactor (this thread) ---
+
+  void launch(const wire::WorkUnit& unit) {
+    const uint64_t seq = next_seq++;
+    in_flight.push_back({seq, unit, std::async(std::launch::async, [this, seq, unit] {
+                           Outcome outcome = render_unit(unit);
+                           {
+                             std::lock_guard lock(mutex);
+                             finished.emplace_back(seq, std::move(outcome));
+                           }
+                           finished_cv.notify_one();
+                         })});
+  }
 
   void start_unit(const wire::WorkUnit& unit) {
     if (!is_bundle_hash(unit.bundle_hash())) {
@@ -203,63 +267,89 @@ struct Agent::Impl {
       return;
     }
     std::error_code ec;
-    if (!fs::is_directory(options.cache_dir / unit.bundle_hash(), ec)) {
-      log()->info("job {}: fetching bundle {} from the master", unit.job_id(),
-                  unit.bundle_hash().substr(0, 12));
-      wire::BundleRequest request;
-      request.set_hash(unit.bundle_hash());
-      send(encode(std::move(request)));
-      needs_bundle = unit;
+    if (fs::is_directory(options.cache_dir / unit.bundle_hash(), ec)) {
+      launch(unit);
       return;
     }
-    rendering = unit;
-    render = std::async(std::launch::async, [this, unit] { return render_unit(unit); });
+    needs_bundle.push_back(unit);
+    request_bundle();
+  }
+
+  /// Asks for the bundle of the first unit waiting for one, unless a request is out.
+  void request_bundle() {
+    if (!bundle_requested.empty() || needs_bundle.empty()) return;
+    const wire::WorkUnit& unit = needs_bundle.front();
+    log()->info("job {}: fetching bundle {} from the master", unit.job_id(),
+                unit.bundle_hash().substr(0, 12));
+    bundle_requested = unit.bundle_hash();
+    wire::BundleRequest request;
+    request.set_hash(bundle_requested);
+    send(encode(std::move(request)));
   }
 
   void on_bundle(const wire::BundleReply& reply) {
-    if (!needs_bundle || reply.hash() != needs_bundle->bundle_hash()) {
+    if (reply.hash() != bundle_requested) {
       log()->debug("ignored an unrequested bundle {}", reply.hash().substr(0, 12));
       return;
     }
-    const wire::WorkUnit unit = std::move(*needs_bundle);
-    needs_bundle.reset();
-    if (!reply.error().empty()) {
-      fail_unit(unit, reply.error());
-      request_work();
-      return;
-    }
-    try {
-      const Bundle bundle = protocol::bundle_from_wire(reply.bundle());
-      const fs::path dir = unpack_bundle(bundle, options.cache_dir, unit.bundle_hash());
-      log()->info("bundle {} cached in {} ({} files)", unit.bundle_hash().substr(0, 12),
-                  dir.string(), bundle.files.size());
-    } catch (const std::exception& e) {
-      fail_unit(unit, std::string("cannot unpack the bundle: ") + e.what());
-      request_work();
-      return;
-    }
-    start_unit(unit);
-  }
+    bundle_requested.clear();
+    std::vector<wire::WorkUnit> ready;
+    auto waiting = std::stable_partition(
+        needs_bundle.begin(), needs_bundle.end(),
+        [&](const wire::WorkUnit& u) { return u.bundle_hash() != reply.hash(); });
+    ready.assign(std::make_move_iterator(waiting), std::make_move_iterator(needs_bundle.end()));
+    needs_bundle.erase(waiting, needs_bundle.end());
 
-  void collect_render(bool stopping) {
-    Outcome outcome = render.get();
-    const wire::WorkUnit unit = std::move(*rendering);
-    rendering.reset();
-    if (outcome.ok) {
-      ++units_done;
-      net::Frames frames = encode(std::move(outcome.result));
-      if (welcomed) {
-        send(frames);
-      } else {
-        outbox = std::move(frames);  // sent after the next Welcome
+    std::string error = reply.error();
+    if (error.empty()) {
+      try {
+        const Bundle bundle = protocol::bundle_from_wire(reply.bundle());
+        const fs::path dir = unpack_bundle(bundle, options.cache_dir, reply.hash());
+        log()->info("bundle {} cached in {} ({} files)", reply.hash().substr(0, 12), dir.string(),
+                    bundle.files.size());
+      } catch (const std::exception& e) {
+        error = std::string("cannot unpack the bundle: ") + e.what();
       }
-    } else {
-      fail_unit(unit, outcome.error);
     }
-    if (!stopping) request_work();
+    for (const auto& unit : ready) {
+      if (error.empty()) {
+        launch(unit);
+      } else {
+        fail_unit(unit, error);
+      }
+    }
+    request_bundle();
+    request_work();
   }
 
-  void handle(const net::Frames& frames, const std::atomic<bool>& stop) {
+  /// Sends the results of every finished render and asks for more work.
+  void collect_finished() {
+    std::vector<std::pair<uint64_t, Outcome>> outcomes;
+    {
+      std::lock_guard lock(mutex);
+      outcomes.swap(finished);
+    }
+    for (auto& [seq, outcome] : outcomes) {
+      auto it = std::find_if(in_flight.begin(), in_flight.end(),
+                             [seq = seq](const InFlight& f) { return f.seq == seq; });
+      const wire::WorkUnit unit = std::move(it->unit);
+      in_flight.erase(it);  // joins the thread, which has posted its outcome and is ending
+      if (outcome.ok) {
+        ++units_done;
+        net::Frames frames = encode(std::move(outcome.result));
+        if (welcomed) {
+          send(frames);
+        } else {
+          outbox.push_back(std::move(frames));  // sent after the next Welcome
+        }
+      } else {
+        fail_unit(unit, outcome.error);
+      }
+    }
+    request_work();
+  }
+
+  void handle(const net::Frames& frames) {
     protocol::Decoded msg;
     try {
       msg = protocol::decode(frames);
@@ -283,19 +373,17 @@ struct Agent::Impl {
                   welcome->build(), options.name, threads());
       welcomed = true;
       backoff = options.heartbeat.reconnect_min;
-      if (outbox) {
-        send(*outbox);
-        outbox.reset();
-      }
-      if (!stop.load()) request_work();
+      for (const auto& frames_out : outbox) send(frames_out);
+      outbox.clear();
+      request_work();
     } else if (msg.as<wire::Heartbeat>()) {
       // liveness only
     } else if (const auto* unit = msg.as<wire::WorkUnit>()) {
-      asked = false;
-      if (rendering || needs_bundle) {
-        log()->warn("the master sent job {} unit {} while another is in hand; refusing it",
-                    unit->job_id(), unit->unit_id());
-        fail_unit(*unit, "the worker already has a unit in hand");
+      if (asked > 0) --asked;
+      if (in_flight.size() + needs_bundle.size() >= capacity) {
+        log()->warn("the master sent job {} unit {} beyond the {} units this worker takes at once",
+                    unit->job_id(), unit->unit_id(), capacity);
+        fail_unit(*unit, "the worker has no room for another unit");
         return;
       }
       start_unit(*unit);
@@ -304,10 +392,7 @@ struct Agent::Impl {
     } else if (const auto* error = msg.as<wire::Error>()) {
       log()->warn("the master says: {}", error->message());
       if (error->message().rfind("unknown worker", 0) == 0 && welcomed) {
-        // The master restarted (or declared us lost) and the connection came back by itself:
-        // start over. What we asked for went to the old master; a unit in hand still returns.
-        asked = false;
-        needs_bundle.reset();
+        // The master restarted (or declared us lost) and the connection came back by itself.
         say_hello();
       }
     } else {
@@ -322,12 +407,34 @@ struct Agent::Impl {
     socket.reset();
     welcomed = false;
     const auto until = Clock::now() + backoff;
-    while (Clock::now() < until && !(stop.load() && !rendering)) {
+    while (Clock::now() < until && !(stop.load() && in_flight.empty())) {
       std::this_thread::sleep_for(milliseconds{20});
     }
     backoff = std::min(backoff * 2, options.heartbeat.reconnect_max);
-    if (needs_bundle) needs_bundle.reset();  // the master takes the unit back when it loses us
     connect();
+  }
+
+  /// Waits up to `wait` for a render to finish or a message to arrive, and handles what came.
+  void wait_and_handle(milliseconds wait) {
+    if (!in_flight.empty()) {
+      // Wait on the renders themselves, so that a result leaves the moment it is ready; what the
+      // master sent meanwhile (heartbeats) is read right after.
+      {
+        std::unique_lock lock(mutex);
+        finished_cv.wait_for(lock, wait, [&] { return !finished.empty(); });
+      }
+      collect_finished();
+      wait = milliseconds{0};
+    }
+    if (auto frames = socket->receive(wait)) {
+      last_heard = Clock::now();
+      handle(*frames);
+      while (!refused) {
+        auto more = socket->receive(milliseconds{0});
+        if (!more) break;
+        handle(*more);
+      }
+    }
   }
 
   int run(const std::atomic<bool>& stop) {
@@ -337,31 +444,20 @@ struct Agent::Impl {
       log()->error("{}", e.what());
       return 1;
     }
-    bool stop_logged = false;
     while (!refused) {
-      if (stop.load() && !stop_logged) {
-        stop_logged = true;
-        log()->info(rendering ? "stopping after the unit in hand" : "stopping");
-      }
-      if (stop.load() && !rendering) break;
-
-      auto wait = std::chrono::duration_cast<milliseconds>(next_heartbeat - Clock::now());
-      wait = std::clamp(wait, milliseconds{0}, milliseconds{100});
-      if (rendering) {
-        // Wait on the unit itself, so that its result leaves the moment it is ready; what the
-        // master sent meanwhile (heartbeats) is read right after.
-        if (render.wait_for(wait) == std::future_status::ready) collect_render(stop.load());
-        wait = milliseconds{0};
-      }
-      if (auto frames = socket->receive(wait)) {
-        last_heard = Clock::now();
-        handle(*frames, stop);
-        while (!refused) {
-          auto more = socket->receive(milliseconds{0});
-          if (!more) break;
-          handle(*more, stop);
+      if (stop.load() && !stopping) {
+        stopping = true;
+        if (in_flight.empty()) {
+          log()->info("stopping");
+        } else {
+          log()->info("stopping after the {} unit{} in hand", in_flight.size(),
+                      in_flight.size() == 1 ? "" : "s");
         }
       }
+      if (stopping && in_flight.empty()) break;
+
+      auto wait = std::chrono::duration_cast<milliseconds>(next_heartbeat - Clock::now());
+      wait_and_handle(std::clamp(wait, milliseconds{0}, milliseconds{100}));
       const auto now = Clock::now();
       if (now >= next_heartbeat) {
         send(encode(wire::Heartbeat{}));
@@ -369,8 +465,11 @@ struct Agent::Impl {
       }
       if (now - last_heard > options.heartbeat.expiry()) reconnect(stop);
     }
-    if (rendering) render.wait();  // refused mid-unit: let the thread end before we do
-    finish_job_log();
+    for (auto& f : in_flight) f.thread.wait();  // refused mid-unit: let the threads end first
+    {
+      std::lock_guard lock(mutex);
+      log_job_stats();
+    }
     if (socket && welcomed) {
       wire::Goodbye bye;
       bye.set_reason(refused ? "refused" : "stopped");

@@ -1,7 +1,8 @@
 #pragma once
 // The worker's loop (the reliable-worker pattern): a DEALER socket to the master, Hello, then one
-// WorkRequest per unit. Units render on a separate thread inside a TBB arena of the chosen size,
-// so heartbeats keep flowing while a unit renders. A bundle the worker lacks is fetched from the
+// WorkRequest per unit, with at most `units_in_flight` units asked for or in hand. Units render on
+// threads of their own inside one TBB arena of the chosen size, so heartbeats keep flowing while
+// they render. A bundle the worker lacks is fetched from the
 // master and cached; the Renderer of the current job is kept between units. When the master is
 // silent for its liveness window the worker reconnects with exponential back-off. Stopping
 // finishes the unit in hand, returns its result and says goodbye.
@@ -20,6 +21,9 @@ struct AgentOptions {
   uint32_t threads = 0;                         ///< render threads; 0 = all hardware threads
   std::filesystem::path cache_dir = "rayfarm-cache";
   std::string name;  ///< for the master's logs; "" = host-pid
+  /// Units rendered at once, sharing the threads, so that one unit's last rows overlap the next
+  /// unit's first; 0 = 2 with two or more threads, else 1.
+  uint32_t units_in_flight = 0;
   protocol::HeartbeatOptions heartbeat;
 };
 

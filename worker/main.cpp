@@ -30,6 +30,9 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--cache-dir", cache_dir, "where scene bundles are cached")->capture_default_str();
   app.add_option("--name", options.name, "name in the master's logs (default host-pid)");
+  app.add_option("--units-in-flight", options.units_in_flight,
+                 "units rendered at once (0 = 2 with two or more threads, else 1)")
+      ->capture_default_str();
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off")
       ->capture_default_str();
   app.add_option("--log-format", log_format, "text or json")

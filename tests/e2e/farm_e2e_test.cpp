@@ -139,10 +139,10 @@ class FarmTest : public ::testing::Test {
         << master_->log();
   }
 
-  Process& start_worker(const std::string& name) {
+  Process& start_worker(const std::string& name, int threads = 1) {
     auto p = std::make_unique<Process>(
         std::vector<std::string>{
-            bin("worker/rayfarm-worker"), "--master", worker_endpoint(), "--threads", "1",
+            bin("worker/rayfarm-worker"), "--master", worker_endpoint(), "--threads", std::to_string(threads),
             "--cache-dir", (dir_ / ("cache-" + name)).string(), "--name", name, "--heartbeat-ms",
             "200", "--liveness", "3", "--reconnect-max-ms", "1000"},
         dir_ / (name + ".log"));
@@ -241,7 +241,7 @@ class FarmTest : public ::testing::Test {
 
 TEST_F(FarmTest, TwoWorkersRenderTheCornellBoxBitIdenticalToALocalRender) {
   start_master();
-  Process& a = start_worker("wa");
+  Process& a = start_worker("wa", 2);  // two threads: two units at once
   Process& b = start_worker("wb");
   const fs::path scene = small_scene("cornell-box", 64);
   const std::vector<std::string> settings{"--spp",       "32", "--seed",       "7",
