@@ -4,7 +4,6 @@
 #include <chrono>
 #include <condition_variable>
 #include <deque>
-#include <future>
 #include <mutex>
 #include <optional>
 #include <system_error>
@@ -81,7 +80,6 @@ struct Agent::Impl {
   struct InFlight {
     uint64_t seq = 0;
     wire::WorkUnit unit;
-    std::future<void> thread;  // ends just after it posts its outcome
   };
 
   AgentOptions options;
@@ -109,6 +107,10 @@ struct Agent::Impl {
   std::mutex mutex;          // guards what follows
   std::condition_variable finished_cv;
   std::vector<std::pair<uint64_t, Outcome>> finished;  // outcomes by seq, not collected yet
+  std::condition_variable work_cv;
+  std::deque<InFlight> queue;  // units for the render threads
+  bool shutting_down = false;
+  std::vector<std::thread> render_threads;  // `capacity` of them, for the worker's lifetime
   std::shared_ptr<const Prepared> prepared;
   JobStats stats;
 
@@ -125,6 +127,32 @@ struct Agent::Impl {
     if (ec) {
       throw std::runtime_error("cannot create cache dir " + options.cache_dir.string() + ": " +
                                ec.message());
+    }
+    for (size_t i = 0; i < capacity; ++i) render_threads.emplace_back([this] { render_loop(); });
+  }
+
+  ~Impl() {
+    {
+      std::lock_guard lock(mutex);
+      shutting_down = true;
+    }
+    work_cv.notify_all();
+    for (auto& t : render_threads) t.join();
+  }
+
+  /// A render thread: takes units from the queue and posts their outcomes until shut down.
+  void render_loop() {
+    std::unique_lock lock(mutex);
+    while (true) {
+      work_cv.wait(lock, [&] { return shutting_down || !queue.empty(); });
+      if (shutting_down) return;
+      InFlight job = std::move(queue.front());
+      queue.pop_front();
+      lock.unlock();
+      Outcome outcome = render_unit(job.unit);
+      lock.lock();
+      finished.emplace_back(job.seq, std::move(outcome));
+      finished_cv.notify_one();
     }
   }
 
@@ -250,14 +278,12 @@ struct Agent::Impl {
 
   void launch(const wire::WorkUnit& unit) {
     const uint64_t seq = next_seq++;
-    in_flight.push_back({seq, unit, std::async(std::launch::async, [this, seq, unit] {
-                           Outcome outcome = render_unit(unit);
-                           {
-                             std::lock_guard lock(mutex);
-                             finished.emplace_back(seq, std::move(outcome));
-                           }
-                           finished_cv.notify_one();
-                         })});
+    in_flight.push_back({seq, unit});
+    {
+      std::lock_guard lock(mutex);
+      queue.push_back({seq, unit});
+    }
+    work_cv.notify_one();
   }
 
   void start_unit(const wire::WorkUnit& unit) {
@@ -333,7 +359,7 @@ struct Agent::Impl {
       auto it = std::find_if(in_flight.begin(), in_flight.end(),
                              [seq = seq](const InFlight& f) { return f.seq == seq; });
       const wire::WorkUnit unit = std::move(it->unit);
-      in_flight.erase(it);  // joins the thread, which has posted its outcome and is ending
+      in_flight.erase(it);
       if (outcome.ok) {
         ++units_done;
         net::Frames frames = encode(std::move(outcome.result));
@@ -465,7 +491,14 @@ struct Agent::Impl {
       }
       if (now - last_heard > options.heartbeat.expiry()) reconnect(stop);
     }
-    for (auto& f : in_flight) f.thread.wait();  // refused mid-unit: let the threads end first
+    // Refused mid-unit: let the renders end before the worker does.
+    while (!in_flight.empty()) {
+      {
+        std::unique_lock lock(mutex);
+        finished_cv.wait(lock, [&] { return !finished.empty(); });
+      }
+      collect_finished();
+    }
     {
       std::lock_guard lock(mutex);
       log_job_stats();
