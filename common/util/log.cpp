@@ -1,8 +1,10 @@
 #include "common/util/log.h"
 
 #include <mutex>
+#include <string_view>
 #include <stdexcept>
 
+#include <spdlog/pattern_formatter.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 
 namespace rayfarm {
@@ -12,17 +14,45 @@ std::mutex g_mutex;
 spdlog::level::level_enum g_level = spdlog::level::info;
 LogFormat g_format = LogFormat::kText;
 
-const char* pattern_for(LogFormat format) {
-  // JSON lines: one object per record; the message is escaped by the caller's formatting only,
-  // so quotes in messages are replaced when the record is built (see json_safe below).
-  return format == LogFormat::kJson
-             ? R"({"time":"%Y-%m-%dT%H:%M:%S.%e%z","level":"%l","logger":"%n","pid":%P,"msg":"%v"})"
-             : "%Y-%m-%d %H:%M:%S.%e %^%-5l%$ [%n] %v";
-}
+// %j: the message as the inside of a JSON string (quotes, backslashes and control characters
+// escaped), so that every record of --log-format json is one valid JSON object.
+class JsonMessageFlag : public spdlog::custom_flag_formatter {
+ public:
+  void format(const spdlog::details::log_msg& msg, const std::tm&, spdlog::memory_buf_t& dest) override {
+    static constexpr char kHex[] = "0123456789abcdef";
+    auto put = [&dest](std::string_view text) { dest.append(text.data(), text.data() + text.size()); };
+    for (const char c : msg.payload) {
+      switch (c) {
+        case '"': put("\\\""); break;
+        case '\\': put("\\\\"); break;
+        case '\n': put("\\n"); break;
+        case '\r': put("\\r"); break;
+        case '\t': put("\\t"); break;
+        default:
+          if (static_cast<unsigned char>(c) < 0x20) {
+            const char esc[] = {'\\', 'u', '0', '0', kHex[(c >> 4) & 0xf], kHex[c & 0xf]};
+            dest.append(esc, esc + sizeof esc);
+          } else {
+            dest.push_back(c);
+          }
+      }
+    }
+  }
+  std::unique_ptr<custom_flag_formatter> clone() const override {
+    return std::make_unique<JsonMessageFlag>();
+  }
+};
 
 void apply(spdlog::logger& logger) {
   logger.set_level(g_level);
-  logger.set_pattern(pattern_for(g_format));
+  if (g_format == LogFormat::kJson) {
+    auto formatter = std::make_unique<spdlog::pattern_formatter>();
+    formatter->add_flag<JsonMessageFlag>('j').set_pattern(
+        R"({"time":"%Y-%m-%dT%H:%M:%S.%e%z","level":"%l","logger":"%n","pid":%P,"msg":"%j"})");
+    logger.set_formatter(std::move(formatter));
+  } else {
+    logger.set_pattern("%Y-%m-%d %H:%M:%S.%e %^%-5l%$ [%n] %v");
+  }
 }
 
 }  // namespace
