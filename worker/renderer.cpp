@@ -87,6 +87,9 @@ std::string Renderer::plan() const {
   } else {
     out += "; " + std::to_string(area) + " emitters, " + std::to_string(point) + " point lights";
     out += p.sample_lights ? ", power-sampled" : ", not sampled";
+    if (p.integrator == IntegratorType::kNaive && point > 0) {
+      out += " (BSDF sampling never reaches point lights: they add nothing under naive)";
+    }
     if (p.integrator == IntegratorType::kMis && !p.weight_emission && p.sample_lights) {
       out += " (no MIS weights: no area lights)";
     }
