@@ -12,6 +12,7 @@
 #include <unistd.h>
 #include <nlohmann/json.hpp>
 
+#include "common/protocol/convert.h"
 #include "common/util/log.h"
 
 namespace rayfarm::master {
@@ -20,23 +21,7 @@ using nlohmann::json;
 
 namespace {
 
-const char* state_key(wire::JobState s) {
-  switch (s) {
-    case wire::JOB_QUEUED:
-      return "queued";
-    case wire::JOB_RUNNING:
-      return "running";
-    case wire::JOB_DONE:
-      return "done";
-    case wire::JOB_FAILED:
-      return "failed";
-    case wire::JOB_CANCELLED:
-      return "cancelled";
-    default:
-      return "queued";
-  }
-}
-
+// The inverse of protocol::job_state_name; anything else reads as queued.
 wire::JobState state_from_key(const std::string& s) {
   if (s == "running") return wire::JOB_RUNNING;
   if (s == "done") return wire::JOB_DONE;
@@ -60,7 +45,7 @@ json to_json(const JobRecord& r) {
               {"tile_size", s.tile_size},
               {"pass_spp", s.pass_spp},
               {"submitted_unix_ms", s.submitted_unix_ms},
-              {"state", state_key(r.state)},
+              {"state", protocol::job_state_name(r.state)},
               {"error", r.error},
               {"elapsed_seconds", r.elapsed_seconds}};
 }
