@@ -10,6 +10,7 @@
 #include <string>
 
 #include "common/scene/parser.h"
+#include "tests/support/temp_dir.h"
 
 namespace rayfarm {
 namespace {
@@ -20,39 +21,8 @@ fs::path bundled(const std::string& name) {
   return fs::path(RAYFARM_SOURCE_DIR) / "scenes" / name / "scene.json";
 }
 
-/// A fresh folder under the system's temporary directory, removed with everything in it.
-class TempDir {
- public:
-  TempDir() {
-    static std::atomic<int> counter{0};
-    path_ = fs::temp_directory_path() /
-            ("rayfarm-scene-test-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
-    fs::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ignored;
-    fs::remove_all(path_, ignored);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-
-  /// Writes `content` to `name` (relative to the folder) and returns the full path.
-  fs::path write(const std::string& name, const std::string& content) const {
-    const fs::path file = path_ / name;
-    fs::create_directories(file.parent_path());
-    std::ofstream(file, std::ios::binary) << content;
-    return file;
-  }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
-};
-
-std::string read_file(const fs::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
+using testing::read_file;
+using testing::TempDir;
 
 /// A valid scene with `extra` top-level members added after camera and film.
 std::string scene_with(const std::string& extra) {

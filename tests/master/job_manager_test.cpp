@@ -14,36 +14,15 @@
 #include "common/image/exr.h"
 #include "common/protocol/convert.h"
 #include "master/job_manager.h"
+#include "tests/support/temp_dir.h"
 
 namespace rayfarm::master {
 namespace {
 namespace fs = std::filesystem;
 namespace protocol = rayfarm::protocol;
 
-class TempDir {
- public:
-  TempDir() {
-    static std::atomic<int> counter{0};
-    path_ = fs::temp_directory_path() /
-            ("rayfarm-jobs-test-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
-    fs::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ignored;
-    fs::remove_all(path_, ignored);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
-};
-
-std::string read_file(const fs::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
+using testing::read_file;
+using testing::TempDir;
 
 /// A submit request for the bundled furnace (32x32) with these overrides.
 wire::SubmitJob furnace_job(uint32_t spp, uint32_t tile, uint32_t pass_spp) {
