@@ -5,21 +5,14 @@
 #include <CLI/CLI.hpp>
 
 #include "cli/commands.h"
-#include "common/util/log.h"
+#include "common/util/log_options.h"
 
 int main(int argc, char** argv) {
   CLI::App app{"rayfarm: a distributed path tracer"};
   app.require_subcommand(1);
-  std::string log_level = "info";
-  std::string log_format = "text";
-  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off")->capture_default_str();
-  app.add_option("--log-format", log_format, "text or json")
-      ->check(CLI::IsMember({"text", "json"}))
-      ->capture_default_str();
-  app.parse_complete_callback([&] {
-    rayfarm::configure_logging(log_level, log_format == "json" ? rayfarm::LogFormat::kJson
-                                                               : rayfarm::LogFormat::kText);
-  });
+  rayfarm::LoggingOptions logging;
+  rayfarm::add_logging_options(app, logging);
+  app.parse_complete_callback([&logging] { logging.apply(); });
 
   int exit_code = 0;
   rayfarm::cli::add_render_command(app, exit_code);

@@ -6,7 +6,7 @@
 
 #include <CLI/CLI.hpp>
 
-#include "common/util/log.h"
+#include "common/util/log_options.h"
 #include "master/broker.h"
 
 namespace {
@@ -20,8 +20,7 @@ int main(int argc, char** argv) {
   CLI::App app{"rayfarm-master: hands out units of work to workers and merges their results"};
   rayfarm::master::MasterOptions options;
   std::string data_dir = options.data_dir.string();
-  std::string log_level = "info";
-  std::string log_format = "text";
+  rayfarm::LoggingOptions logging;
   int64_t heartbeat_ms = options.heartbeat.interval.count();
   int64_t image_interval_ms = options.image_interval.count();
   app.add_option("--worker-endpoint", options.worker_endpoint, "endpoint workers connect to")
@@ -30,11 +29,7 @@ int main(int argc, char** argv) {
                  "endpoint clients (rayfarm) connect to")
       ->capture_default_str();
   app.add_option("--data-dir", data_dir, "jobs, bundles and images")->capture_default_str();
-  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off")
-      ->capture_default_str();
-  app.add_option("--log-format", log_format, "text or json")
-      ->check(CLI::IsMember({"text", "json"}))
-      ->capture_default_str();
+  rayfarm::add_logging_options(app, logging);
   app.add_option("--heartbeat-ms", heartbeat_ms, "heartbeat interval in milliseconds")
       ->check(CLI::Range(int64_t{10}, int64_t{60000}))
       ->capture_default_str();
@@ -48,13 +43,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
-  try {
-    rayfarm::configure_logging(
-        log_level, log_format == "json" ? rayfarm::LogFormat::kJson : rayfarm::LogFormat::kText);
-  } catch (const std::exception& e) {
-    std::cerr << "rayfarm-master: error: " << e.what() << "\n";
-    return 2;
-  }
+  logging.apply();
   options.data_dir = data_dir;
   options.heartbeat.interval = std::chrono::milliseconds{heartbeat_ms};
   options.image_interval = std::chrono::milliseconds{image_interval_ms};

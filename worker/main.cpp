@@ -7,7 +7,7 @@
 
 #include <CLI/CLI.hpp>
 
-#include "common/util/log.h"
+#include "common/util/log_options.h"
 #include "worker/agent.h"
 
 namespace {
@@ -21,8 +21,7 @@ int main(int argc, char** argv) {
   CLI::App app{"rayfarm-worker: renders units of work for a rayfarm master"};
   rayfarm::worker::AgentOptions options;
   std::string cache_dir = options.cache_dir.string();
-  std::string log_level = "info";
-  std::string log_format = "text";
+  rayfarm::LoggingOptions logging;
   int64_t heartbeat_ms = options.heartbeat.interval.count();
   int64_t reconnect_max_ms = options.heartbeat.reconnect_max.count();
   app.add_option("--master", options.master, "the master's worker endpoint")->capture_default_str();
@@ -33,11 +32,7 @@ int main(int argc, char** argv) {
   app.add_option("--units-in-flight", options.units_in_flight,
                  "units rendered at once (0 = 2 with two or more threads, else 1)")
       ->capture_default_str();
-  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off")
-      ->capture_default_str();
-  app.add_option("--log-format", log_format, "text or json")
-      ->check(CLI::IsMember({"text", "json"}))
-      ->capture_default_str();
+  rayfarm::add_logging_options(app, logging);
   app.add_option("--heartbeat-ms", heartbeat_ms, "heartbeat interval in milliseconds")
       ->check(CLI::Range(int64_t{10}, int64_t{60000}))
       ->capture_default_str();
@@ -50,13 +45,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
-  try {
-    rayfarm::configure_logging(
-        log_level, log_format == "json" ? rayfarm::LogFormat::kJson : rayfarm::LogFormat::kText);
-  } catch (const std::exception& e) {
-    std::cerr << "rayfarm-worker: error: " << e.what() << "\n";
-    return 2;
-  }
+  logging.apply();
   options.cache_dir = cache_dir;
   options.heartbeat.interval = std::chrono::milliseconds{heartbeat_ms};
   options.heartbeat.reconnect_max = std::chrono::milliseconds{reconnect_max_ms};
