@@ -7,12 +7,24 @@
 
 namespace rayfarm {
 
+/// a / |a| computed in double: a float's squared length underflows below ~1e-19 and overflows
+/// above ~1e19, and normalize() would then return NaN or zero.
+inline Vec3 normalize_wide(const Vec3& a) {
+  const double len = std::sqrt(double(a.x) * a.x + double(a.y) * a.y + double(a.z) * a.z);
+  return {static_cast<float>(a.x / len), static_cast<float>(a.y / len),
+          static_cast<float>(a.z / len)};
+}
+
 class CameraModel {
  public:
   CameraModel(const Camera& c, FilmSize film) {
     eye_ = c.eye;
-    forward_ = normalize(c.look_at - c.eye);
-    right_ = normalize(cross(forward_, c.up));
+    // Double precision: the parser accepts any up and any distance from eye to look_at, from
+    // 1e-30 to 1e17; in float, up = [0, 1e-30, 0] gave NaN rays.
+    forward_ = normalize_wide(Vec3(float(double(c.look_at.x) - c.eye.x),
+                                   float(double(c.look_at.y) - c.eye.y),
+                                   float(double(c.look_at.z) - c.eye.z)));
+    right_ = normalize_wide(cross(forward_, normalize_wide(c.up)));
     up_ = cross(right_, forward_);
     tan_half_ = std::tan(0.5f * c.fov_y_deg * kPi / 180.f);
     aspect_ = static_cast<float>(film.width) / static_cast<float>(film.height);
@@ -35,7 +47,7 @@ class CameraModel {
       ray.org = eye_ + lens_point;
       dir = dir * focus_ - lens_point;
     }
-    ray.dir = normalize(dir);
+    ray.dir = normalize_wide(dir);
     return ray;
   }
 

@@ -4,9 +4,13 @@
 #include <tbb/parallel_for.h>
 
 #include <atomic>
+#include <mutex>
 #include <set>
 
+#include <fmt/format.h>
+
 #include "common/image/fixed.h"
+#include "common/util/log.h"
 #include "worker/camera.h"
 #include "worker/integrators/path_integrator.h"
 #include "worker/lights/light_set.h"
@@ -20,6 +24,9 @@ struct Renderer::Impl {
   LightSet lights;
   PathIntegrator integrator;
   CameraModel camera;
+  mutable std::mutex stats_mutex;
+  mutable RenderStats totals;     // guarded by stats_mutex
+  mutable bool reported = false;  // guarded by stats_mutex
 
   Impl(const Scene& scene, const RenderSettings& s)
       : settings(s), data(scene), lights(data), integrator(data, lights, s),
@@ -27,14 +34,14 @@ struct Renderer::Impl {
 
   // Renders samples [begin, end) of one pixel into its fixed-point sums.
   void render_pixel(uint32_t x, uint32_t y, const SampleRange& samples, Fixed* sum, Fixed* sum_sq,
-                    uint64_t& nonfinite, uint64_t& rays) const {
+                    uint64_t& nonfinite, PathStats& paths) const {
     const uint64_t pixel = uint64_t{y} * data.scene().film.width + x;
     for (uint32_t s = samples.begin; s < samples.end; ++s) {
       Pcg32 rng = sample_stream(settings.seed, pixel, s);
       const float jx = rng.next_float(), jy = rng.next_float();
       const float lu = rng.next_float(), lv = rng.next_float();
       const Ray ray = camera.generate(static_cast<float>(x) + jx, static_cast<float>(y) + jy, lu, lv);
-      const Vec3 l = integrator.li(ray, rng, rays);
+      const Vec3 l = integrator.li(ray, rng, paths);
       // A sample that is NaN, infinite or beyond the accumulator's range never reaches the film.
       if (!is_finite(l) || max_component(abs(l)) > kMaxSampleValue) {
         ++nonfinite;
@@ -49,32 +56,111 @@ struct Renderer::Impl {
   }
 };
 
-Renderer::Renderer(const Scene& scene, const RenderSettings& settings)
-    : impl_(std::make_unique<Impl>(scene, settings)) {}
+namespace {
 
-Renderer::~Renderer() = default;
+const Scene& check_build_supports(const Scene& scene) {
+  if (kDiffuseOnlyBuild) {
+    for (const Material& m : scene.materials) {
+      if (m.type != MaterialType::kDiffuse) {
+        throw std::runtime_error("material '" + m.name +
+                                 "' is not diffuse, and this benchmark build (RAYFARM_DIFFUSE_ONLY) "
+                                 "renders diffuse materials only");
+      }
+    }
+  }
+  return scene;
+}
+
+}  // namespace
+
+Renderer::Renderer(const Scene& scene, const RenderSettings& settings)
+    : impl_(std::make_unique<Impl>(check_build_supports(scene), settings)) {}
+
+Renderer::~Renderer() {
+  try {
+    if (!impl_->reported && impl_->totals.truncated_paths > 0) report_truncation();
+  } catch (...) {  // logging must not throw out of a destructor
+  }
+}
+
+double RenderStats::truncated_fraction() const {
+  return samples > 0 ? double(truncated_paths) / double(samples) : 0.0;
+}
+
+double RenderStats::truncated_throughput_per_sample() const {
+  return samples > 0 ? truncated_throughput / double(samples) : 0.0;
+}
+
+RenderStats& RenderStats::operator+=(const RenderStats& other) {
+  samples += other.samples;
+  rays += other.rays;
+  truncated_paths += other.truncated_paths;
+  truncated_throughput += other.truncated_throughput;
+  return *this;
+}
+
+RenderStats Renderer::stats() const {
+  std::lock_guard lock(impl_->stats_mutex);
+  return impl_->totals;
+}
+
+std::string Renderer::report_truncation() const {
+  std::lock_guard lock(impl_->stats_mutex);
+  const RenderStats& t = impl_->totals;
+  impl_->reported = true;
+  const double cut = t.truncated_throughput_per_sample();
+  std::string line = fmt::format(
+      "max_depth {} stopped {} of {} paths ({:.3g}%) that still carried weight; throughput cut "
+      "{:.3g} per sample",
+      impl_->settings.max_depth, t.truncated_paths, t.samples, 100.0 * t.truncated_fraction(), cut);
+  if (cut >= kTruncationWarningLevel) {
+    line += "; the light those paths would have gathered beyond the cap is missing from the "
+            "image (a bias of the order of the throughput cut): raise max_depth";
+    get_logger("render")->warn("{}", line);
+  } else {
+    get_logger("render")->debug("{}", line);
+  }
+  return line;
+}
 
 const RenderSettings& Renderer::settings() const { return impl_->settings; }
 FilmSize Renderer::film() const { return impl_->data.scene().film; }
 
-TileResult Renderer::render(const TileRect& rect, const SampleRange& samples) const {
+TileResult Renderer::render(const TileRect& rect, const SampleRange& samples,
+                            RenderStats* stats) const {
   TileResult result(rect, samples);
-  std::atomic<uint64_t> nonfinite{0}, rays{0};
+  std::atomic<uint64_t> nonfinite{0};
+  std::mutex paths_mutex;
+  PathStats paths;  // guarded by paths_mutex
   tbb::parallel_for(tbb::blocked_range<uint32_t>(rect.y0, rect.y1),
                     [&](const tbb::blocked_range<uint32_t>& rows) {
-                      uint64_t local_nonfinite = 0, local_rays = 0;
+                      uint64_t local_nonfinite = 0;
+                      PathStats local;
                       for (uint32_t y = rows.begin(); y < rows.end(); ++y) {
                         for (uint32_t x = rect.x0; x < rect.x1; ++x) {
                           const size_t i = (size_t{y - rect.y0} * rect.width() + (x - rect.x0)) * 3;
                           impl_->render_pixel(x, y, samples, &result.sum[i], &result.sum_sq[i],
-                                              local_nonfinite, local_rays);
+                                              local_nonfinite, local);
                         }
                       }
                       nonfinite += local_nonfinite;
-                      rays += local_rays;
+                      std::lock_guard lock(paths_mutex);
+                      paths.rays += local.rays;
+                      paths.truncated += local.truncated;
+                      paths.truncated_throughput += local.truncated_throughput;
                     });
   result.nonfinite = nonfinite.load();
-  result.rays = rays.load();
+  result.rays = paths.rays;
+  RenderStats unit;
+  unit.samples = uint64_t{rect.pixel_count()} * samples.count();
+  unit.rays = paths.rays;
+  unit.truncated_paths = paths.truncated;
+  unit.truncated_throughput = paths.truncated_throughput;
+  {
+    std::lock_guard lock(impl_->stats_mutex);
+    impl_->totals += unit;
+  }
+  if (stats != nullptr) *stats = unit;
   return result;
 }
 

@@ -12,7 +12,34 @@ constexpr float gamma_bound(int n) {
   return (n * eps) / (1.f - n * eps);
 }
 
+/// (b - a) x (c - a) in double.
+void cross_d(const Vec3& a, const Vec3& b, const Vec3& c, double out[3]) {
+  const double e1[3] = {double(b.x) - a.x, double(b.y) - a.y, double(b.z) - a.z};
+  const double e2[3] = {double(c.x) - a.x, double(c.y) - a.y, double(c.z) - a.z};
+  out[0] = e1[1] * e2[2] - e1[2] * e2[1];
+  out[1] = e1[2] * e2[0] - e1[0] * e2[2];
+  out[2] = e1[0] * e2[1] - e1[1] * e2[0];
+}
+
 }  // namespace
+
+bool triangle_normal(const Vec3& a, const Vec3& b, const Vec3& c, Vec3& n) {
+  double ng[3];
+  cross_d(a, b, c, ng);
+  const double len = std::sqrt(ng[0] * ng[0] + ng[1] * ng[1] + ng[2] * ng[2]);
+  if (!(len > 0.0) || !std::isfinite(len)) return false;
+  const Vec3 unit(static_cast<float>(ng[0] / len), static_cast<float>(ng[1] / len),
+                  static_cast<float>(ng[2] / len));
+  if (!(length(unit) > 0.5f)) return false;
+  n = unit;
+  return true;
+}
+
+double triangle_area(const Vec3& a, const Vec3& b, const Vec3& c) {
+  double ng[3];
+  cross_d(a, b, c, ng);
+  return 0.5 * std::sqrt(ng[0] * ng[0] + ng[1] * ng[1] + ng[2] * ng[2]);
+}
 
 // The factor 4 is a margin for the intersector's own rounding on top of the interpolation's.
 float triangle_point_error(const Vec3& v0, const Vec3& v1, const Vec3& v2) {
@@ -33,11 +60,9 @@ SceneData::SceneData(const Scene& scene) : scene_(scene) {
       const Vec3& c = mesh.positions[mesh.indices[3 * t + 2]];
       TriangleInfo info{a, b - a, c - a, Vec3(0.f, 0.f, 1.f), triangle_point_error(a, b, c),
                         mesh.materials[t], -1};
-      const Vec3 ng = cross(info.e1, info.e2);
-      const float len = length(ng);
-      if (len > 0.f && std::isfinite(len)) {
-        info.n = ng / len;
-      } else {
+      // In double: in float the cross product of edges longer than ~1e19 overflows, and such
+      // triangles were taken for degenerate ones and shaded with the fixed normal.
+      if (!triangle_normal(a, b, c, info.n)) {
         ++degenerate_;  // never hit in practice; a fixed normal keeps the shading finite
       }
       triangles_.push_back(info);

@@ -37,6 +37,12 @@ inline Vec3 offset_ray_origin(const Vec3& p, float p_error, const Vec3& n) {
   return {away(po.x, n.x), away(po.y, n.y), away(po.z, n.z)};
 }
 
+/// Unit normal of triangle (a, b, c) along (b - a) x (c - a), computed in double so that edges
+/// up to the format's 1e30 cannot overflow; false (and n unchanged) when it has no area.
+bool triangle_normal(const Vec3& a, const Vec3& b, const Vec3& c, Vec3& n);
+/// Area of triangle (a, b, c), computed in double (the float result may be infinite).
+double triangle_area(const Vec3& a, const Vec3& b, const Vec3& c);
+
 /// Offset clearing the error of a point on a triangle (interpolated, or found by the
 /// intersector, which mixes coordinates: the bound follows the largest magnitude involved).
 float triangle_point_error(const Vec3& v0, const Vec3& v1, const Vec3& v2);

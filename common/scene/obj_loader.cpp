@@ -23,6 +23,8 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr double kMaxAbsValue = 1e30;
+/// Largest vertex coordinate: the JSON format's limit for geometry (parser.cpp, kMaxCoordinate).
+constexpr double kMaxCoordinate = 1e17;
 constexpr size_t kMaxFaceVertices = 255;  // tinyobjloader stores a face's size in one byte
 constexpr size_t kMaxNameInMessage = 60;
 
@@ -186,12 +188,25 @@ class ObjScanner {
     if (keyword == "v") {
       check_numbers(at, words, 3, 6, "3 coordinates (x y z), optionally w or r g b");
       if (words.size() == 6) at.fail("v: expected 3, 4 or 6 values, got 5");
+      for (size_t i = 1; i <= 3; ++i) {
+        if (std::abs(*parse_number(words[i])) > kMaxCoordinate) {
+          at.fail("v: coordinate " + in_quotes(words[i]) +
+                  " is beyond 1e17, the largest that the renderer handles");
+        }
+      }
       ++vertices_;
     } else if (keyword == "vt") {
       check_numbers(at, words, 1, 3, "1 to 3 texture coordinates");
       ++texcoords_;
     } else if (keyword == "vn") {
       check_numbers(at, words, 3, 3, "3 normal components");
+      if (*parse_number(words[1]) == 0.0 && *parse_number(words[2]) == 0.0 &&
+          *parse_number(words[3]) == 0.0 && !warned_zero_normal_) {
+        warned_zero_normal_ = true;
+        out_.warnings.push_back(at.message(
+            "vn has zero length (normals are not used: faces are shaded with their geometric "
+            "normal)"));
+      }
       ++normals_;
     } else if (keyword == "f") {
       face(at, words);
@@ -282,6 +297,7 @@ class ObjScanner {
   size_t vertices_ = 0;
   size_t texcoords_ = 0;
   size_t normals_ = 0;
+  bool warned_zero_normal_ = false;
   std::set<std::string> warned_;
   ObjScan out_;
 };

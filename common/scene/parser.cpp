@@ -21,6 +21,9 @@ using Json = nlohmann::ordered_json;  // keeps materials in file order
 constexpr std::uintmax_t kMaxSceneFileBytes = std::uintmax_t{64} << 20;
 constexpr int kMaxNesting = 64;
 constexpr double kMaxAbsNumber = 1e30;
+/// Largest coordinate or length of geometry: every point of a scene (a quad's far corner, a
+/// sphere's surface, a thin lens) then stays well inside the range that Embree traces, +-1.8e18.
+constexpr double kMaxCoordinate = 1e17;
 constexpr int64_t kMaxFilmSide = 16384;
 constexpr int64_t kMaxFilmPixels = int64_t{1} << 26;
 constexpr int64_t kMaxSpp = int64_t{1} << 24;
@@ -202,6 +205,29 @@ Vec3 read_vec3(const Node& n) {
   return {read_float(n.child(0)), read_float(n.child(1)), read_float(n.child(2))};
 }
 
+/// A number of geometry (a coordinate or a length): magnitude at most kMaxCoordinate.
+float read_coordinate(const Node& n) {
+  const float x = read_float(n);
+  if (std::abs(double(x)) > kMaxCoordinate) {
+    n.fail("coordinate " + n.json().dump() +
+           " is beyond 1e17, the largest that the renderer handles (rays are traced within "
+           "+-1.8e18)");
+  }
+  return x;
+}
+
+/// A point or vector of geometry: 3 numbers of magnitude at most kMaxCoordinate.
+Vec3 read_point(const Node& n) {
+  (void)read_vec3(n);
+  return {read_coordinate(n.child(0)), read_coordinate(n.child(1)), read_coordinate(n.child(2))};
+}
+
+/// A positive length of geometry, at most kMaxCoordinate.
+float read_length(const Node& n) {
+  (void)read_positive(n);
+  return read_coordinate(n);
+}
+
 /// An RGB reflectance: every channel in [0, 1].
 Vec3 read_reflectance(const Node& n) {
   const Vec3 c = read_vec3(n);
@@ -268,14 +294,17 @@ class SceneReader {
       type->fail("unknown camera type " + as_written(type->json()) + "; expected \"perspective\"");
     }
     Camera& c = scene_.camera;
-    c.eye = read_vec3(n.require("eye"));
-    c.look_at = read_vec3(n.require("look_at"));
-    if (auto up = n.find("up")) c.up = read_vec3(*up);
+    c.eye = read_point(n.require("eye"));
+    c.look_at = read_point(n.require("look_at"));
+    if (auto up = n.find("up")) c.up = read_point(*up);
     const Node fov = n.require("fov_y");
     c.fov_y_deg = read_float(fov);
     if (!(c.fov_y_deg > 0.f && c.fov_y_deg < 180.f)) fov.fail("fov_y must lie in (0, 180) degrees");
-    if (auto a = n.find("aperture_radius")) c.aperture_radius = read_non_negative(*a);
-    if (auto f = n.find("focus_distance")) c.focus_distance = read_positive(*f);
+    if (auto a = n.find("aperture_radius")) {
+      (void)read_non_negative(*a);
+      c.aperture_radius = read_coordinate(*a);
+    }
+    if (auto f = n.find("focus_distance")) c.focus_distance = read_length(*f);
     check_view(n, c);
   }
 
@@ -396,17 +425,17 @@ class SceneReader {
   void read_sphere(const Node& n) {
     n.allow_keys({"type", "center", "radius", "material"});
     Sphere s;
-    s.center = read_vec3(n.require("center"));
-    s.radius = read_positive(n.require("radius"));
+    s.center = read_point(n.require("center"));
+    s.radius = read_length(n.require("radius"));
     s.material = material_ref(n.require("material"));
     scene_.spheres.push_back(s);
   }
 
   void read_quad(const Node& n, const std::string& origin) {
     n.allow_keys({"type", "corner", "edge1", "edge2", "material"});
-    const Vec3 c = read_vec3(n.require("corner"));
-    const Vec3 e1 = read_vec3(n.require("edge1"));
-    const Vec3 e2 = read_vec3(n.require("edge2"));
+    const Vec3 c = read_point(n.require("corner"));
+    const Vec3 e1 = read_point(n.require("edge1"));
+    const Vec3 e2 = read_point(n.require("edge2"));
     const uint32_t material = material_ref(n.require("material"));
     if (cross_length(e1, e2) == 0.0) {
       n.warn("the quad has zero area and is dropped");
@@ -422,9 +451,9 @@ class SceneReader {
     if (vertices.array().size() != 3) {
       vertices.fail("expected 3 vertices, got " + std::to_string(vertices.array().size()));
     }
-    const Vec3 a = read_vec3(vertices.child(0));
-    const Vec3 b = read_vec3(vertices.child(1));
-    const Vec3 c = read_vec3(vertices.child(2));
+    const Vec3 a = read_point(vertices.child(0));
+    const Vec3 b = read_point(vertices.child(1));
+    const Vec3 c = read_point(vertices.child(2));
     const uint32_t material = material_ref(n.require("material"));
     if (cross_length(b - a, c - a) == 0.0) {
       n.warn("the triangle has zero area and is dropped");
@@ -495,7 +524,7 @@ class SceneReader {
       }
       light.allow_keys({"type", "position", "intensity"});
       scene_.point_lights.push_back(
-          {read_vec3(light.require("position")), read_radiance(light.require("intensity"))});
+          {read_point(light.require("position")), read_radiance(light.require("intensity"))});
     }
   }
 

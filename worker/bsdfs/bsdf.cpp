@@ -1,5 +1,6 @@
 #include "worker/bsdfs/bsdf.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace rayfarm {
@@ -17,7 +18,9 @@ inline float phong_specular_probability(const Material& m) {
 
 // Normalised Phong lobe: (n + 2) / (2 pi) cos^n(alpha) for the BRDF, (n + 1) / (2 pi) for the pdf.
 inline float cos_alpha_pow(const Vec3& wo, const Vec3& wi, float exponent) {
-  const float c = dot(reflect_z(wo), wi);
+  // The dot product of unit vectors may round above 1, and (1 + 6e-8)^n overflows for the huge
+  // exponents the format allows (n = 1e30 gave infinite weights).
+  const float c = std::min(1.f, dot(reflect_z(wo), wi));
   return c > 0.f ? std::pow(c, exponent) : 0.f;
 }
 
@@ -53,28 +56,35 @@ bool sample_dielectric(const Material& m, const Vec3& wo, float u_lobe, BsdfSamp
     out.weight = Vec3(1.f);
     return true;
   }
-  // Refraction: wi = -wo / eta + (cos_o / eta - cos_t) n, with n on wo's side.
+  // Refraction: the tangential part of wi is -wo's divided by eta (Snell), the normal part is
+  // cos_t on the far side. Written this way, not as -wo / eta + (cos_o / eta - cos_t) n, so that
+  // nothing cancels and a huge 1 / eta cannot overflow.
   const float n_z = entering ? 1.f : -1.f;
-  out.wi = normalize(Vec3{-wo.x / eta, -wo.y / eta, -wo.z / eta + (cos_o / eta - cos_t) * n_z});
-  // Radiance is compressed by (eta_i / eta_t)^2 crossing the interface.
-  out.weight = m.tint / (eta * eta);
+  out.wi = normalize(Vec3{-wo.x / eta, -wo.y / eta, -cos_t * n_z});
+  // Radiance is compressed by (eta_i / eta_t)^2 crossing the interface; eta^2 in double, so that
+  // IORs up to 1e30 neither overflow nor underflow before the division.
+  out.weight = m.tint * static_cast<float>(1.0 / (double(eta) * double(eta)));
   return true;
 }
 
 }  // namespace
 
 float fresnel_dielectric(float cos_i, float eta, float& cos_t) {
+  // In double: the scene format allows IORs from 1e-30 to 1e30, whose squares overflow or
+  // underflow a float (eta = 1e20 gave NaN and a black sphere instead of a mirror).
   // cos_t^2 = 1 - sin_i^2 / eta^2, written without the cancellation of 1 - (1 - cos_i^2) that
   // would turn grazing rays at eta = 1 into total internal reflection.
-  const float cos2_t = (eta * eta - 1.f + cos_i * cos_i) / (eta * eta);
-  if (cos2_t <= 0.f) {
+  const double e = eta, ci = cos_i;
+  const double cos2_t = (e * e - 1.0 + ci * ci) / (e * e);
+  if (!(cos2_t > 0.0)) {
     cos_t = 0.f;
     return 1.f;  // total internal reflection
   }
-  cos_t = std::sqrt(cos2_t);
-  const float r_parl = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-  const float r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-  return 0.5f * (r_parl * r_parl + r_perp * r_perp);
+  const double ct = std::sqrt(cos2_t);
+  cos_t = static_cast<float>(ct);
+  const double r_parl = (e * ci - ct) / (e * ci + ct);
+  const double r_perp = (ci - e * ct) / (ci + e * ct);
+  return static_cast<float>(0.5 * (r_parl * r_parl + r_perp * r_perp));
 }
 
 Vec3 sample_cosine_hemisphere(float u1, float u2) {
@@ -107,7 +117,7 @@ float Bsdf::pdf_other(const Vec3& wo_in, const Vec3& wi_in) const {
 
 bool Bsdf::sample(const Vec3& wo_in, float u_lobe, float u1, float u2, BsdfSample& out) const {
   if (wo_in.z == 0.f) return false;
-  switch (m_->type) {
+  switch (kDiffuseOnlyBuild ? MaterialType::kDiffuse : m_->type) {
     case MaterialType::kDielectric:
       return sample_dielectric(*m_, wo_in, u_lobe, out);
     case MaterialType::kMirror:

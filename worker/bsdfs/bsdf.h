@@ -10,6 +10,15 @@
 
 namespace rayfarm {
 
+/// True in the benchmark build that knows only diffuse materials (option RAYFARM_DIFFUSE_ONLY,
+/// bench/diffuse_only.sh): there every material test below is a compile-time constant, which
+/// shows what the other materials cost a diffuse scene in the normal build.
+#ifdef RAYFARM_DIFFUSE_ONLY
+inline constexpr bool kDiffuseOnlyBuild = true;
+#else
+inline constexpr bool kDiffuseOnlyBuild = false;
+#endif
+
 /// A sampled direction and its throughput update f * |cos| / pdf.
 struct BsdfSample {
   Vec3 wi;
@@ -23,15 +32,15 @@ class Bsdf {
   explicit Bsdf(const Material& m) : m_(&m) {}
 
   /// True when every lobe is a Dirac delta (light sampling cannot help).
-  bool is_specular() const { return m_->is_specular(); }
+  bool is_specular() const { return !kDiffuseOnlyBuild && m_->is_specular(); }
   /// f(wo, wi) * |cos(wi)|; zero for specular materials.
   Vec3 eval(const Vec3& wo, const Vec3& wi) const {
-    if (m_->type != MaterialType::kDiffuse) return eval_other(wo, wi);
+    if (!kDiffuseOnlyBuild && m_->type != MaterialType::kDiffuse) return eval_other(wo, wi);
     return wo.z * wi.z > 0.f ? m_->albedo * (std::fabs(wi.z) * kInvPi) : Vec3(0.f);
   }
   /// Solid-angle density with which sample() draws wi given wo; zero for specular materials.
   float pdf(const Vec3& wo, const Vec3& wi) const {
-    if (m_->type != MaterialType::kDiffuse) return pdf_other(wo, wi);
+    if (!kDiffuseOnlyBuild && m_->type != MaterialType::kDiffuse) return pdf_other(wo, wi);
     return wo.z * wi.z > 0.f ? std::fabs(wi.z) * kInvPi : 0.f;
   }
   /// Draws wi from three uniform numbers; false when no direction carries energy.

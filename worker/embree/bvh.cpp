@@ -2,6 +2,7 @@
 
 #include <embree3/rtcore.h>
 
+#include <cmath>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -13,6 +14,48 @@ namespace {
 
 void log_device_error(void* /*user*/, RTCError code, const char* message) {
   get_logger("embree")->error("Embree error {}: {}", static_cast<int>(code), message ? message : "");
+}
+
+// Embree's FLT_LARGE: a ray whose origin or direction has a component beyond it is invalid, and
+// Debian's Embree build asserts on it (the process aborts).
+constexpr float kEmbreeLarge = 1.844e18f;
+
+bool within_embree_range(const Vec3& v) {
+  return std::fabs(v.x) <= kEmbreeLarge && std::fabs(v.y) <= kEmbreeLarge &&
+         std::fabs(v.z) <= kEmbreeLarge;
+}
+
+/// Copies `ray` into Embree's form. A direction beyond Embree's range is divided by a power of
+/// two, and t multiplied by it: exact, so the ray is the same line. Returns false when the ray
+/// cannot be traced at all (origin out of range, or anything not finite); `t_scale` receives
+/// the factor that Embree's t must be divided by.
+bool to_embree(const Ray& ray, RTCRay& r, float& t_scale) {
+  t_scale = 1.f;
+  if (!is_finite(ray.org) || !is_finite(ray.dir) || !within_embree_range(ray.org) ||
+      std::isnan(ray.tnear) || std::isnan(ray.tfar)) {
+    return false;
+  }
+  Vec3 dir = ray.dir;
+  const float largest = max_component(abs(dir));
+  if (largest > 0x1p60f) {
+    int exponent = 0;
+    std::frexp(largest, &exponent);
+    t_scale = std::ldexp(1.f, exponent - 60);  // largest / t_scale <= 2^60
+    dir = dir / t_scale;
+  }
+  r.org_x = ray.org.x;
+  r.org_y = ray.org.y;
+  r.org_z = ray.org.z;
+  r.dir_x = dir.x;
+  r.dir_y = dir.y;
+  r.dir_z = dir.z;
+  r.tnear = ray.tnear * t_scale;
+  r.tfar = ray.tfar * t_scale;  // may become +inf, which Embree accepts
+  r.time = 0.f;
+  r.mask = 0xffffffffu;
+  r.id = 0;
+  r.flags = 0;
+  return true;
 }
 
 [[noreturn]] void fail(RTCDevice device, const std::string& what) {
@@ -102,23 +145,13 @@ bool Bvh::intersect(const Ray& ray, RayHit& hit) const {
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
   RTCRayHit rh;
-  rh.ray.org_x = ray.org.x;
-  rh.ray.org_y = ray.org.y;
-  rh.ray.org_z = ray.org.z;
-  rh.ray.dir_x = ray.dir.x;
-  rh.ray.dir_y = ray.dir.y;
-  rh.ray.dir_z = ray.dir.z;
-  rh.ray.tnear = ray.tnear;
-  rh.ray.tfar = ray.tfar;
-  rh.ray.time = 0.f;
-  rh.ray.mask = 0xffffffffu;
-  rh.ray.id = 0;
-  rh.ray.flags = 0;
+  float t_scale = 1.f;
+  if (!to_embree(ray, rh.ray, t_scale)) return false;  // nothing can be found from there
   rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
   rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
   rtcIntersect1(impl_->scene, &context, &rh);
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
-  hit.t = rh.ray.tfar;
+  hit.t = rh.ray.tfar / t_scale;
   hit.geom = rh.hit.geomID == impl_->sphere_id ? kSphereGeometry : rh.hit.geomID;
   hit.prim = rh.hit.primID;
   hit.u = rh.hit.u;
@@ -130,18 +163,9 @@ bool Bvh::occluded(const Ray& ray) const {
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
   RTCRay r;
-  r.org_x = ray.org.x;
-  r.org_y = ray.org.y;
-  r.org_z = ray.org.z;
-  r.dir_x = ray.dir.x;
-  r.dir_y = ray.dir.y;
-  r.dir_z = ray.dir.z;
-  r.tnear = ray.tnear;
-  r.tfar = ray.tfar;
-  r.time = 0.f;
-  r.mask = 0xffffffffu;
-  r.id = 0;
-  r.flags = 0;
+  float t_scale = 1.f;
+  // A segment that cannot be traced counts as blocked: no light leaks through it.
+  if (!to_embree(ray, r, t_scale)) return true;
   rtcOccluded1(impl_->scene, &context, &r);
   // An occluded ray comes back with tfar = -inf.
   return r.tfar < 0.f;

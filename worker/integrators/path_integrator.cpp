@@ -23,8 +23,11 @@ PathIntegrator::PathIntegrator(const SceneData& data, const LightSet& lights,
 
 float PathIntegrator::emission_weight(const SurfaceHit& hit, bool specular_bounce, float bsdf_pdf,
                                       const Vec3& prev_p) const {
-  // Emitters seen by the camera or through a specular chain: light sampling could not find them.
-  if (specular_bounce || !plan_.sample_lights) return 1.f;
+  // Emitters seen by the camera or through a specular chain, and emitters that light sampling
+  // cannot choose (no area in float, or a negligible share of the power): only BSDF rays find
+  // them.
+  if (specular_bounce || !plan_.sample_lights || !(lights_.selection_probability(hit.light) > 0.f))
+    return 1.f;
   if (!plan_.weight_emission) return 0.f;  // NEE: already counted by light sampling
   return power_heuristic(bsdf_pdf, lights_.pdf(hit.light, prev_p, hit.p, hit.n));
 }
@@ -47,7 +50,16 @@ Vec3 PathIntegrator::sample_light(const SurfaceHit& hit, const Vec3& wo_local, c
   return f * ls.radiance * (w / ls.pdf);
 }
 
-Vec3 PathIntegrator::li(Ray ray, Pcg32& rng, uint64_t& rays) const {
+Vec3 PathIntegrator::li(Ray ray, Pcg32& rng, PathStats& stats) const {
+  uint64_t& rays = stats.rays;
+  // The cap stops a path that could still gather light: count it and the weight it carried.
+  const auto truncate = [&stats](const Vec3& throughput) {
+    const float w = max_component(throughput);
+    if (w > 0.f) {
+      ++stats.truncated;
+      stats.truncated_throughput += w;
+    }
+  };
   Vec3 radiance(0.f), beta(1.f);
   bool specular_bounce = true;  // the camera ray: emitters it sees count fully
   float bsdf_pdf = 0.f;
@@ -69,7 +81,10 @@ Vec3 PathIntegrator::li(Ray ray, Pcg32& rng, uint64_t& rays) const {
       const Vec3 le = LightSet::emitted(material, hit.n, wo);
       if (!is_black(le)) radiance += beta * le * emission_weight(hit, specular_bounce, bsdf_pdf, prev_p);
     }
-    if (depth == plan_.max_depth) break;
+    if (depth == plan_.max_depth) {
+      truncate(beta);
+      break;
+    }
 
     // Light sampling (NEE / MIS) at non-specular vertices.
     const Frame frame(hit.n);
@@ -93,10 +108,13 @@ Vec3 PathIntegrator::li(Ray ray, Pcg32& rng, uint64_t& rays) const {
     prev_p = hit.p;
 
     // The ray after the last scattering vertex matters only if it can find counted emission.
-    if (depth + 1 == plan_.max_depth && !plan_.emitters_reachable) break;
-    if (depth + 1 == plan_.max_depth && !specular_bounce && plan_.sample_lights &&
-        !plan_.weight_emission && is_black(background_)) {
-      break;  // NEE: diffuse-bounce emitter hits are not counted
+    const bool last_ray_useless =
+        !plan_.emitters_reachable ||
+        (!specular_bounce && plan_.sample_lights && !plan_.weight_emission &&
+         is_black(background_));  // NEE: diffuse-bounce emitter hits are not counted
+    if (depth + 1 == plan_.max_depth && last_ray_useless) {
+      truncate(beta);
+      break;
     }
     const Vec3 wi = frame.to_world(bs.wi);
     ray = Ray{offset_ray_origin(hit.p, hit.p_error, bs.wi.z > 0.f ? frame.n : -frame.n), wi};

@@ -22,12 +22,22 @@ struct IntegratorPlan {
   uint32_t max_depth = 0;
 };
 
+/// What paths did besides their radiance: rays traced, and paths that the max_depth cap stopped
+/// while they still carried weight (their continuation is missing from the image: a bias).
+struct PathStats {
+  uint64_t rays = 0;       ///< closest-hit and shadow rays traced
+  uint64_t truncated = 0;  ///< paths stopped by max_depth with non-zero throughput
+  /// Sum over those paths of their throughput (largest RGB component) when stopped; per sample,
+  /// about the fraction of the light beyond the cap that the image lacks.
+  double truncated_throughput = 0.0;
+};
+
 class PathIntegrator {
  public:
   PathIntegrator(const SceneData& data, const LightSet& lights, const RenderSettings& settings);
 
-  /// Radiance arriving along `ray` (one sample). `rays` counts traced rays.
-  Vec3 li(Ray ray, Pcg32& rng, uint64_t& rays) const;
+  /// Radiance arriving along `ray` (one sample); adds what the path did to `stats`.
+  Vec3 li(Ray ray, Pcg32& rng, PathStats& stats) const;
 
   const IntegratorPlan& plan() const { return plan_; }
 
@@ -45,8 +55,11 @@ class PathIntegrator {
 
 /// Power heuristic (beta = 2) weight of a strategy with density a against one with density b.
 inline float power_heuristic(float a, float b) {
-  const float a2 = a * a, b2 = b * b;
-  return a2 + b2 > 0.f ? a2 / (a2 + b2) : 0.f;
+  // Squares in double: a sharp lobe's density above ~1.8e19 squares to infinity in float, and
+  // the weight became inf / inf = NaN.
+  const double a2 = double(a) * a, b2 = double(b) * b;
+  const double w = a2 / (a2 + b2);
+  return w >= 0.0 ? static_cast<float>(w) : 0.f;  // also 0 for 0 / 0
 }
 
 }  // namespace rayfarm

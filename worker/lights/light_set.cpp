@@ -30,40 +30,50 @@ LightSet::LightSet(SceneData& data) : data_(&data) {
       const Vec3& a = mesh.positions[mesh.indices[3 * t]];
       const Vec3& b = mesh.positions[mesh.indices[3 * t + 1]];
       const Vec3& c = mesh.positions[mesh.indices[3 * t + 2]];
-      const float area = 0.5f * length(cross(b - a, c - a));
-      if (!(area > 0.f) || !std::isfinite(area)) continue;
-      const float sides = mat.two_sided ? 2.f : 1.f;
-      lights_.push_back({Kind::kTriangle, m, t, area, luminance(mat.emission) * area * kPi * sides});
+      const double area = triangle_area(a, b, c);
+      Vec3 n;
+      // An emitter that cannot be sampled keeps light index -1: BSDF rays then count it fully.
+      if (!(area > 0.0) || area > 3e38 || !triangle_normal(a, b, c, n)) continue;
+      const double sides = mat.two_sided ? 2.0 : 1.0;
+      lights_.push_back({Kind::kTriangle, m, t, static_cast<float>(area), n,
+                         double(luminance(mat.emission)) * area * kPi * sides});
     }
   }
   for (uint32_t s = 0; s < scene.spheres.size(); ++s) {
     const Material& mat = scene.materials[scene.spheres[s].material];
     if (!mat.is_emissive()) continue;
-    const float r = scene.spheres[s].radius;
-    const float area = 4.f * kPi * r * r;
-    const float sides = mat.two_sided ? 2.f : 1.f;
-    lights_.push_back({Kind::kSphere, kSphereGeometry, s, area, luminance(mat.emission) * area * kPi * sides});
+    const double r = scene.spheres[s].radius;
+    const double area = 4.0 * kPi * r * r;
+    if (!(area > 0.0) || area > 3e38) continue;
+    const double sides = mat.two_sided ? 2.0 : 1.0;
+    lights_.push_back({Kind::kSphere, kSphereGeometry, s, static_cast<float>(area), Vec3(),
+                       double(luminance(mat.emission)) * area * kPi * sides});
   }
   for (uint32_t i = 0; i < scene.point_lights.size(); ++i) {
-    const float power = 4.f * kPi * luminance(scene.point_lights[i].intensity);
-    if (!(power > 0.f)) continue;
-    lights_.push_back({Kind::kPoint, 0, i, 0.f, power});
+    const double power = 4.0 * kPi * double(luminance(scene.point_lights[i].intensity));
+    if (!(power > 0.0)) continue;
+    lights_.push_back({Kind::kPoint, 0, i, 0.f, Vec3(), power});
     ++point_count_;
   }
   // Emitters whose luminance is zero (e.g. pure blue below rounding) still get a small share.
   double total = 0.0;
-  for (const Light& l : lights_) total += std::max(l.power, 1e-30f);
+  for (const Light& l : lights_) total += std::max(l.power, 1e-30);
   double running = 0.0;
   for (size_t i = 0; i < lights_.size(); ++i) {
     const Light& l = lights_[i];
-    running += std::max(l.power, 1e-30f);
+    const double share = std::max(l.power, 1e-30);
+    running += share;
     cdf_.push_back(static_cast<float>(running / total));
+    probability_.push_back(static_cast<float>(share / total));
     if (l.kind != Kind::kPoint) data.set_light_index(l.geom, l.prim, static_cast<int32_t>(i));
   }
   if (!cdf_.empty()) cdf_.back() = 1.f;
 }
 
 float LightSet::selection_probability(int32_t light) const {
+  if (light < 0) return 0.f;
+  // The interval sample() maps to this light; for a light of negligible power the rounded cdf
+  // may give it none, and then it is never chosen.
   const float lo = light == 0 ? 0.f : cdf_[light - 1];
   return cdf_[light] - lo;
 }
@@ -107,7 +117,7 @@ bool LightSet::sample(const Vec3& ref, float u_select, float u1, float u2, Light
     const float b0 = 1.f - su, b1 = u2 * su, b2 = 1.f - b0 - b1;
     p = v0 * b0 + v1 * b1 + v2 * b2;
     p_error = triangle_point_error(v0, v1, v2);
-    n = normalize(cross(v1 - v0, v2 - v0));
+    n = light.n;
     material = mesh.materials[light.prim];
   } else {
     const Sphere& s = scene.spheres[light.prim];
@@ -116,16 +126,19 @@ bool LightSet::sample(const Vec3& ref, float u_select, float u1, float u2, Light
     p_error = sphere_point_error(s.center, s.radius);
     material = s.material;
   }
-  const Vec3 d = p - ref;
-  const float dist2 = dot(d, d);
-  if (!(dist2 > 0.f)) return false;
-  const float dist = std::sqrt(dist2);
-  out.wi = d / dist;
+  // Distances in double: beyond ~1e19 their squares overflow a float, and the light would
+  // silently never be sampled.
+  const double dx = double(p.x) - ref.x, dy = double(p.y) - ref.y, dz = double(p.z) - ref.z;
+  const double dist2 = dx * dx + dy * dy + dz * dz;
+  if (!(dist2 > 0.0)) return false;
+  const double dist = std::sqrt(dist2);
+  out.wi = Vec3(static_cast<float>(dx / dist), static_cast<float>(dy / dist),
+                static_cast<float>(dz / dist));
   const float cos_light = std::fabs(dot(n, out.wi));
   if (!(cos_light > 0.f)) return false;
   out.radiance = emitted(data_->material(material), n, -out.wi);
   if (is_black(out.radiance)) return false;
-  out.pdf = p_select * dist2 / (cos_light * light.area);
+  out.pdf = static_cast<float>(p_select * dist2 / (double(cos_light) * light.area));
   out.target = offset_ray_origin(p, p_error, dot(n, out.wi) < 0.f ? n : -n);
   out.delta = false;
   return std::isfinite(out.pdf) && out.pdf > 0.f;
@@ -134,11 +147,12 @@ bool LightSet::sample(const Vec3& ref, float u_select, float u1, float u2, Light
 float LightSet::pdf(int32_t light, const Vec3& ref, const Vec3& p, const Vec3& n) const {
   if (light < 0) return 0.f;
   const Light& l = lights_[light];
-  const Vec3 d = p - ref;
-  const float dist2 = dot(d, d);
-  const float cos_light = std::fabs(dot(n, d)) / std::sqrt(dist2);
-  if (!(cos_light > 0.f)) return 0.f;
-  return selection_probability(light) * dist2 / (cos_light * l.area);
+  const double dx = double(p.x) - ref.x, dy = double(p.y) - ref.y, dz = double(p.z) - ref.z;
+  const double dist2 = dx * dx + dy * dy + dz * dz;
+  if (!(dist2 > 0.0)) return 0.f;
+  const double cos_light = std::fabs(n.x * dx + n.y * dy + n.z * dz) / std::sqrt(dist2);
+  if (!(cos_light > 0.0)) return 0.f;
+  return static_cast<float>(selection_probability(light) * dist2 / (cos_light * l.area));
 }
 
 }  // namespace rayfarm

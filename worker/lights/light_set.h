@@ -30,6 +30,8 @@ class LightSet {
 
   /// Chooses a light by power and a point on it. False when the sample carries nothing.
   bool sample(const Vec3& ref, float u_select, float u1, float u2, LightSample& out) const;
+  /// Probability that sample() chooses light `light` (0 for -1: an emitter it cannot sample).
+  float selection_probability(int32_t light) const;
   /// Density sample() would have had for reaching the emitter `light` at (p, n) from `ref`.
   float pdf(int32_t light, const Vec3& ref, const Vec3& p, const Vec3& n) const;
 
@@ -42,14 +44,14 @@ class LightSet {
     Kind kind;
     uint32_t geom = 0, prim = 0;  // mesh and triangle, or sphere index, or point light index
     float area = 0.f;
-    float power = 0.f;
+    Vec3 n;              // unit normal of a triangle, front side
+    double power = 0.0;  // in double: luminance x area x pi overflows float for huge emitters
   };
-
-  float selection_probability(int32_t light) const;
 
   const SceneData* data_;
   std::vector<Light> lights_;
   std::vector<float> cdf_;  // cumulative power, normalised; cdf_.back() == 1
+  std::vector<float> probability_;  // each light's share of the power
   size_t point_count_ = 0;
 };
 

@@ -1,0 +1,44 @@
+#pragma once
+// What every scene that load_scene() accepts must satisfy: the renderer indexes with these
+// numbers without checking them again.
+#include <cmath>
+
+#include "common/scene/scene.h"
+#include "fuzz_support.h"
+
+namespace rayfarm::fuzz {
+
+inline bool finite_within(const Vec3& v, float limit) {
+  return is_finite(v) && std::fabs(v.x) <= limit && std::fabs(v.y) <= limit &&
+         std::fabs(v.z) <= limit;
+}
+
+inline void check_scene(const Scene& s) {
+  require(s.film.width >= 1 && s.film.height >= 1 && s.film.width <= 16384 &&
+              s.film.height <= 16384 && uint64_t{s.film.width} * s.film.height <= (1u << 26),
+          "film size");
+  require(finite_within(s.camera.eye, 1e17f) && finite_within(s.camera.look_at, 1e17f),
+          "camera position");
+  require(s.camera.fov_y_deg > 0.f && s.camera.fov_y_deg < 180.f, "fov");
+  require(s.render.spp >= 1 && s.render.max_depth <= 1024, "render settings");
+  for (const Material& m : s.materials) {
+    require(is_finite(m.emission) && min_component(m.emission) >= 0.f, "emission");
+    require(min_component(m.albedo) >= 0.f && max_component(m.albedo) <= 1.f, "albedo");
+    require(max_component(m.kd + m.ks) <= 1.f + 1e-6f, "phong energy");
+    require(m.type != MaterialType::kDielectric || (m.ior > 0.f && std::isfinite(m.ior)), "ior");
+  }
+  for (const TriangleMesh& mesh : s.meshes) {
+    require(mesh.indices.size() % 3 == 0, "indices in threes");
+    require(mesh.materials.size() == mesh.triangle_count(), "one material per triangle");
+    for (uint32_t i : mesh.indices) require(i < mesh.positions.size(), "vertex index");
+    for (uint32_t m : mesh.materials) require(m < s.materials.size(), "material index");
+    for (const Vec3& p : mesh.positions) require(finite_within(p, 1e17f), "vertex range");
+  }
+  for (const Sphere& sp : s.spheres) {
+    require(sp.material < s.materials.size(), "sphere material");
+    require(sp.radius > 0.f && finite_within(sp.center, 1e17f), "sphere");
+  }
+  for (const PointLight& l : s.point_lights) require(finite_within(l.position, 1e17f), "light");
+}
+
+}  // namespace rayfarm::fuzz

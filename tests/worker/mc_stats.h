@@ -1,0 +1,139 @@
+#pragma once
+// Statistics of Monte Carlo renders for tests: means with standard errors computed from the
+// per-sample second moments that every TileResult carries, and per-block z-tests corrected for
+// the number of comparisons (Bonferroni). No tolerance in these tests is guessed: each is a
+// number of standard errors computed from the render itself.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "worker/renderer.h"
+
+namespace rayfarm::testing {
+
+/// A mean over samples and its standard error.
+struct Estimate {
+  double mean = 0.0;
+  double standard_error = 0.0;
+  uint64_t nonfinite = 0;
+  RenderStats stats;
+};
+
+/// Renders every pixel of `scene` with `settings` as one unit.
+inline TileResult render_all(const Scene& scene, const RenderSettings& settings,
+                             RenderStats* stats = nullptr) {
+  Renderer renderer(scene, settings);
+  return renderer.render({0, 0, scene.film.width, scene.film.height}, {0, settings.spp}, stats);
+}
+
+/// Mean of channel `c` over all samples of all pixels (independent samples), with its standard
+/// error from the per-sample second moment.
+inline Estimate image_estimate(const Scene& scene, const RenderSettings& settings, int c = 1) {
+  Estimate e;
+  const TileResult r = render_all(scene, settings, &e.stats);
+  double sum = 0.0, sum_sq = 0.0;
+  for (size_t p = 0; p < r.rect.pixel_count(); ++p) {
+    sum += from_fixed(r.sum[p * 3 + c]);
+    sum_sq += from_fixed(r.sum_sq[p * 3 + c]);
+  }
+  const double n = double(r.rect.pixel_count()) * settings.spp;
+  e.mean = sum / n;
+  const double variance = std::max(0.0, (sum_sq / n - e.mean * e.mean) * n / (n - 1.0));
+  e.standard_error = std::sqrt(variance / n);
+  e.nonfinite = r.nonfinite;
+  return e;
+}
+
+/// Per block (block x block pixels) and channel: the mean radiance and the variance of that mean.
+struct BlockStats {
+  std::vector<double> mean, variance_of_mean;
+  uint64_t nonfinite = 0;
+};
+
+inline BlockStats block_stats(const TileResult& r, uint32_t block) {
+  const uint32_t width = r.rect.width(), bw = width / block, bh = r.rect.height() / block;
+  const uint32_t spp = r.samples.count();
+  BlockStats stats;
+  stats.nonfinite = r.nonfinite;
+  stats.mean.assign(size_t{bw} * bh * 3, 0.0);
+  stats.variance_of_mean.assign(size_t{bw} * bh * 3, 0.0);
+  const double n = double(block) * block * spp;
+  for (uint32_t by = 0; by < bh; ++by) {
+    for (uint32_t bx = 0; bx < bw; ++bx) {
+      for (int c = 0; c < 3; ++c) {
+        double s = 0.0, s2 = 0.0;
+        for (uint32_t y = by * block; y < (by + 1) * block; ++y) {
+          for (uint32_t x = bx * block; x < (bx + 1) * block; ++x) {
+            const size_t i = (size_t{y} * width + x) * 3 + c;
+            s += from_fixed(r.sum[i]);
+            s2 += from_fixed(r.sum_sq[i]);
+          }
+        }
+        const double mean = s / n;
+        const size_t b = (size_t{by} * bw + bx) * 3 + c;
+        stats.mean[b] = mean;
+        stats.variance_of_mean[b] = std::max(0.0, s2 / n - mean * mean) / (n - 1.0);
+      }
+    }
+  }
+  return stats;
+}
+
+/// Renders `scene` with `integrator`, `spp` and `seed`, reduced to blocks.
+inline BlockStats render_blocks(const Scene& scene, IntegratorType integrator, uint32_t spp,
+                                uint64_t seed, uint32_t block) {
+  RenderSettings settings = scene.render;
+  settings.integrator = integrator;
+  settings.spp = spp;
+  settings.seed = seed;
+  return block_stats(render_all(scene, settings), block);
+}
+
+/// Two-sided z quantile for a family of `comparisons` tests at overall false-alarm rate
+/// `alpha` (Bonferroni): per test p = alpha / comparisons. Inverts the normal tail by bisection
+/// on erfc, so that no table is needed.
+inline double bonferroni_z(size_t comparisons, double alpha = 1e-3) {
+  const double p = alpha / double(comparisons);
+  double lo = 0.0, hi = 40.0;
+  for (int i = 0; i < 200; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (std::erfc(mid / std::sqrt(2.0)) > p ? lo : hi) = mid;
+  }
+  return hi;
+}
+
+/// Expects every block of `a` to equal the same block of `b` within the z bound of all the
+/// comparisons made (Bonferroni at 1e-3 overall). Blocks where both have zero variance must be
+/// equal exactly. Returns the number of comparisons made.
+inline size_t expect_same_within_noise(const BlockStats& a, const BlockStats& b,
+                                       const std::string& what) {
+  EXPECT_EQ(a.mean.size(), b.mean.size()) << what;
+  const double z_max = bonferroni_z(a.mean.size());
+  size_t compared = 0;
+  for (size_t i = 0; i < a.mean.size() && i < b.mean.size(); ++i) {
+    const double se = std::sqrt(a.variance_of_mean[i] + b.variance_of_mean[i]);
+    if (se == 0.0) {
+      EXPECT_EQ(a.mean[i], b.mean[i]) << what << ": block value " << i;
+      continue;
+    }
+    const double z = (a.mean[i] - b.mean[i]) / se;
+    EXPECT_LT(std::fabs(z), z_max) << what << ": block value " << i << ": " << a.mean[i]
+                                   << " vs " << b.mean[i] << " (se " << se << ")";
+    ++compared;
+  }
+  return compared;
+}
+
+/// True when every sum of `r` is a finite number and no sample was dropped.
+inline bool all_finite(const TileResult& r) {
+  for (size_t i = 0; i < r.sum.size(); ++i) {
+    if (!std::isfinite(from_fixed(r.sum[i])) || !std::isfinite(from_fixed(r.sum_sq[i])))
+      return false;
+  }
+  return r.nonfinite == 0;
+}
+
+}  // namespace rayfarm::testing
