@@ -8,7 +8,9 @@
 #include <fmt/format.h>
 
 #include "cli/commands.h"
+#include "cli/stop_options.h"
 #include "common/image/film_output.h"
+#include "common/report/error_tracker.h"
 #include "common/scene/parser.h"
 #include "common/util/log.h"
 #include "worker/renderer.h"
@@ -23,34 +25,47 @@ struct RenderArgs {
   std::optional<uint64_t> seed;
   std::optional<std::string> integrator;
   uint32_t threads = 0;
+  StopArgs stop;
 };
+
+/// "out.exr" -> "out.error.csv" and "out.error.png": the error record beside the image.
+std::filesystem::path error_csv_path(const std::filesystem::path& exr) {
+  std::filesystem::path p = exr;
+  return p.replace_extension(".error.csv");
+}
+std::filesystem::path error_plot_path(const std::filesystem::path& exr) {
+  std::filesystem::path p = exr;
+  return p.replace_extension(".error.png");
+}
 
 // A progress bar on a terminal; a plain line per pass otherwise.
 class ProgressReporter {
  public:
   ProgressReporter() : tty_(isatty(STDERR_FILENO) != 0) {}
 
-  void update(const RenderProgress& p) {
-    const double fraction = p.units_total ? double(p.units_done) / double(p.units_total) : 1.0;
+  /// `row` is set when a round of passes has just completed (its error figures are new).
+  void update(const RenderProgress& p, const ErrorRow* row) {
+    const bool last = p.reason != StopReason::kRunning;
+    const double fraction =
+        last ? 1.0 : p.units_released ? double(p.units_done) / double(p.units_released) : 0.0;
+    if (row) error_ = fmt::format("relMSE~{:.3g}", row->est_rel_mse);
     if (tty_) {
       const int width = 30, filled = static_cast<int>(fraction * width);
-      const double eta = fraction > 0 ? p.seconds * (1.0 - fraction) / fraction : 0.0;
-      std::fprintf(stderr, "\r[%s%s] %5.1f%%  pass %u/%u  %.1fs elapsed, ETA %.1fs ",
+      std::fprintf(stderr, "\r[%s%s] %5.1f%%  pass %u/%u  %.1fs  %s ",
                    std::string(filled, '#').c_str(), std::string(width - filled, '.').c_str(),
-                   100.0 * fraction, p.passes_done + (p.units_done < p.units_total ? 1 : 0),
-                   p.passes_total, p.seconds, eta);
-      if (p.units_done == p.units_total) std::fputc('\n', stderr);
-    } else if (p.passes_done != last_pass_ || p.units_done == p.units_total) {
-      last_pass_ = p.passes_done;
-      std::fprintf(stderr, "progress: %.1f%% (%llu/%llu units), %.1fs\n", 100.0 * fraction,
-                   static_cast<unsigned long long>(p.units_done),
-                   static_cast<unsigned long long>(p.units_total), p.seconds);
+                   100.0 * fraction, std::min(p.rounds_done + (last ? 0 : 1), p.passes_total),
+                   p.passes_total, p.seconds, error_.c_str());
+      if (last) std::fputc('\n', stderr);
+    } else if (row || last) {
+      std::fprintf(stderr, "progress: pass %u/%u, %llu/%llu units, %.1fs, %s\n", p.rounds_done,
+                   p.passes_total, static_cast<unsigned long long>(p.units_done),
+                   static_cast<unsigned long long>(p.units_released), p.seconds, error_.c_str());
     }
   }
 
  private:
   bool tty_;
-  uint32_t last_pass_ = 0;
+  std::string error_ = "relMSE unknown";
 };
 
 int run_render(const RenderArgs& args) {
@@ -69,28 +84,91 @@ int run_render(const RenderArgs& args) {
   options.threads = args.threads;
   options.tile_size = args.tile.value_or(64);
   options.pass_spp = args.pass_spp.value_or(0);
+  options.stop = args.stop.rules();
   if (options.tile_size == 0) throw std::invalid_argument("--tile must be at least 1");
 
-  const auto start = std::chrono::steady_clock::now();
+  std::optional<Image> reference;
+  if (args.stop.reference) reference = load_reference(*args.stop.reference, scene.film);
+  ErrorTracker tracker(std::move(reference));
+
   Renderer renderer(scene, settings);
   log->info("{}: {}x{}, {} spp, seed {}; {}", args.scene, scene.film.width, scene.film.height,
             settings.spp, settings.seed, renderer.plan());
+  if (options.stop.target_error > 0 || options.stop.time_limit_s > 0) {
+    log->info("stopping rules: {} spp{}{}", settings.spp,
+              options.stop.target_error > 0
+                  ? fmt::format(", target relMSE {:g} ({})", options.stop.target_error,
+                                options.stop.adaptive ? "per tile" : "whole passes")
+                  : "",
+              options.stop.time_limit_s > 0
+                  ? fmt::format(", time limit {:g} s", options.stop.time_limit_s)
+                  : "");
+  }
   ProgressReporter reporter;
-  options.on_progress = [&](const RenderProgress& p, const Film&) { reporter.update(p); };
+  uint32_t rounds_recorded = 0;
+  uint64_t samples_recorded = 0;
+  RenderProgress final_progress;
+  options.on_progress = [&](const RenderProgress& p, const Film& film) {
+    // A row per round of passes, and one for the final image.
+    const ErrorRow* row = nullptr;
+    const bool last = p.reason != StopReason::kRunning;
+    if (p.rounds_done > rounds_recorded || (last && film.pixel_samples() > samples_recorded)) {
+      rounds_recorded = p.rounds_done;
+      samples_recorded = film.pixel_samples();
+      row = &tracker.record(film, p.seconds);
+    }
+    reporter.update(p, row);
+    final_progress = p;
+  };
   const Film film = render_local(renderer, options);
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double seconds = final_progress.seconds;
+  if (tracker.rows().empty()) {
+    // Only a time limit shorter than the first unit gets here: nothing to estimate or write.
+    throw std::runtime_error(fmt::format(
+        "the time limit ({:g} s) ended the render before its first unit was done; nothing written",
+        options.stop.time_limit_s));
+  }
+  const ErrorRow& last = tracker.rows().back();
 
-  write_film(args.output, film,
-             {{"rayfarm:integrator", integrator_name(settings.integrator)},
-              {"rayfarm:seed", std::to_string(settings.seed)},
-              {"rayfarm:max_depth", std::to_string(settings.max_depth)},
-              {"rayfarm:scene", std::filesystem::path(args.scene).filename().string()}});
+  std::map<std::string, std::string> attributes{
+      {"rayfarm:integrator", integrator_name(settings.integrator)},
+      {"rayfarm:seed", std::to_string(settings.seed)},
+      {"rayfarm:max_depth", std::to_string(settings.max_depth)},
+      {"rayfarm:scene", std::filesystem::path(args.scene).filename().string()},
+      {"rayfarm:stop", stop_reason_name(final_progress.reason)},
+      {"rayfarm:est_rel_mse", fmt::format("{:.6g}", last.est_rel_mse)}};
+  write_film(args.output, film, attributes);
+  write_error_csv(error_csv_path(args.output), tracker.rows());
+  write_error_plot(error_plot_path(args.output), tracker.rows(),
+                   fmt::format("{} ({}, {})", std::filesystem::path(args.scene).filename().string(),
+                               integrator_name(settings.integrator),
+                               tracker.has_reference() ? "estimated and measured" : "estimated"));
 
-  const double samples = double(scene.film.width) * scene.film.height * settings.spp;
-  std::cout << fmt::format("wrote {} and {}\n", args.output, preview_path(args.output).string());
+  const double samples = static_cast<double>(film.pixel_samples());
+  const double spp_mean = samples / (double(scene.film.width) * scene.film.height);
+  std::cout << fmt::format("wrote {} and {}; error record {} and {}\n", args.output,
+                           preview_path(args.output).string(),
+                           error_csv_path(args.output).string(),
+                           error_plot_path(args.output).string());
   std::cout << fmt::format("time {:.3f} s, {:.3f} Msamples/s, {:.3f} Mrays/s, {:.2f} spp/s at {}x{}\n",
                            seconds, samples / seconds * 1e-6, double(film.rays()) / seconds * 1e-6,
-                           settings.spp / seconds, scene.film.width, scene.film.height);
+                           spp_mean / seconds, scene.film.width, scene.film.height);
+  std::cout << fmt::format("stopped: {}; {:.1f} spp mean ({} to {} per pixel){}\n",
+                           stop_reason_name(final_progress.reason), spp_mean, film.min_spp(),
+                           film.max_spp(),
+                           options.stop.target_error > 0
+                               ? fmt::format(", {}/{} tiles converged",
+                                             final_progress.tiles_converged,
+                                             final_progress.tiles_total)
+                               : "");
+  std::cout << fmt::format("estimated relMSE {:.4g}, RMSE {:.4g}", last.est_rel_mse,
+                           last.est_rmse);
+  if (last.ref_rel_mse) {
+    std::cout << fmt::format("; against {}: relMSE {:.4g}, RMSE {:.4g}, MAE {:.4g}, max {:.4g}",
+                             *args.stop.reference, *last.ref_rel_mse, *last.ref_rmse, *last.ref_mae,
+                             *last.ref_max);
+  }
+  std::cout << "\n";
   if (film.nonfinite() > 0) {
     log->warn("{} samples were NaN, infinite or out of range and were dropped", film.nonfinite());
   }
@@ -112,6 +190,7 @@ void add_render_command(CLI::App& app, int& exit_code) {
   cmd->add_option("--threads", args->threads, "Threads (0 = all)")->capture_default_str();
   cmd->add_option("--tile", args->tile, "Tile size in pixels (default 64); does not change the image");
   cmd->add_option("--pass-spp", args->pass_spp, "Samples per pass (default: automatic); does not change the image");
+  add_stop_options(cmd, args->stop, "Reference EXR: the error against it is measured at every pass");
   cmd->callback([args, &exit_code] {
     try {
       exit_code = run_render(*args);

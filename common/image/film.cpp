@@ -40,9 +40,11 @@ std::vector<SampleRange> split_passes(uint32_t spp, uint32_t pass_spp) {
 uint32_t default_pass_spp(uint32_t tile_size, uint32_t spp) {
   const uint64_t pixels = std::max<uint64_t>(1, uint64_t{tile_size} * tile_size);
   const uint64_t target = (uint64_t{1} << 18) / pixels;
-  // A power of two keeps pass boundaries aligned when spp grows.
+  // At least 8 passes where spp allows, so that the error is reported (and tiles may stop)
+  // several times in a render. A power of two keeps pass boundaries aligned when spp grows.
+  const uint32_t cap = std::max<uint32_t>(spp / 8, 1);
   uint32_t pass = 1;
-  while (uint64_t{pass} * 2 <= target && pass * 2 <= std::max<uint32_t>(spp, 1)) pass *= 2;
+  while (uint64_t{pass} * 2 <= target && pass * 2 <= cap) pass *= 2;
   return pass;
 }
 
@@ -75,6 +77,17 @@ void Film::add(const TileResult& r) {
 uint32_t Film::min_spp() const {
   if (spp_.empty()) return 0;
   return *std::min_element(spp_.begin(), spp_.end());
+}
+
+uint32_t Film::max_spp() const {
+  if (spp_.empty()) return 0;
+  return *std::max_element(spp_.begin(), spp_.end());
+}
+
+uint64_t Film::pixel_samples() const {
+  uint64_t total = 0;
+  for (uint32_t n : spp_) total += n;
+  return total;
 }
 
 std::vector<float> Film::mean_rgb() const {

@@ -45,8 +45,9 @@ struct TileResult {
 std::vector<TileRect> split_tiles(FilmSize film, uint32_t tile_size);
 /// Splits [0, spp) into passes of pass_spp samples (the last may be shorter).
 std::vector<SampleRange> split_passes(uint32_t spp, uint32_t pass_spp);
-/// Pass size used when none is given: about 2^18 samples per unit for this tile size, a power
-/// of two. The image does not depend on it.
+/// Pass size used when none is given: about 2^18 samples per unit for this tile size, at most
+/// spp / 8 (so a render has about 8 passes or more), a power of two. The image does not depend
+/// on it.
 uint32_t default_pass_spp(uint32_t tile_size, uint32_t spp);
 
 /// Accumulates unit results exactly, in any order. Results that overlap are the caller's bug.
@@ -63,8 +64,11 @@ class Film {
   uint32_t height() const { return height_; }
   /// Samples merged so far in pixel (x, y).
   uint32_t spp_at(uint32_t x, uint32_t y) const { return spp_[y * width_ + x]; }
-  /// Fewest samples of any pixel.
+  /// Fewest and most samples of any pixel (they differ when tiles stop adaptively).
   uint32_t min_spp() const;
+  uint32_t max_spp() const;
+  /// Pixel samples merged so far, over the whole film.
+  uint64_t pixel_samples() const;
   uint64_t nonfinite() const { return nonfinite_; }
   uint64_t rays() const { return rays_; }
   const std::vector<Fixed>& sum() const { return sum_; }

@@ -1,5 +1,6 @@
 #include "common/image/film_output.h"
 
+#include "common/image/error_estimate.h"
 #include "common/image/png.h"
 
 namespace rayfarm {
@@ -12,6 +13,19 @@ Image film_to_image(const Film& film, const std::map<std::string, std::string>& 
   image.attributes = attributes;
   image.attributes["rayfarm:spp"] = std::to_string(film.min_spp());
   image.attributes["rayfarm:nonfinite"] = std::to_string(film.nonfinite());
+  // Beside the RGB, as layers that EXR viewers list: the variance of each pixel's mean
+  // ("variance.R/G/B", +inf where a pixel has fewer than 2 samples) and its sample count
+  // ("spp.Y"). Both are exact functions of the sums, so they are as deterministic as the RGB.
+  const std::vector<float> variance = variance_rgb(film);
+  const size_t pixels = size_t{film.width()} * film.height();
+  const char* channel[3] = {"variance.R", "variance.G", "variance.B"};
+  for (int c = 0; c < 3; ++c) {
+    std::vector<float>& out = image.extra[channel[c]];
+    out.resize(pixels);
+    for (size_t p = 0; p < pixels; ++p) out[p] = variance[p * 3 + c];
+  }
+  std::vector<float>& spp = image.extra["spp.Y"];
+  spp.assign(film.spp().begin(), film.spp().end());
   return image;
 }
 

@@ -10,7 +10,8 @@
 
 namespace rayfarm {
 
-/// The film's current estimate as an image; attribute "rayfarm:spp" records the fewest samples
+/// The film's current estimate as an image, with the layers "variance" (of each pixel's mean) and
+/// "spp"; attribute "rayfarm:spp" records the fewest samples
 /// of any pixel, "rayfarm:nonfinite" the samples dropped.
 Image film_to_image(const Film& film, const std::map<std::string, std::string>& attributes);
 

@@ -101,11 +101,20 @@ void write_png_preview(const std::filesystem::path& path, const Image& image, fl
   std::vector<uint8_t> pixels(values);
   std::transform(image.rgb.begin(), image.rgb.end(), pixels.begin(),
                  [exposure](float v) { return to_srgb8(v, exposure); });
+  write_png_rgb8(path, pixels, image.width, image.height);
+}
 
+void write_png_rgb8(const std::filesystem::path& path, const std::vector<uint8_t>& rgb,
+                    uint32_t width, uint32_t height) {
+  if (width == 0 || height == 0 || rgb.size() != size_t{width} * height * 3) {
+    throw ImageError("cannot write " + path.string() + ": invalid image (" +
+                     std::to_string(width) + "x" + std::to_string(height) + ", " +
+                     std::to_string(rgb.size()) + " bytes)");
+  }
   try {
     write_atomically(path, [&](const std::filesystem::path& temporary) {
       const std::string name = temporary.string();
-      PngWriteJob job{name.c_str(), pixels.data(), image.width, image.height, {}};
+      PngWriteJob job{name.c_str(), rgb.data(), width, height, {}};
       if (!write_png_file(&job)) throw ImageError(job.error);
     });
   } catch (const std::runtime_error& e) {

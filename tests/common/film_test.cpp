@@ -289,9 +289,12 @@ TEST(SplitTest, DefaultPassSppIsAPowerOfTwoWithinSpp) {
       EXPECT_LE(pass, spp);
     }
   }
-  // About 2^18 samples per unit.
+  // About 2^18 samples per unit, and at least 8 passes.
   EXPECT_EQ(default_pass_spp(16, 1u << 20), 1024u);
   EXPECT_EQ(default_pass_spp(64, 1u << 20), 64u);
+  EXPECT_EQ(default_pass_spp(64, 256), 32u);
+  EXPECT_EQ(default_pass_spp(64, 64), 8u);
+  EXPECT_EQ(default_pass_spp(64, 12), 1u);
 }
 
 TEST(SplitTest, DefaultPassSppIsAPowerOfTwoForAnySpp) {

@@ -1,0 +1,206 @@
+#include "common/image/convergence.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "common/image/error_estimate.h"
+#include "common/util/check.h"
+
+namespace rayfarm {
+
+uint32_t default_min_passes(uint32_t pass_spp) {
+  const uint32_t enough = pass_spp == 0 ? 256 : (256 + pass_spp - 1) / pass_spp;
+  return std::max<uint32_t>(2, enough);
+}
+
+const char* stop_reason_name(StopReason reason) {
+  switch (reason) {
+    case StopReason::kRunning: return "running";
+    case StopReason::kSpp: return "spp";
+    case StopReason::kTargetError: return "target error";
+    case StopReason::kTimeLimit: return "time limit";
+    case StopReason::kCancelled: return "cancelled";
+    case StopReason::kFailed: return "failed";
+  }
+  return "unknown";
+}
+
+PassPlanner::PassPlanner(std::vector<TileRect> tiles, uint32_t pass_count, uint32_t pass_spp,
+                         const StopRules& rules)
+    : tiles_(std::move(tiles)),
+      pass_count_(pass_count),
+      rules_(rules),
+      gated_(rules.target_error > 0),
+      min_passes_(std::min(pass_count, rules.min_passes > 0 ? rules.min_passes
+                                                            : default_min_passes(pass_spp))),
+      state_(tiles_.size()),
+      tiles_open_(static_cast<uint32_t>(tiles_.size())) {
+  RAYFARM_CHECK(pass_count > 0 && !tiles_.empty(), "a render needs at least one unit");
+  if (!gated_) {
+    for (TileState& s : state_) s.released = pass_count_;
+    units_released_ = uint64_t{pass_count_} * tiles_.size();
+    return;
+  }
+  // The first passes of every tile, pass-major.
+  for (uint32_t p = 0; p < min_passes_; ++p) {
+    for (uint32_t t = 0; t < tile_count(); ++t) release(t, 1);
+  }
+}
+
+void PassPlanner::release(uint32_t tile, uint32_t passes) {
+  TileState& s = state_[tile];
+  for (uint32_t i = 0; i < passes && s.released < pass_count_; ++i) {
+    released_.push_back(uint64_t{s.released} * tiles_.size() + tile);
+    ++s.released;
+    ++units_released_;
+  }
+}
+
+std::vector<uint64_t> PassPlanner::take_released() {
+  std::vector<uint64_t> out;
+  out.swap(released_);
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+void PassPlanner::close(uint32_t tile, bool converged) {
+  TileState& s = state_[tile];
+  if (!s.open) return;
+  s.open = false;
+  s.converged = converged;
+  --tiles_open_;
+  if (converged) ++tiles_converged_;
+}
+
+void PassPlanner::on_merged(uint64_t unit, const Film& film) {
+  const uint32_t tile = static_cast<uint32_t>(unit % tiles_.size());
+  TileState& s = state_[tile];
+  RAYFARM_CHECK(s.open && s.merged < s.released, "merged a unit the planner did not release");
+  ++s.merged;
+  if (s.merged < s.released) return;  // the tile still has released passes in flight
+
+  if (!gated_) {
+    close(tile, false);
+    return;
+  }
+  if (rules_.adaptive) {
+    s.error = estimate_error(film, tiles_[tile]).rel_mse;
+    if (s.budget >= 0) {
+      decide(tile);
+      return;
+    }
+    // Budgets wait until every tile has merged its minimum passes (and nothing more).
+    for (const TileState& other : state_) {
+      if (other.merged < other.released || other.error < 0) return;
+    }
+    set_budgets();
+    for (uint32_t t = 0; t < tile_count(); ++t) decide(t);
+    return;
+  }
+  // Whole passes: decide once every tile has merged what it was given.
+  for (const TileState& other : state_) {
+    if (other.merged < other.released) return;
+  }
+  const double error = estimate_error(film).rel_mse;
+  for (uint32_t t = 0; t < tile_count(); ++t) {
+    state_[t].error = error;
+    if (error <= rules_.target_error) {
+      close(t, true);
+    } else if (state_[t].released == pass_count_) {
+      close(t, false);
+    } else {
+      release(t, 1);
+    }
+  }
+}
+
+void PassPlanner::decide(uint32_t tile) {
+  const TileState& s = state_[tile];
+  if (s.error <= s.budget) {
+    close(tile, true);
+  } else if (s.released == pass_count_) {
+    close(tile, false);
+  } else {
+    release(tile, 1);
+  }
+}
+
+void PassPlanner::set_budgets() {
+  // Budget_t = target * sqrt(e_t) * sum(pixels) / sum(pixels * sqrt(e))): the budgets average to
+  // the target, and the samples a tile needs to reach its budget, proportional to e_t / budget_t,
+  // go as sqrt(e_t): the least total for the image's target (Neyman allocation).
+  double pixels = 0, weighted = 0;
+  bool finite = true;
+  for (uint32_t t = 0; t < tile_count(); ++t) {
+    const double e = state_[t].error;
+    finite = finite && std::isfinite(e);
+    pixels += tiles_[t].pixel_count();
+    weighted += tiles_[t].pixel_count() * std::sqrt(std::max(e, 0.0));
+  }
+  for (uint32_t t = 0; t < tile_count(); ++t) {
+    TileState& s = state_[t];
+    if (!finite || weighted <= 0) {
+      s.budget = rules_.target_error;  // no usable estimate: the same share for all
+    } else {
+      s.budget = rules_.target_error * std::sqrt(std::max(s.error, 0.0)) * pixels / weighted;
+    }
+  }
+}
+
+PlannerState PassPlanner::export_state() const {
+  PlannerState out;
+  out.tiles = state_;
+  out.pending = released_;
+  return out;
+}
+
+void PassPlanner::import_state(const PlannerState& state) {
+  auto fail = [](const std::string& why) { throw std::invalid_argument("planner state: " + why); };
+  if (state.tiles.size() != tiles_.size()) {
+    fail(std::to_string(state.tiles.size()) + " tiles, the render has " +
+         std::to_string(tiles_.size()));
+  }
+  uint32_t open = 0, converged = 0;
+  uint64_t released = 0;
+  for (size_t t = 0; t < state.tiles.size(); ++t) {
+    const TileState& s = state.tiles[t];
+    const std::string where = "tile " + std::to_string(t) + ": ";
+    if (s.released > pass_count_) fail(where + "more passes released than the render has");
+    if (s.merged > s.released) fail(where + "more passes merged than released");
+    if (!gated_ && s.released != pass_count_) fail(where + "an ungated render releases every pass");
+    if (gated_ && s.released < min_passes_) fail(where + "fewer passes released than the minimum");
+    if (!s.open && s.merged != s.released) fail(where + "closed with passes in flight");
+    if (s.converged && s.open) fail(where + "converged but open");
+    open += s.open ? 1 : 0;
+    converged += s.converged ? 1 : 0;
+    released += s.released;
+  }
+  for (uint64_t unit : state.pending) {
+    const uint32_t tile = static_cast<uint32_t>(unit % tiles_.size());
+    if (unit / tiles_.size() >= state.tiles[tile].released) {
+      fail("pending unit " + std::to_string(unit) + " is not released");
+    }
+  }
+  state_ = state.tiles;
+  released_ = state.pending;
+  tiles_open_ = open;
+  tiles_converged_ = converged;
+  units_released_ = released;
+}
+
+StopReason PassPlanner::reason() const {
+  if (!finished()) return StopReason::kRunning;
+  return gated_ && tiles_converged_ == tile_count() ? StopReason::kTargetError : StopReason::kSpp;
+}
+
+uint32_t PassPlanner::rounds_complete() const {
+  uint32_t rounds = pass_count_;
+  for (const TileState& s : state_) {
+    if (s.open) rounds = std::min(rounds, s.merged);
+  }
+  return rounds;
+}
+
+}  // namespace rayfarm

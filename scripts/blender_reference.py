@@ -1,0 +1,560 @@
+"""Renders a rayfarm scene with Blender Cycles: an independent reference image for tests.
+
+    blender -b --factory-startup --python scripts/blender_reference.py -- \
+        SCENE.json OUT.exr --spp N [--seeds K] [--seed S] [--threads T] [--source-name NAME]
+
+Reads our scene JSON (docs/scene-format.md) and builds the same scene in Cycles:
+
+  * quads, triangles and OBJ meshes (v and f statements; faces fanned around their first corner,
+    as our loader does) become meshes with flat faces and the same winding;
+  * diffuse materials become a Diffuse BSDF (roughness 0: Lambert) of colour `albedo`; an emissive
+    material adds an Emission shader of strength 1 and colour `emission` (for a material, Blender's
+    strength 1 gives radiance equal to the colour), on the front face only unless `two_sided`
+    (a Mix Shader driven by Geometry > Backfacing; Cycles emits from both sides otherwise);
+  * the camera's world matrix is built from our look-at basis (forward = look_at - eye,
+    right = forward x up, up' = right x forward; Blender cameras look down local -Z with +Y up),
+    with sensor_fit VERTICAL and a lens that gives fov_y;
+  * the background is the world's colour at strength 1; the film size is the resolution.
+
+Anything else (spheres, point lights, phong, mirror, dielectric, a thin lens) is rejected with an
+error: a tessellated sphere or Blender's light units would not be the same scene.
+
+With `--no-light-sampling` emitters are found by BSDF sampling alone (each material's
+`sample_as_light` off). The committed references use it: Blender 3.4.1's mesh-light sampling
+underestimates direct light at points near the light's plane (by 6% on the Cornell box's upper back
+wall; measured against the exact irradiance of the quad light, see
+tests/data/references/README.md), while BSDF sampling alone agrees with the exact value.
+
+Cycles is set for an unbiased render comparable to ours: CPU, `--spp` samples in total, a box
+pixel filter of width 1 (our camera jitters uniformly inside the pixel), no adaptive sampling, no
+denoising, no clamping, no glossy blur, no light threshold, no path guiding, max_bounces =
+max_depth - 1 (our max_depth counts scattering vertices; Cycles' bounces count the vertices after
+the first), Standard view transform, opaque film, EXR float32 RGB.
+
+With `--seeds K` (K >= 2) the samples are split into K renders of spp/K samples with seeds
+S, S+1, ..., S+K-1; OUT.exr is their mean, and OUT-variance.exr holds, per pixel and channel, the
+variance of that mean estimated from the spread of the K renders (sum (x_k - mean)^2 / (K (K-1))),
+so that a test can account for the reference's own noise. OUT.json records every setting, the
+Blender version, the scene's SHA-256, per-channel image means and the render times; the same
+settings (JSON) are in both EXR headers as the string attribute `rayfarmReference`.
+"""
+
+import argparse
+import hashlib
+import json
+import math
+import os
+import struct
+import sys
+import tempfile
+import time
+
+import bpy
+from mathutils import Matrix
+
+
+class SceneFormatError(Exception):
+    pass
+
+
+def strip_json_comments(text):
+    """Removes // and /* */ comments outside strings (our scene format allows them)."""
+    out, i, n, in_string = [], 0, len(text), False
+    while i < n:
+        c = text[i]
+        if in_string:
+            out.append(c)
+            if c == "\\" and i + 1 < n:
+                out.append(text[i + 1])
+                i += 1
+            elif c == '"':
+                in_string = False
+        elif c == '"':
+            in_string = True
+            out.append(c)
+        elif text.startswith("//", i):
+            while i < n and text[i] != "\n":
+                i += 1
+            continue
+        elif text.startswith("/*", i):
+            end = text.find("*/", i + 2)
+            i = n if end < 0 else end + 2
+            continue
+        else:
+            out.append(c)
+        i += 1
+    return "".join(out)
+
+
+def sub(a, b):
+    return [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+
+
+def add(a, b):
+    return [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+
+
+def cross(a, b):
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+
+
+def normalize(a):
+    length = math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
+    return [a[0] / length, a[1] / length, a[2] / length]
+
+
+def read_obj(path, override):
+    """Vertices and triangles (with MTL material names, or `override`) of a simple OBJ file."""
+    positions, triangles = [], []
+    current = None
+    with open(path, encoding="utf-8") as f:
+        for line_no, line in enumerate(f, 1):
+            words = line.split()
+            if not words or words[0].startswith("#"):
+                continue
+            if words[0] == "v":
+                positions.append([float(x) for x in words[1:4]])
+            elif words[0] == "usemtl":
+                current = words[1]
+            elif words[0] == "f":
+                idx = []
+                for w in words[1:]:
+                    k = int(w.split("/")[0])
+                    idx.append(k - 1 if k > 0 else len(positions) + k)
+                for j in range(1, len(idx) - 1):
+                    triangles.append(([idx[0], idx[j], idx[j + 1]], override or current))
+            elif words[0] not in ("vt", "vn", "o", "g", "s", "mtllib"):
+                print(f"{path}:{line_no}: statement {words[0]!r} ignored", file=sys.stderr)
+    if override is None:
+        raise SceneFormatError(f"{path}: OBJ meshes need a `material` override in this script "
+                               "(MTL materials are not translated)")
+    return positions, triangles
+
+
+def load_our_scene(path):
+    """Our scene as plain data: camera, film, materials, triangles (vertex triples + material)."""
+    with open(path, encoding="utf-8") as f:
+        doc = json.loads(strip_json_comments(f.read()))
+    cam = doc["camera"]
+    if cam.get("type", "perspective") != "perspective" or cam.get("aperture_radius", 0) != 0:
+        raise SceneFormatError(f"{path}: /camera: only a pinhole perspective camera is supported")
+    materials = {}
+    for name, m in doc.get("materials", {}).items():
+        if m["type"] != "diffuse":
+            raise SceneFormatError(f"{path}: /materials/{name}: type {m['type']!r} not supported "
+                                   "(diffuse only)")
+        materials[name] = {
+            "albedo": m.get("albedo", [0.8, 0.8, 0.8]),
+            "emission": m.get("emission", [0.0, 0.0, 0.0]),
+            "two_sided": bool(m.get("two_sided", False)),
+        }
+    triangles = []  # (v0, v1, v2, material)
+    for i, s in enumerate(doc.get("shapes", [])):
+        t = s["type"]
+        if t == "quad":
+            c, e1, e2 = s["corner"], s["edge1"], s["edge2"]
+            p1, p2, p3 = add(c, e1), add(add(c, e1), e2), add(c, e2)
+            triangles.append((c, p1, p2, s["material"]))
+            triangles.append((c, p2, p3, s["material"]))
+        elif t == "triangle":
+            v = s["vertices"]
+            triangles.append((v[0], v[1], v[2], s["material"]))
+        elif t == "mesh":
+            obj = os.path.join(os.path.dirname(path), s["file"])
+            positions, tris = read_obj(obj, s.get("material"))
+            for idx, mat in tris:
+                triangles.append((positions[idx[0]], positions[idx[1]], positions[idx[2]], mat))
+        else:
+            raise SceneFormatError(f"{path}: /shapes/{i}: shape type {t!r} not supported")
+    if doc.get("lights"):
+        raise SceneFormatError(f"{path}: /lights: point lights are not supported")
+    for *_, mat in triangles:
+        if mat not in materials:
+            raise SceneFormatError(f"{path}: unknown material {mat!r}")
+    render = doc.get("render", {})
+    return {
+        "camera": {
+            "eye": cam["eye"], "look_at": cam["look_at"], "up": cam.get("up", [0, 1, 0]),
+            "fov_y": cam["fov_y"],
+        },
+        "film": doc["film"],
+        "materials": materials,
+        "triangles": triangles,
+        "background": doc.get("background", [0.0, 0.0, 0.0]),
+        "max_depth": render.get("max_depth", 16),
+    }
+
+
+def make_material(name, m):
+    mat = bpy.data.materials.new(name)
+    mat.use_nodes = True
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    nodes.clear()
+    out = nodes.new("ShaderNodeOutputMaterial")
+    out.target = "CYCLES"
+    diffuse = nodes.new("ShaderNodeBsdfDiffuse")
+    diffuse.inputs["Color"].default_value = (*m["albedo"], 1.0)
+    diffuse.inputs["Roughness"].default_value = 0.0  # Lambert, not Oren-Nayar
+    if not any(e > 0 for e in m["emission"]):
+        links.new(diffuse.outputs["BSDF"], out.inputs["Surface"])
+        return mat
+    emission = nodes.new("ShaderNodeEmission")
+    emission.inputs["Color"].default_value = (*m["emission"], 1.0)
+    emission.inputs["Strength"].default_value = 1.0
+    stored = list(emission.inputs["Color"].default_value)[:3]
+    if any(abs(a - b) > 1e-6 * max(1.0, abs(b)) for a, b in zip(stored, m["emission"])):
+        raise SceneFormatError(f"material {name}: Blender stored emission {stored}, not {m['emission']}")
+    both = nodes.new("ShaderNodeAddShader")
+    links.new(diffuse.outputs["BSDF"], both.inputs[0])
+    links.new(emission.outputs["Emission"], both.inputs[1])
+    if m["two_sided"]:
+        links.new(both.outputs["Shader"], out.inputs["Surface"])
+        return mat
+    # Our emitters emit from the front face only: the back face gets the diffuse BSDF alone.
+    geometry = nodes.new("ShaderNodeNewGeometry")
+    diffuse_back = nodes.new("ShaderNodeBsdfDiffuse")
+    diffuse_back.inputs["Color"].default_value = (*m["albedo"], 1.0)
+    diffuse_back.inputs["Roughness"].default_value = 0.0
+    mix = nodes.new("ShaderNodeMixShader")
+    links.new(geometry.outputs["Backfacing"], mix.inputs["Fac"])
+    links.new(both.outputs["Shader"], mix.inputs[1])          # Fac 0: front face
+    links.new(diffuse_back.outputs["BSDF"], mix.inputs[2])    # Fac 1: back face
+    links.new(mix.outputs["Shader"], out.inputs["Surface"])
+    return mat
+
+
+def build_blender_scene(ours):
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    # Geometry: one mesh, flat faces with our winding, one material slot per material used.
+    names = sorted({t[3] for t in ours["triangles"]})
+    slot = {n: i for i, n in enumerate(names)}
+    verts, faces = [], []
+    for v0, v1, v2, _ in ours["triangles"]:
+        base = len(verts)
+        verts += [tuple(v0), tuple(v1), tuple(v2)]
+        faces.append((base, base + 1, base + 2))
+    mesh = bpy.data.meshes.new("scene")
+    mesh.from_pydata(verts, [], faces)
+    mesh.validate()
+    for n in names:
+        mesh.materials.append(make_material(n, ours["materials"][n]))
+    for poly, tri in zip(mesh.polygons, ours["triangles"]):
+        poly.material_index = slot[tri[3]]
+        poly.use_smooth = False
+    if len(mesh.polygons) != len(ours["triangles"]):
+        raise SceneFormatError(f"Blender kept {len(mesh.polygons)} of {len(ours['triangles'])} triangles")
+    obj = bpy.data.objects.new("scene", mesh)
+    scene.collection.objects.link(obj)
+
+    # Camera: world matrix from our look-at basis; vertical field of view.
+    c = ours["camera"]
+    forward = normalize(sub(c["look_at"], c["eye"]))
+    right = normalize(cross(forward, c["up"]))
+    up = cross(right, forward)
+    cam_data = bpy.data.cameras.new("camera")
+    cam_data.type = "PERSP"
+    cam_data.sensor_fit = "VERTICAL"
+    cam_data.sensor_height = 24.0
+    cam_data.lens = cam_data.sensor_height / (2.0 * math.tan(math.radians(c["fov_y"]) / 2.0))
+    cam_data.shift_x = cam_data.shift_y = 0.0
+    cam_data.clip_start = 1e-3
+    cam_data.clip_end = 1e7
+    cam_obj = bpy.data.objects.new("camera", cam_data)
+    cam_obj.matrix_world = Matrix((
+        (right[0], up[0], -forward[0], c["eye"][0]),
+        (right[1], up[1], -forward[1], c["eye"][1]),
+        (right[2], up[2], -forward[2], c["eye"][2]),
+        (0.0, 0.0, 0.0, 1.0),
+    ))
+    scene.collection.objects.link(cam_obj)
+    scene.camera = cam_obj
+
+    # World: our background radiance (black for the Cornell box).
+    world = bpy.data.worlds.new("world")
+    world.use_nodes = True
+    bg = world.node_tree.nodes["Background"]
+    bg.inputs["Color"].default_value = (*ours["background"], 1.0)
+    bg.inputs["Strength"].default_value = 1.0
+    scene.world = world
+    return scene
+
+
+def configure_cycles(scene, ours, spp, threads):
+    r = scene.render
+    r.engine = "CYCLES"
+    r.resolution_x = ours["film"]["width"]
+    r.resolution_y = ours["film"]["height"]
+    r.resolution_percentage = 100
+    r.pixel_aspect_x = r.pixel_aspect_y = 1.0
+    r.use_border = False
+    r.use_motion_blur = False
+    r.film_transparent = False
+    r.use_compositing = False
+    r.use_sequencer = False
+    r.use_persistent_data = False
+    r.threads_mode = "FIXED" if threads > 0 else "AUTO"
+    if threads > 0:
+        r.threads = threads
+    r.use_stamp = False  # never burn text into the image; metadata only
+    s = r.image_settings
+    s.file_format = "OPEN_EXR"
+    s.color_depth = "32"
+    s.color_mode = "RGB"
+    s.exr_codec = "ZIP"
+    s.use_preview = False
+    scene.view_settings.view_transform = "Standard"
+    scene.view_settings.look = "None"
+    scene.view_settings.exposure = 0.0
+    scene.view_settings.gamma = 1.0
+    scene.sequencer_colorspace_settings.name = "Linear"
+
+    cy = scene.cycles
+    cy.device = "CPU"
+    cy.feature_set = "SUPPORTED"
+    cy.shading_system = False  # SVM, not OSL
+    cy.samples = spp
+    cy.sample_offset = 0
+    cy.time_limit = 0.0
+    cy.use_adaptive_sampling = False
+    cy.use_denoising = False
+    cy.use_preview_denoising = False
+    cy.use_animated_seed = False
+    cy.sampling_pattern = "PROGRESSIVE_MULTI_JITTER"
+    cy.auto_scrambling_distance = False
+    cy.scrambling_distance = 1.0
+    cy.pixel_filter_type = "BOX"
+    cy.filter_width = 1.0
+    cy.sample_clamp_direct = 0.0
+    cy.sample_clamp_indirect = 0.0
+    cy.blur_glossy = 0.0
+    cy.caustics_reflective = True
+    cy.caustics_refractive = True
+    cy.light_sampling_threshold = 0.0
+    # Has no effect in Blender 3.4 release builds (a debug setting); recorded for completeness.
+    cy.direct_light_sampling_type = "MULTIPLE_IMPORTANCE_SAMPLING"
+    cy.min_light_bounces = 0
+    cy.min_transparent_bounces = 0
+    cy.use_guiding = False
+    cy.use_fast_gi = False
+    cy.film_exposure = 1.0
+    # Our max_depth counts scattering vertices including the camera ray's hit; Cycles counts
+    # bounces after it (0 bounces = direct lighting = our max_depth 1).
+    bounces = max(0, ours["max_depth"] - 1)
+    cy.max_bounces = bounces
+    cy.diffuse_bounces = bounces
+    cy.glossy_bounces = bounces
+    cy.transmission_bounces = bounces
+    cy.volume_bounces = bounces
+    cy.transparent_max_bounces = bounces
+    cy.use_layer_samples = "IGNORE"
+    vl = scene.view_layers[0]
+    vl.use_pass_combined = True
+    vl.samples = 0
+    return bounces
+
+
+SETTINGS_RECORDED = [
+    "device", "feature_set", "samples", "sample_offset", "use_adaptive_sampling", "use_denoising",
+    "use_animated_seed", "sampling_pattern", "auto_scrambling_distance", "scrambling_distance",
+    "pixel_filter_type", "filter_width", "sample_clamp_direct", "sample_clamp_indirect",
+    "blur_glossy", "caustics_reflective", "caustics_refractive", "light_sampling_threshold",
+    "direct_light_sampling_type", "min_light_bounces", "min_transparent_bounces", "use_guiding",
+    "use_fast_gi", "film_exposure", "max_bounces", "diffuse_bounces", "glossy_bounces",
+    "transmission_bounces", "volume_bounces", "transparent_max_bounces",
+]
+
+
+def recorded_settings(scene):
+    cy, r = scene.cycles, scene.render
+    out = {k: getattr(cy, k) for k in SETTINGS_RECORDED}
+    cam = scene.camera.data
+    out.update({
+        "resolution": [r.resolution_x, r.resolution_y],
+        "film_transparent": r.film_transparent,
+        "view_transform": scene.view_settings.view_transform,
+        "look": scene.view_settings.look,
+        "exposure": scene.view_settings.exposure,
+        "gamma": scene.view_settings.gamma,
+        "scene_linear_space": scene.display_settings.display_device + " display, linear Rec.709 scene",
+        "output": f"{r.image_settings.file_format} {r.image_settings.color_depth}-bit float "
+                  f"{r.image_settings.color_mode} {r.image_settings.exr_codec}",
+        "camera_sensor_fit": cam.sensor_fit,
+        "camera_sensor_height_mm": cam.sensor_height,
+        "camera_lens_mm": cam.lens,
+        "camera_angle_y_deg": math.degrees(cam.angle_y),
+        "camera_matrix_world": [list(row) for row in scene.camera.matrix_world],
+        "world": "Background colour = scene background, strength 1",
+        "threads": r.threads if r.threads_mode == "FIXED" else "auto",
+    })
+    return out
+
+
+def load_pixels(path, width, height):
+    """RGB float pixels of an EXR, top row first (Blender's buffers start at the bottom row)."""
+    img = bpy.data.images.load(path, check_existing=False)
+    img.colorspace_settings.name = "Linear"  # no conversion: the file holds scene-linear values
+    flat = list(img.pixels)
+    ch = img.channels
+    if (img.size[0], img.size[1]) != (width, height):
+        raise RuntimeError(f"{path}: size {tuple(img.size)}, expected {(width, height)}")
+    rows = []
+    for y in range(height - 1, -1, -1):
+        row = []
+        for x in range(width):
+            i = (y * width + x) * ch
+            row += flat[i:i + 3]
+        rows.append(row)
+    bpy.data.images.remove(img)
+    return [v for row in rows for v in row]
+
+
+def to_float32(x):
+    return struct.unpack("f", struct.pack("f", x))[0]
+
+
+def write_exr_rgb(path, rgb, width, height, attributes):
+    """Writes top-row-first RGB floats as an uncompressed float32 scanline EXR, with string
+    header attributes (our own writer: Blender cannot put metadata on an image it did not render)."""
+    def attr(name, type_name, payload):
+        return name.encode() + b"\0" + type_name.encode() + b"\0" + struct.pack("<i", len(payload)) + payload
+
+    chlist = b"".join(c.encode() + b"\0" + struct.pack("<iB3xii", 2, 0, 1, 1) for c in "BGR") + b"\0"
+    box = struct.pack("<4i", 0, 0, width - 1, height - 1)
+    header = b"".join([
+        attr("channels", "chlist", chlist),
+        attr("compression", "compression", b"\0"),  # NO_COMPRESSION
+        attr("dataWindow", "box2i", box),
+        attr("displayWindow", "box2i", box),
+        attr("lineOrder", "lineOrder", b"\0"),  # INCREASING_Y
+        attr("pixelAspectRatio", "float", struct.pack("<f", 1.0)),
+        attr("screenWindowCenter", "v2f", struct.pack("<2f", 0.0, 0.0)),
+        attr("screenWindowWidth", "float", struct.pack("<f", 1.0)),
+    ] + [attr(k, "string", v.encode()) for k, v in sorted(attributes.items())]) + b"\0"
+    prefix = struct.pack("<ii", 20000630, 2) + header
+    line_bytes = 8 + 3 * 4 * width
+    table_end = len(prefix) + 8 * height
+    offsets = struct.pack(f"<{height}Q", *(table_end + y * line_bytes for y in range(height)))
+    lines = []
+    for y in range(height):
+        row = rgb[y * width * 3:(y + 1) * width * 3]
+        data = b"".join(struct.pack(f"<{width}f", *row[c::3]) for c in (2, 1, 0))  # B, G, R
+        lines.append(struct.pack("<ii", y, len(data)) + data)
+    tmp = path + ".tmp"
+    with open(tmp, "wb") as f:
+        f.write(prefix + offsets + b"".join(lines))
+    os.replace(tmp, path)
+
+
+def save_pixels(rgb, width, height, path, attributes):
+    """Writes an EXR (float32 RGB, with `attributes`) and checks that Blender reads back every value."""
+    rgb = [to_float32(v) for v in rgb]
+    write_exr_rgb(path, rgb, width, height, attributes)
+    back = load_pixels(path, width, height)
+    worst = max(abs(a - b) for a, b in zip(back, rgb))
+    if worst != 0.0:
+        raise RuntimeError(f"{path}: read back with a difference of {worst}")
+
+
+def main():
+    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+    ap = argparse.ArgumentParser(prog="blender -b --python scripts/blender_reference.py --")
+    ap.add_argument("scene")
+    ap.add_argument("out")
+    ap.add_argument("--spp", type=int, required=True, help="samples per pixel in total")
+    ap.add_argument("--seeds", type=int, default=1, help="independent renders (spp split evenly)")
+    ap.add_argument("--seed", type=int, default=1, help="first Cycles seed")
+    ap.add_argument("--threads", type=int, default=0, help="render threads (0 = all)")
+    ap.add_argument("--source-name", default=None, help="scene path to record (default: as given)")
+    ap.add_argument("--no-light-sampling", action="store_true",
+                    help="emitters are found by BSDF sampling alone (the materials' "
+                         "sample_as_light off): Cycles 3.4's mesh-light sampling is biased low "
+                         "near the light's plane (tests/data/references/README.md)")
+    args = ap.parse_args(argv)
+    if args.seeds < 1 or args.spp % args.seeds != 0:
+        ap.error("--spp must be a multiple of --seeds")
+
+    stem = os.path.splitext(args.out)[0]
+    if os.path.abspath(stem + ".json") == os.path.abspath(args.scene):
+        ap.error(f"the settings file {stem}.json would overwrite the scene: choose another OUT name")
+    ours = load_our_scene(args.scene)
+    scene = build_blender_scene(ours)
+    per_render = args.spp // args.seeds
+    bounces = configure_cycles(scene, ours, per_render, args.threads)
+    for mat in bpy.data.materials:
+        mat.cycles.sample_as_light = not args.no_light_sampling
+    w, h = ours["film"]["width"], ours["film"]["height"]
+
+    settings = recorded_settings(scene)
+    meta = {
+        "what": "Blender Cycles reference of a rayfarm scene (scripts/blender_reference.py)",
+        "blender_version": bpy.app.version_string,
+        "scene": args.source_name or args.scene,
+        "scene_sha256": hashlib.sha256(open(args.scene, "rb").read()).hexdigest(),
+        "spp_total": args.spp,
+        "renders": args.seeds,
+        "spp_per_render": per_render,
+        "seeds": list(range(args.seed, args.seed + args.seeds)),
+        "our_max_depth": ours["max_depth"],
+        "cycles_max_bounces": bounces,
+        "max_bounces_rule": "Cycles bounces = our max_depth - 1 (ours counts the camera ray's hit "
+                            "as the first scattering vertex; Cycles' 0 bounces is direct light)",
+        "pixel_filter": "box of width 1 pixel (ours: uniform jitter in the pixel, worker/camera.h)",
+        "emission": "Emission shader strength 1, colour = our emission radiance; front face only "
+                    "(Mix Shader on Geometry.Backfacing) unless two_sided",
+        "diffuse": "Diffuse BSDF roughness 0 (Lambert), colour = our albedo",
+        "cycles": settings,
+        "material_sample_as_light": not args.no_light_sampling,
+        "command": "blender -b --factory-startup --python scripts/blender_reference.py -- "
+                   + " ".join(argv),
+    }
+    scene.render.use_stamp_note = True
+    scene.render.stamp_note_text = json.dumps({k: meta[k] for k in ("blender_version", "scene",
+                                               "spp_per_render", "cycles_max_bounces")})
+
+    renders, times = [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        for k, seed in enumerate(meta["seeds"]):
+            scene.cycles.seed = seed
+            scene.render.filepath = os.path.join(tmp, f"render-{k}.exr")
+            t0 = time.monotonic()
+            bpy.ops.render.render(write_still=True)
+            times.append(time.monotonic() - t0)
+            print(f"render {k + 1}/{args.seeds}: seed {seed}, {per_render} spp, {times[-1]:.1f} s",
+                  flush=True)
+            renders.append(load_pixels(scene.render.filepath, w, h))
+
+    n = len(renders)
+    mean = [sum(r[i] for r in renders) / n for i in range(len(renders[0]))]
+    out_dir = os.path.dirname(os.path.abspath(args.out))
+    os.makedirs(out_dir, exist_ok=True)
+    files = {"mean": os.path.basename(args.out)}
+    if n >= 2:
+        files["variance_of_mean"] = os.path.basename(stem + "-variance.exr")
+    meta["files"] = files
+    settings_text = json.dumps({k: v for k, v in meta.items() if k != "files"}, sort_keys=True)
+    save_pixels(mean, w, h, args.out, {
+        "comments": f"Blender Cycles reference of {meta['scene']}: mean of {n} renders, "
+                    f"{args.spp} spp in all (scripts/blender_reference.py)",
+        "rayfarmReference": settings_text})
+    if n >= 2:
+        var = [sum((r[i] - mean[i]) ** 2 for r in renders) / (n * (n - 1)) for i in range(len(mean))]
+        save_pixels(var, w, h, stem + "-variance.exr", {
+            "comments": f"per-pixel variance of the mean of {os.path.basename(args.out)}, from the "
+                        f"spread of its {n} independent renders",
+            "rayfarmReference": settings_text})
+    meta["image_mean_rgb"] = [sum(mean[c::3]) / (w * h) for c in range(3)]
+    meta["render_seconds"] = [round(t, 2) for t in times]
+    with open(stem + ".json", "w", encoding="utf-8") as f:
+        json.dump(meta, f, indent=2)
+        f.write("\n")
+    print(f"wrote {args.out} ({', '.join(files.values())}), {stem}.json; "
+          f"{sum(times):.1f} s of rendering", flush=True)
+
+
+try:
+    main()
+except Exception as e:  # Blender keeps running after a script error; fail the process instead
+    import traceback
+    traceback.print_exc()
+    sys.exit(1)

@@ -1,0 +1,288 @@
+// The error estimate from a film's own samples, and the planner that stops tiles under a target
+// error. The variance comes from exact fixed-point sums; it is checked against a two-pass
+// computation in long double, on a stiff case where the naive one-pass formula in double loses
+// digits, and for independence from the order of merging.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+#include "common/image/convergence.h"
+#include "common/image/error_estimate.h"
+
+namespace rayfarm {
+namespace {
+
+/// A one-pixel result holding `samples` (each channel the same value).
+TileResult one_pixel(const std::vector<double>& samples, uint32_t first_sample = 0) {
+  TileResult r({0, 0, 1, 1}, {first_sample, first_sample + uint32_t(samples.size())});
+  for (double x : samples) {
+    for (int c = 0; c < 3; ++c) {
+      r.sum[c] += to_fixed(x);
+      r.sum_sq[c] += to_fixed(x * x);
+    }
+  }
+  return r;
+}
+
+/// Two-pass variance of the mean, in long double.
+double two_pass_variance_of_mean(const std::vector<double>& x) {
+  long double mean = 0;
+  for (double v : x) mean += v;
+  mean /= x.size();
+  long double ss = 0;
+  for (double v : x) ss += (v - mean) * (v - mean);
+  return static_cast<double>(ss / (x.size() - 1) / x.size());
+}
+
+TEST(VarianceOfMean, AgreesWithATwoPassComputation) {
+  std::mt19937_64 rng(7);
+  std::exponential_distribution<double> heavy(0.5);  // skewed, like path-traced samples
+  for (int n : {2, 3, 17, 1000}) {
+    std::vector<double> x(n);
+    // Values on the fixed-point grid, so that the only difference is the arithmetic.
+    for (double& v : x) v = std::ldexp(std::round(std::ldexp(heavy(rng), 20)), -20);
+    const TileResult r = one_pixel(x);
+    const double expected = two_pass_variance_of_mean(x);
+    EXPECT_NEAR(variance_of_mean(r.sum[0], r.sum_sq[0], n), expected, 1e-12 * expected) << n;
+  }
+}
+
+TEST(VarianceOfMean, StiffCaseKeepsItsDigits) {
+  // Mean 1e6, spread 1: the one-pass formula sum_sq - sum^2/n in double cancels 12 of its 16
+  // digits. Samples alternate 1e6 - 1 and 1e6 + 1: sample variance n/(n-1), variance of the
+  // mean 1/(n-1).
+  const int n = 100000;
+  std::vector<double> x(n);
+  for (int i = 0; i < n; ++i) x[i] = 1e6 + (i % 2 ? 1.0 : -1.0);
+  const TileResult r = one_pixel(x);
+  const double exact = 1.0 / (n - 1);
+  EXPECT_NEAR(variance_of_mean(r.sum[0], r.sum_sq[0], n), exact, 1e-9 * exact);
+
+  double sum = 0, sum_sq = 0;
+  for (double v : x) sum += v, sum_sq += v * v;
+  const double naive = (sum_sq - sum * sum / n) / (double(n) * (n - 1));
+  EXPECT_GT(std::fabs(naive - exact), 1e-6 * exact)
+      << "the stiff case no longer shows the cancellation it is meant to guard against";
+}
+
+TEST(VarianceOfMean, ConstantSamplesHaveNoVarianceAndOneSampleIsUnknown) {
+  const TileResult r = one_pixel(std::vector<double>(1000, 0.7));
+  EXPECT_LT(variance_of_mean(r.sum[0], r.sum_sq[0], 1000), 1e-15);
+  EXPECT_EQ(variance_of_mean(r.sum[0], r.sum_sq[0], 1), INFINITY);
+  EXPECT_EQ(variance_of_mean(r.sum[0], r.sum_sq[0], 0), INFINITY);
+}
+
+TEST(ErrorEstimate, DoesNotDependOnHowSamplesArePassedOrMerged) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(0.0, 3.0);
+  std::vector<double> x(64);
+  for (double& v : x) v = u(rng);
+  Film whole(1, 1), passes(1, 1);
+  whole.add(one_pixel(x));
+  // Four passes of 16, merged in a scrambled order.
+  for (uint32_t p : {2u, 0u, 3u, 1u}) {
+    passes.add(one_pixel(std::vector<double>(x.begin() + p * 16, x.begin() + p * 16 + 16), p * 16));
+  }
+  const ErrorEstimate a = estimate_error(whole), b = estimate_error(passes);
+  EXPECT_EQ(a.rel_mse, b.rel_mse);
+  EXPECT_EQ(a.mse, b.mse);
+  EXPECT_TRUE(a.known);
+  // By hand: every channel has the same variance v and mean m.
+  const double v = two_pass_variance_of_mean(x);
+  double m = 0;
+  for (double s : x) m += s;
+  m /= x.size();
+  EXPECT_NEAR(a.mse, v, 1e-9 * v);
+  EXPECT_NEAR(a.rel_mse, v / (m * m + kRelMseEpsilon), 1e-9 * a.rel_mse);
+  EXPECT_NEAR(a.rmse(), std::sqrt(v), 1e-9);
+}
+
+TEST(ErrorEstimate, AFireflyIsJudgedAgainstItsNeighboursNotItself) {
+  // A 3x3 film of constant 0.5 samples, except the centre: one sample of 1000 among 16.
+  Film film(3, 3);
+  for (uint32_t y = 0; y < 3; ++y) {
+    for (uint32_t x = 0; x < 3; ++x) {
+      std::vector<double> samples(16, 0.5);
+      if (x == 1 && y == 1) samples[7] = 1000.0;
+      TileResult r = one_pixel(samples);
+      r.rect = {x, y, x + 1, y + 1};
+      film.add(r);
+    }
+  }
+  std::vector<double> centre(16, 0.5);
+  centre[7] = 1000.0;
+  const double var = two_pass_variance_of_mean(centre);
+  // Only the centre varies; its value is judged as the neighbours' 0.5, not its mean of ~63.
+  const double expected = var / (0.25 + kRelMseEpsilon) / 9.0;
+  EXPECT_NEAR(estimate_error(film).rel_mse, expected, 1e-9 * expected);
+  double mean = 0;
+  for (double v : centre) mean += v / 16;
+  EXPECT_GT(estimate_error(film).rel_mse, 100 * var / (mean * mean + kRelMseEpsilon) / 9.0)
+      << "dividing by the firefly's own mean would understate its error";
+  // A tile's estimate reads only its own pixels: the centre alone is judged by itself.
+  EXPECT_NEAR(estimate_error(film, {1, 1, 2, 2}).rel_mse,
+              var / (mean * mean + kRelMseEpsilon), 1e-9 * var);
+}
+
+TEST(ErrorEstimate, UnknownWhileAPixelHasFewerThanTwoSamples) {
+  Film film(2, 1);
+  TileResult left({0, 0, 1, 1}, {0, 4});
+  left.sum_sq[0] = to_fixed(1.0);
+  film.add(left);
+  const ErrorEstimate e = estimate_error(film);
+  EXPECT_FALSE(e.known);
+  EXPECT_EQ(e.rel_mse, INFINITY);
+  // The left pixel alone is known.
+  EXPECT_TRUE(estimate_error(film, {0, 0, 1, 1}).known);
+  EXPECT_EQ(variance_rgb(film)[3], INFINITY);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The planner
+
+/// A film of `tiles` 1x1 tiles side by side; tile t's samples alternate mean +- spread[t].
+struct Strip {
+  std::vector<double> spread;
+  std::vector<TileRect> tiles() const {
+    std::vector<TileRect> out;
+    for (uint32_t t = 0; t < spread.size(); ++t) out.push_back({t, 0, t + 1, 1});
+    return out;
+  }
+  TileResult unit(uint64_t unit, uint32_t pass_spp) const {
+    const uint32_t tile = unit % spread.size(), pass = unit / spread.size();
+    TileResult r({tile, 0, tile + 1, 1}, {pass * pass_spp, (pass + 1) * pass_spp});
+    for (uint32_t s = 0; s < pass_spp; ++s) {
+      const double x = 1.0 + (s % 2 ? spread[tile] : -spread[tile]);
+      for (int c = 0; c < 3; ++c) r.sum[c] += to_fixed(x), r.sum_sq[c] += to_fixed(x * x);
+    }
+    return r;
+  }
+};
+
+TEST(PassPlanner, WithoutATargetEveryUnitIsNeeded) {
+  const Strip strip{{0.1, 0.2}};
+  PassPlanner planner(strip.tiles(), 3, 4, {});
+  EXPECT_FALSE(planner.gated());
+  EXPECT_TRUE(planner.take_released().empty());
+  EXPECT_EQ(planner.units_released(), 6u);
+  Film film(2, 1);
+  for (uint64_t u = 0; u < 6; ++u) {
+    EXPECT_TRUE(planner.is_released(u));
+    EXPECT_FALSE(planner.finished());
+    film.add(strip.unit(u, 4));
+    planner.on_merged(u, film);
+  }
+  EXPECT_TRUE(planner.finished());
+  EXPECT_EQ(planner.reason(), StopReason::kSpp);
+  EXPECT_EQ(planner.rounds_complete(), 3u);
+}
+
+TEST(PassPlanner, QuietTilesStopAndNoisyOnesGoOnOnePassAtATime) {
+  // Tile 0 is constant (converges after the minimum), tile 1 never reaches the target.
+  const Strip strip{{0.0, 0.5}};
+  StopRules rules;
+  rules.target_error = 1e-4;
+  rules.min_passes = 2;
+  PassPlanner planner(strip.tiles(), 5, 8, rules);
+  ASSERT_TRUE(planner.gated());
+  EXPECT_EQ(planner.take_released(), (std::vector<uint64_t>{0, 1, 2, 3}));
+  EXPECT_FALSE(planner.is_released(4));
+  Film film(2, 1);
+  auto merge = [&](uint64_t u) {
+    film.add(strip.unit(u, 8));
+    planner.on_merged(u, film);
+  };
+  merge(2);  // pass 1 of tile 0 before its pass 0: nothing decided yet
+  EXPECT_TRUE(planner.take_released().empty());
+  merge(0);  // tile 0 has its minimum; budgets wait for every tile's
+  EXPECT_TRUE(planner.take_released().empty());
+  EXPECT_EQ(planner.tiles_converged(), 0u);
+  EXPECT_LT(planner.tile_budget(0), 0.0);
+  merge(1);
+  merge(3);  // every tile has its minimum: tile 0 (no variance) stops, tile 1 gets pass 2
+  EXPECT_EQ(planner.tiles_converged(), 1u);
+  EXPECT_EQ(planner.take_released(), (std::vector<uint64_t>{5}));
+  // Budgets go as the root of the error and average to the target: 0 for the constant tile,
+  // twice the target for the other.
+  EXPECT_EQ(planner.tile_budget(0), 0.0);
+  EXPECT_DOUBLE_EQ(planner.tile_budget(1), 2 * rules.target_error);
+  merge(5);
+  EXPECT_EQ(planner.take_released(), (std::vector<uint64_t>{7}));
+  merge(7);
+  EXPECT_EQ(planner.take_released(), (std::vector<uint64_t>{9}));
+  EXPECT_FALSE(planner.finished());
+  merge(9);
+  EXPECT_TRUE(planner.finished());
+  EXPECT_EQ(planner.reason(), StopReason::kSpp);  // tile 1 ran out of passes above the target
+  EXPECT_EQ(planner.rounds_complete(), 5u);
+  EXPECT_GT(planner.tile_error(1), rules.target_error);
+}
+
+TEST(PassPlanner, ReachingTheTargetEverywhereIsTheStopReason) {
+  const Strip strip{{0.01, 0.02, 0.03}};
+  StopRules rules;
+  rules.target_error = 1e-3;
+  PassPlanner planner(strip.tiles(), 100, 16, rules);
+  EXPECT_EQ(planner.min_passes(), default_min_passes(16));
+  EXPECT_EQ(planner.min_passes(), 16u);
+  Film film(3, 1);
+  std::vector<uint64_t> ready = planner.take_released();
+  while (!ready.empty()) {
+    const uint64_t u = ready.back();  // latest first: order must not matter
+    ready.pop_back();
+    film.add(strip.unit(u, 16));
+    planner.on_merged(u, film);
+    for (uint64_t next : planner.take_released()) ready.push_back(next);
+  }
+  EXPECT_TRUE(planner.finished());
+  EXPECT_EQ(planner.reason(), StopReason::kTargetError);
+  EXPECT_EQ(planner.tiles_converged(), 3u);
+  EXPECT_LE(estimate_error(film).rel_mse, rules.target_error);
+  EXPECT_EQ(film.max_spp(), 256u) << "the minimum passes were already enough";
+}
+
+TEST(PassPlanner, NoisierTilesGetLargerBudgetsThatAverageToTheTarget) {
+  const Strip strip{{0.01, 0.04, 0.16}};  // errors 1 : 16 : 256
+  StopRules rules;
+  rules.target_error = 1e-5;
+  rules.min_passes = 1;
+  PassPlanner planner(strip.tiles(), 1000, 16, rules);
+  Film film(3, 1);
+  for (uint64_t u : planner.take_released()) {
+    film.add(strip.unit(u, 16));
+    planner.on_merged(u, film);
+  }
+  const double b0 = planner.tile_budget(0), b1 = planner.tile_budget(1), b2 = planner.tile_budget(2);
+  EXPECT_NEAR(b1 / b0, 4.0, 1e-3);  // sqrt of 16, up to the error's denominator
+  EXPECT_NEAR(b2 / b0, 16.0, 2e-2);
+  EXPECT_NEAR((b0 + b1 + b2) / 3, rules.target_error, 1e-12);
+}
+
+TEST(PassPlanner, WholePassesWaitForTheWholeImage) {
+  const Strip strip{{0.0, 0.5}};
+  StopRules rules;
+  rules.target_error = 1e-4;
+  rules.adaptive = false;
+  rules.min_passes = 1;
+  PassPlanner planner(strip.tiles(), 3, 8, rules);
+  EXPECT_EQ(planner.take_released(), (std::vector<uint64_t>{0, 1}));
+  Film film(2, 1);
+  film.add(strip.unit(0, 8));
+  planner.on_merged(0, film);
+  EXPECT_TRUE(planner.take_released().empty()) << "decided before the pass was whole";
+  film.add(strip.unit(1, 8));
+  planner.on_merged(1, film);
+  EXPECT_EQ(planner.take_released(), (std::vector<uint64_t>{2, 3}))
+      << "the quiet tile goes on with the image";
+}
+
+TEST(StopReason, Names) {
+  EXPECT_STREQ(stop_reason_name(StopReason::kTargetError), "target error");
+  EXPECT_STREQ(stop_reason_name(StopReason::kTimeLimit), "time limit");
+  EXPECT_STREQ(stop_reason_name(StopReason::kSpp), "spp");
+}
+
+}  // namespace
+}  // namespace rayfarm
