@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The main job, end to end: install the dependencies, build rayfarm, start a local cluster (a master
-# and 2 workers as local processes), submit the bundled Cornell box, follow its progress, and leave
-# the EXR and a PNG preview in out/. The cluster is stopped at the end, also on failure or Ctrl-C.
+# and 2 workers as local processes, with CURVE keys made on the first run), submit the bundled
+# Cornell box, follow its progress, and leave the EXR and a PNG preview in out/. The cluster is
+# stopped at the end, also on failure or Ctrl-C.
 #
 # Usage: scripts/demo.sh [--workers N] [--spp N] [--scene PATH]
 set -euo pipefail
@@ -27,7 +28,11 @@ cluster=.cluster/demo
 trap 'deploy/local-cluster stop --dir "$cluster" >/dev/null 2>&1 || true' EXIT
 threads=$(( $(nproc) / workers )); [ "$threads" -ge 1 ] || threads=1
 deploy/local-cluster start --workers "$workers" --threads "$threads" --dir "$cluster"
-master=$(cat "$cluster/client-endpoint")
+# The cluster's endpoint and the CLI's keys (CURVE on every socket): RAYFARM_MASTER, RAYFARM_KEY,
+# RAYFARM_MASTER_KEY.
+# shellcheck source=/dev/null
+source "$cluster/env"
+master=$RAYFARM_MASTER
 
 name=$(basename "$(dirname "$scene")")
 mkdir -p out

@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # End-to-end run of the compose cluster: build the images, start a master and N workers, submit the
 # bundled Cornell box, fetch the EXR to the host, render the same scene locally in the same image and
-# require `rayfarm compare` to call the two bit-identical. Prints timings; always tears the cluster
-# down (docker-compose down -v), also on failure.
+# require `rayfarm compare` to call the two bit-identical. The cluster runs with the CURVE keys its
+# `keys` service makes; the run also checks that a client key the master does not list is refused
+# (exit 4) and logged. Prints timings; always tears the cluster down (docker-compose down -v, which
+# also deletes the keys), also on failure.
 #
 # Needs a Docker engine. When none answers and this runs as root, it installs docker.io,
 # docker-compose and debootstrap (apt) and starts `dockerd --storage-driver=vfs` for the duration of
@@ -149,6 +151,17 @@ running="$(compose ps -q worker | wc -l)"
 [ "$running" -eq "$WORKERS" ] || die "$running of $WORKERS workers running"
 t_up=$(now)
 
+# ---- keys: the keys service made them; a key not on the allow-list is refused -----------------
+log "checking that the master refuses a client key it does not list"
+set +e
+cli bash -c 'rayfarm keygen -o /tmp/stranger --name stranger >/dev/null &&
+  RAYFARM_KEY=/tmp/stranger/stranger.key_secret rayfarm list --timeout 10' 2>&1 | tail -n 1 >&2
+refused_code=${PIPESTATUS[0]}
+set -e
+[ "$refused_code" = 4 ] || die "a client with an unknown key got exit $refused_code, expected 4 (refused)"
+compose logs --no-color master 2>/dev/null | grep -q "refused a client connection from" \
+  || die "the master did not log the refused client"
+
 # ---- submit, wait, fetch -----------------------------------------------------------------------
 log "submitting $SCENE at $SPP spp"
 submit_out="$(cli rayfarm submit "$SCENE" --spp "$SPP")" || die "submit failed (its error is above)"
@@ -189,7 +202,7 @@ docker-e2e summary
   scene, spp           $SCENE, $SPP
   base image           $(elapsed "$t0" "$t_base") s
   rayfarm image build  $(elapsed "$t_base" "$t_build") s
-  cluster up           $(elapsed "$t_build" "$t_up") s
+  cluster up           $(elapsed "$t_build" "$t_up") s  (CURVE keys made by the keys service)
   submit               $(elapsed "$t_up" "$t_submit") s
   watch until done     $(elapsed "$t_submit" "$t_done") s
   status + fetch       $(elapsed "$t_done" "$t_fetch") s

@@ -1,25 +1,76 @@
 #include "common/net/socket.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
+#include <cstring>
 #include <iterator>
+
+#include <fmt/format.h>
 
 #include <zmq.hpp>
 #include <zmq_addon.hpp>
 
-namespace rayfarm::net {
-namespace {
+#include "common/net/context.h"
+#include "common/net/keys.h"
 
-/// The process's ZeroMQ context. Deliberately never destroyed: terminating a context waits for
-/// every socket, and a process that exits must never wait on one still open elsewhere.
-zmq::context_t& context() {
+namespace rayfarm::net {
+
+zmq::context_t& detail::context() {
   static auto* ctx = new zmq::context_t(1);
   return *ctx;
 }
 
+namespace {
+using detail::context;
+
+/// How far a Dealer's automatic reconnections back off (from ZeroMQ's 100 ms), so that a peer
+/// whose key is refused does not knock ten times a second.
+constexpr int kReconnectMaxMs = 2000;
+
 void configure(zmq::socket_t& socket, int64_t max_message_bytes) {
   socket.set(zmq::sockopt::linger, 0);
   socket.set(zmq::sockopt::maxmsgsize, max_message_bytes);
+}
+
+void check_key(const std::string& key, const char* what) {
+  if (!is_key(key)) throw NetError(std::string(what) + " is not a 40-character Z85 CURVE key");
+}
+
+void configure_curve_server(zmq::socket_t& socket, const Curve& curve) {
+  if (!curve.enabled()) return;
+  if (!curve_available()) throw NetError("this libzmq has no CURVE support (libsodium)");
+  check_key(curve.secret_key, "the secret key");
+  socket.set(zmq::sockopt::curve_server, true);
+  socket.set(zmq::sockopt::curve_secretkey, curve.secret_key);
+  socket.set(zmq::sockopt::zap_domain, curve.zap_domain);
+}
+
+void configure_curve_client(zmq::socket_t& socket, const Curve& curve) {
+  if (!curve.enabled()) return;
+  if (!curve_available()) throw NetError("this libzmq has no CURVE support (libsodium)");
+  check_key(curve.secret_key, "the secret key");
+  check_key(curve.public_key, "the public key");
+  check_key(curve.server_key, "the master's public key");
+  socket.set(zmq::sockopt::curve_serverkey, curve.server_key);
+  socket.set(zmq::sockopt::curve_publickey, curve.public_key);
+  socket.set(zmq::sockopt::curve_secretkey, curve.secret_key);
+}
+
+std::string protocol_error_cause(uint32_t code) {
+  switch (code) {
+    case ZMQ_PROTOCOL_ERROR_ZMTP_MECHANISM_MISMATCH:
+      return "the peer uses another security mechanism: one side has CURVE keys and the other "
+             "runs --insecure";
+    case ZMQ_PROTOCOL_ERROR_ZMTP_CRYPTOGRAPHIC:
+      return "the CURVE handshake failed: the keys do not match (is the master's public key the "
+             "right one?)";
+    default:
+      if (code >= ZMQ_PROTOCOL_ERROR_ZAP_UNSPECIFIED && code < ZMQ_PROTOCOL_ERROR_WS_UNSPECIFIED) {
+        return fmt::format("the peer's authentication handler failed (error 0x{:x})", code);
+      }
+      return fmt::format("the security handshake failed (protocol error 0x{:x})", code);
+  }
 }
 
 Frames to_frames(std::vector<zmq::message_t>& messages, size_t skip) {
@@ -86,6 +137,92 @@ std::string peer_label(const PeerId& peer) {
 struct Socket::Impl {
   zmq::socket_t socket;
   std::string endpoint;
+  // A Dealer's handshake events (a PAIR connected to the socket's monitor).
+  zmq::socket_t monitor;
+  bool in_handshake = false;  // connected, no handshake event yet
+  HandshakeStatus handshake;
+
+  ~Impl() {
+    if (monitor) {
+      zmq_socket_monitor(socket.handle(), nullptr, 0);
+      monitor.close();
+    }
+  }
+
+  void watch_handshakes() {
+    static std::atomic<uint64_t> counter{0};
+    const std::string address = "inproc://rayfarm-monitor-" + std::to_string(counter++);
+    constexpr int kEvents = ZMQ_EVENT_CONNECTED | ZMQ_EVENT_DISCONNECTED |
+                            ZMQ_EVENT_HANDSHAKE_FAILED_NO_DETAIL | ZMQ_EVENT_HANDSHAKE_SUCCEEDED |
+                            ZMQ_EVENT_HANDSHAKE_FAILED_PROTOCOL | ZMQ_EVENT_HANDSHAKE_FAILED_AUTH;
+    if (zmq_socket_monitor(socket.handle(), address.c_str(), kEvents) != 0) throw zmq::error_t();
+    monitor = zmq::socket_t(context(), zmq::socket_type::pair);
+    monitor.set(zmq::sockopt::linger, 0);
+    monitor.connect(address);
+  }
+
+  /// Reads the monitor's pending events into `handshake`.
+  void read_events() {
+    if (!monitor) return;
+    while (true) {
+      std::vector<zmq::message_t> parts;
+      try {
+        if (!zmq::recv_multipart(monitor, std::back_inserter(parts), zmq::recv_flags::dontwait))
+          return;
+      } catch (const zmq::error_t&) {
+        return;
+      }
+      if (parts.empty() || parts[0].size() < 6) continue;
+      uint16_t event = 0;
+      uint32_t value = 0;
+      std::memcpy(&event, parts[0].data(), 2);
+      std::memcpy(&value, static_cast<const char*>(parts[0].data()) + 2, 4);
+      switch (event) {
+        case ZMQ_EVENT_CONNECTED:
+          in_handshake = true;
+          break;
+        case ZMQ_EVENT_HANDSHAKE_SUCCEEDED:
+          in_handshake = false;
+          handshake = {Handshake::kSucceeded, ""};
+          break;
+        case ZMQ_EVENT_HANDSHAKE_FAILED_AUTH:
+          in_handshake = false;
+          handshake = {Handshake::kRefused,
+                       fmt::format("authentication refused: the peer does not admit this key "
+                                   "(status {})",
+                                   value)};
+          break;
+        case ZMQ_EVENT_HANDSHAKE_FAILED_PROTOCOL:
+          in_handshake = false;
+          handshake = {Handshake::kFailed, protocol_error_cause(value)};
+          break;
+        case ZMQ_EVENT_HANDSHAKE_FAILED_NO_DETAIL:
+          in_handshake = false;
+          if (value == EPIPE || value == ECONNRESET) {
+            handshake = {Handshake::kFailed,
+                         "the peer closed the connection during the CURVE handshake: the "
+                         "server's public key given to this side (--master-key) is probably "
+                         "wrong, or the server runs --insecure"};
+          } else {
+            handshake = {Handshake::kFailed,
+                         fmt::format("the security handshake failed ({})", zmq_strerror(value))};
+          }
+          break;
+        case ZMQ_EVENT_DISCONNECTED:
+          if (in_handshake && handshake.state != Handshake::kRefused &&
+              handshake.state != Handshake::kFailed) {
+            handshake = {Handshake::kDropped,
+                         "the peer closed the connection during the handshake: it did not "
+                         "accept this socket's security (a wrong master public key, or CURVE "
+                         "against --insecure)"};
+          }
+          in_handshake = false;
+          break;
+        default:
+          break;
+      }
+    }
+  }
 };
 
 Socket::Socket(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -99,11 +236,12 @@ void Socket::set_linger(std::chrono::milliseconds linger) {
   impl_->socket.set(zmq::sockopt::linger, static_cast<int>(linger.count()));
 }
 
-Router::Router(const std::string& endpoint, int64_t max_message_bytes)
+Router::Router(const std::string& endpoint, int64_t max_message_bytes, const Curve& curve)
     : Socket(std::make_unique<Impl>()) {
   try {
     impl_->socket = zmq::socket_t(context(), zmq::socket_type::router);
     configure(impl_->socket, max_message_bytes);
+    configure_curve_server(impl_->socket, curve);
     impl_->socket.set(zmq::sockopt::router_mandatory, 1);
     impl_->socket.bind(endpoint);
     impl_->endpoint = impl_->socket.get(zmq::sockopt::last_endpoint);
@@ -123,14 +261,19 @@ std::optional<Delivery> Router::receive(std::chrono::milliseconds timeout) {
   Delivery d;
   d.peer = messages[0].to_string();
   d.frames = to_frames(messages, 1);
+  // The routing frame is made by the ROUTER; the peer's own frames carry its metadata.
+  if (const char* user = zmq_msg_gets(messages.back().handle(), "User-Id")) d.user = user;
   return d;
 }
 
-Dealer::Dealer(const std::string& endpoint, int64_t max_message_bytes)
+Dealer::Dealer(const std::string& endpoint, int64_t max_message_bytes, const Curve& curve)
     : Socket(std::make_unique<Impl>()) {
   try {
     impl_->socket = zmq::socket_t(context(), zmq::socket_type::dealer);
     configure(impl_->socket, max_message_bytes);
+    configure_curve_client(impl_->socket, curve);
+    impl_->socket.set(zmq::sockopt::reconnect_ivl_max, kReconnectMaxMs);
+    impl_->watch_handshakes();
     impl_->socket.connect(endpoint);
     impl_->endpoint = endpoint;
   } catch (const zmq::error_t& e) {
@@ -145,6 +288,11 @@ std::optional<Frames> Dealer::receive(std::chrono::milliseconds timeout) {
   auto messages = receive_now(impl_->socket);
   if (messages.empty()) return std::nullopt;
   return to_frames(messages, 0);
+}
+
+HandshakeStatus Dealer::handshake() {
+  impl_->read_events();
+  return impl_->handshake;
 }
 
 std::vector<bool> poll(std::span<Socket* const> sockets, std::chrono::milliseconds timeout) {

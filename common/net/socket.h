@@ -2,7 +2,8 @@
 // RAII sockets for the farm: a Router (the master binds one per endpoint) and a Dealer (workers
 // and clients connect one). This module is the only one that includes zmq.hpp; nothing of ZeroMQ
 // appears in its interface. Every socket has linger 0 (closing never blocks) and a message size
-// limit; receives take a timeout and never block longer.
+// limit; receives take a timeout and never block longer. Sockets use CURVE (authentication and
+// encryption) when given keys (Curve), plain TCP otherwise; keys.h reads them, zap.h admits them.
 #include <chrono>
 #include <cstddef>
 #include <memory>
@@ -25,10 +26,37 @@ class NetError : public std::runtime_error {
 /// Largest message (all frames) a socket accepts; a peer sending more is disconnected.
 inline constexpr int64_t kDefaultMaxMessageBytes = int64_t{1} << 30;  // 1 GiB
 
+/// CURVE settings of one socket, keys in Z85 (40 characters). A default Curve is a plain,
+/// unauthenticated socket (what --insecure asks for).
+struct Curve {
+  std::string public_key;  ///< this side's public key
+  std::string secret_key;  ///< this side's secret key
+  std::string server_key;  ///< a Dealer's: the master's public key
+  std::string zap_domain;  ///< a Router's: the ZAP domain its peers' keys are checked in
+  bool enabled() const { return !secret_key.empty(); }
+};
+
 /// One message received on a Router: who sent it and its frames (the routing frame removed).
 struct Delivery {
   PeerId peer;
   Frames frames;
+  /// With CURVE, the name the ZAP handler gave the peer's key (its User-Id); else "".
+  std::string user;
+};
+
+/// What a Dealer knows of its security handshake with the peer.
+enum class Handshake {
+  kPending,    ///< no handshake finished yet (the peer may be absent)
+  kSucceeded,  ///< the last connection completed its handshake
+  kRefused,    ///< the peer's ZAP handler refused this socket's key
+  kFailed,     ///< a handshake failed: mechanism mismatch (one side --insecure), bad keys
+  kDropped,    ///< the peer closed the connection during the handshake (e.g. a wrong server key)
+};
+
+/// The handshake state and, when it failed, a sentence naming the probable cause.
+struct HandshakeStatus {
+  Handshake state = Handshake::kPending;
+  std::string detail;
 };
 
 /// Common base: owns the ZeroMQ socket. Not copyable, movable.
@@ -56,8 +84,10 @@ class Socket {
 /// A ZeroMQ ROUTER bound to an endpoint: receives from many peers, sends to one by id.
 class Router : public Socket {
  public:
-  /// Binds `endpoint` (e.g. "tcp://*:5555", "tcp://127.0.0.1:0"). Throws NetError.
-  explicit Router(const std::string& endpoint, int64_t max_message_bytes = kDefaultMaxMessageBytes);
+  /// Binds `endpoint` (e.g. "tcp://*:5555", "tcp://127.0.0.1:0") as a CURVE server when `curve`
+  /// has keys: bind a ZapHandler (zap.h) first, or libzmq admits every key. Throws NetError.
+  explicit Router(const std::string& endpoint, int64_t max_message_bytes = kDefaultMaxMessageBytes,
+                  const Curve& curve = {});
 
   /// Sends `frames` to `peer` without blocking; false when the peer is gone or its queue is full.
   bool send(const PeerId& peer, const Frames& frames);
@@ -68,14 +98,19 @@ class Router : public Socket {
 /// A ZeroMQ DEALER connected to an endpoint: talks to one master.
 class Dealer : public Socket {
  public:
-  /// Connects to `endpoint` (e.g. "tcp://localhost:5556"); the connection is made in the
-  /// background, so an absent peer shows up as receive timeouts. Throws NetError on a bad endpoint.
-  explicit Dealer(const std::string& endpoint, int64_t max_message_bytes = kDefaultMaxMessageBytes);
+  /// Connects to `endpoint` (e.g. "tcp://localhost:5556"), as a CURVE client of
+  /// `curve.server_key` when `curve` has keys; the connection is made in the background, so an
+  /// absent peer shows up as receive timeouts. Throws NetError on a bad endpoint or key.
+  explicit Dealer(const std::string& endpoint, int64_t max_message_bytes = kDefaultMaxMessageBytes,
+                  const Curve& curve = {});
 
   /// Queues `frames` without blocking; false when the send queue is full.
   bool send(const Frames& frames);
   /// Receives one message, waiting at most `timeout` (0 = do not wait); nullopt on timeout.
   std::optional<Frames> receive(std::chrono::milliseconds timeout);
+  /// How the security handshake went so far (reads the socket's events without waiting). A
+  /// refusal or failure stays reported until a later handshake succeeds.
+  HandshakeStatus handshake();
 };
 
 /// Waits until at least one of `sockets` has a message to read, or `timeout` passes. Returns,

@@ -1,0 +1,160 @@
+// CURVE sockets and the ZAP handler, in one process on loopback: a listed key gets through with
+// its name as User-Id; an unlisted key, a key of the other domain, a wrong server key and a plain
+// socket against a CURVE one are all kept out, and the Dealer says why. Every wait is bounded.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <thread>
+
+#include "common/net/keys.h"
+#include "common/net/socket.h"
+#include "common/net/zap.h"
+#include "tests/support/handshake.h"
+#include "tests/support/temp_dir.h"
+
+namespace rayfarm::net {
+namespace {
+
+using std::chrono::milliseconds;
+using testing::settled;
+using testing::TempDir;
+
+class CurveTest : public ::testing::Test {
+ protected:
+  TempDir dir;
+  KeyPair server = generate_key_pair();
+  KeyPair worker = generate_key_pair();
+  KeyPair client = generate_key_pair();
+
+  void SetUp() override {
+    write_key_pair(dir.path() / "workers", "worker-1", worker);
+    write_key_pair(dir.path() / "clients", "alice", client);
+  }
+
+  Curve server_curve(const std::string& domain) const {
+    return {server.public_key, server.secret_key, "", domain};
+  }
+  Curve client_curve(const KeyPair& keys, const std::string& server_key) const {
+    return {keys.public_key, keys.secret_key, server_key, ""};
+  }
+  AllowListPolicy policy(milliseconds reload = milliseconds{1000}) const {
+    return AllowListPolicy(
+        {{"workers", dir.path() / "workers"}, {"clients", dir.path() / "clients"}}, reload);
+  }
+};
+
+TEST_F(CurveTest, AListedKeyGetsThroughNamedAndOthersAreRefused) {
+  AllowListPolicy allow = policy();
+  std::vector<ZapRequest> refused;
+  std::mutex mutex;
+  ZapHandler zap([&](const ZapRequest& r) {
+    const auto d = allow.decide(r);
+    if (!d.admitted) {
+      std::lock_guard lock(mutex);
+      refused.push_back(r);
+    }
+    return ZapVerdict{d.admitted, d.name};
+  });
+  Router router("tcp://127.0.0.1:0", kDefaultMaxMessageBytes, server_curve("workers"));
+
+  Dealer good(router.endpoint(), kDefaultMaxMessageBytes, client_curve(worker, server.public_key));
+  ASSERT_TRUE(good.send({"hello"}));
+  const auto delivery = router.receive(milliseconds{5000});
+  ASSERT_TRUE(delivery);
+  EXPECT_EQ(delivery->frames, Frames{"hello"});
+  EXPECT_EQ(delivery->user, "worker-1");
+  EXPECT_EQ(good.handshake().state, Handshake::kSucceeded);
+  ASSERT_TRUE(router.send(delivery->peer, {"welcome"}));
+  EXPECT_EQ(good.receive(milliseconds{5000}), std::optional<Frames>(Frames{"welcome"}));
+
+  // A client key on the workers' socket, and a key nobody listed: refused, and they are told.
+  for (const KeyPair* keys : {&client, &server}) {
+    Dealer bad(router.endpoint(), kDefaultMaxMessageBytes, client_curve(*keys, server.public_key));
+    bad.send({"let me in"});
+    const HandshakeStatus st = settled(bad);
+    EXPECT_EQ(st.state, Handshake::kRefused) << st.detail;
+    EXPECT_NE(st.detail.find("authentication refused"), std::string::npos) << st.detail;
+  }
+  EXPECT_FALSE(router.receive(milliseconds{200}));  // nothing of theirs arrived
+  std::lock_guard lock(mutex);
+  ASSERT_GE(refused.size(), 2u);
+  EXPECT_EQ(refused[0].address, "127.0.0.1");
+  EXPECT_EQ(refused[0].domain, "workers");
+  EXPECT_EQ(refused[0].key, client.public_key);
+  EXPECT_GE(zap.refusals(), 2u);
+}
+
+TEST_F(CurveTest, DomainsKeepWorkersAndClientsApart) {
+  AllowListPolicy allow = policy();
+  ZapRequest r{"clients", "10.0.0.7", "CURVE", worker.public_key};
+  const auto d = allow.decide(r);
+  EXPECT_FALSE(d.admitted);
+  EXPECT_NE(d.reason.find("not on the clients allow-list"), std::string::npos) << d.reason;
+  EXPECT_NE(d.reason.find("workers key 'worker-1'"), std::string::npos) << d.reason;
+  r.key = client.public_key;
+  EXPECT_TRUE(allow.decide(r).admitted);
+  EXPECT_EQ(allow.decide(r).name, "alice");
+  r.domain = "";  // a socket without a domain is never admitted
+  EXPECT_FALSE(allow.decide(r).admitted);
+  r.domain = "clients";
+  r.mechanism = "NULL";
+  r.key.clear();
+  EXPECT_FALSE(allow.decide(r).admitted);
+}
+
+TEST_F(CurveTest, AKeyAddedToTheFolderIsAdmittedWithoutARestart) {
+  AllowListPolicy allow = policy(milliseconds{0});
+  const KeyPair late = generate_key_pair();
+  const ZapRequest r{"workers", "127.0.0.1", "CURVE", late.public_key};
+  EXPECT_FALSE(allow.decide(r).admitted);
+  write_key_pair(dir.path() / "workers", "late", late);
+  const auto d = allow.decide(r);
+  EXPECT_TRUE(d.admitted);
+  EXPECT_NE(d.reload_note.find("2 keys (was 1)"), std::string::npos) << d.reload_note;
+  std::filesystem::remove(dir.path() / "workers" / "late.key");
+  EXPECT_FALSE(allow.decide(r).admitted);
+  // A broken file dropped in keeps the keys read before, and says so.
+  dir.write("workers/broken.key", "nonsense\n");
+  const auto kept = allow.decide({"workers", "127.0.0.1", "CURVE", worker.public_key});
+  EXPECT_TRUE(kept.admitted);
+  EXPECT_NE(kept.reload_note.find("keeping its 1 keys"), std::string::npos) << kept.reload_note;
+}
+
+TEST_F(CurveTest, AWrongServerKeyOrAPlainSocketNeverGetsIn) {
+  AllowListPolicy allow = policy();
+  ZapHandler zap([&](const ZapRequest& r) {
+    const auto d = allow.decide(r);
+    return ZapVerdict{d.admitted, d.name};
+  });
+  Router router("tcp://127.0.0.1:0", kDefaultMaxMessageBytes, server_curve("workers"));
+  {
+    // The right client key, but the server's key is not the one the client expects.
+    Dealer wrong(router.endpoint(), kDefaultMaxMessageBytes,
+                 client_curve(worker, generate_key_pair().public_key));
+    wrong.send({"hello"});
+    const HandshakeStatus st = settled(wrong);
+    EXPECT_EQ(st.state, Handshake::kFailed) << st.detail;
+    EXPECT_NE(st.detail.find("public key"), std::string::npos) << st.detail;
+  }
+  {
+    Dealer plain(router.endpoint());
+    plain.send({"hello"});
+    const HandshakeStatus st = settled(plain);
+    EXPECT_EQ(st.state, Handshake::kFailed) << st.detail;
+    EXPECT_NE(st.detail.find("--insecure"), std::string::npos) << st.detail;
+  }
+  EXPECT_FALSE(router.receive(milliseconds{200}));
+}
+
+TEST_F(CurveTest, OnlyOneZapHandlerCanBeBound) {
+  ZapHandler first([](const ZapRequest&) { return ZapVerdict{}; });
+  try {
+    ZapHandler second([](const ZapRequest&) { return ZapVerdict{true, ""}; });
+    FAIL() << "a second ZAP handler was bound";
+  } catch (const NetError& e) {
+    EXPECT_NE(std::string(e.what()).find("zeromq.zap.01"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace rayfarm::net
