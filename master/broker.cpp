@@ -2,8 +2,11 @@
 
 #include <algorithm>
 #include <array>
+#include <mutex>
+#include <tuple>
 #include <vector>
 
+#include "common/net/zap.h"
 #include "common/protocol/codec.h"
 #include "common/protocol/convert.h"
 #include "common/util/log.h"
@@ -40,15 +43,109 @@ net::Frames refusal_frames(uint32_t peer_version, const char* peer_kind) {
   return encode(std::move(r));
 }
 
+/// Repeated refusals of the same key from the same address are logged at most this often.
+constexpr auto kRefusalLogInterval = std::chrono::seconds{10};
+
+net::Curve curve_for(const MasterOptions& options, const char* domain) {
+  net::Curve curve;
+  if (options.security.key) {
+    curve.public_key = options.security.key->public_key;
+    curve.secret_key = options.security.key->secret_key;
+    curve.zap_domain = domain;
+  }
+  return curve;
+}
+
 }  // namespace
+
+/// The ZAP handler and the allow-lists it admits keys from; it logs every refusal with the
+/// peer's address (repeats of the same refusal at most every kRefusalLogInterval).
+struct Broker::Gate {
+  net::AllowListPolicy policy;
+  std::mutex mutex;  // guards `recent` (the ZAP thread only, but cheap to be sure)
+  struct Recent {
+    std::chrono::steady_clock::time_point logged;
+    uint64_t unlogged = 0;
+  };
+  std::map<std::tuple<std::string, std::string, std::string>, Recent> recent;
+  net::ZapHandler handler;
+
+  explicit Gate(const MasterSecurity& security)
+      : policy({{kWorkerDomain, security.worker_keys}, {kClientDomain, security.client_keys}}),
+        handler([this](const net::ZapRequest& r) { return decide(r); }) {}
+
+  net::ZapVerdict decide(const net::ZapRequest& r) {
+    const net::AllowListPolicy::Decision d = policy.decide(r);
+    if (!d.reload_note.empty()) log()->info("{}", d.reload_note);
+    if (d.admitted) return {true, d.name};
+    const char* role = r.domain == kWorkerDomain ? "worker" : "client";
+    std::lock_guard lock(mutex);
+    if (recent.size() > 4096) recent.clear();
+    Recent& seen = recent[{r.domain, r.address, r.key}];
+    const auto now = std::chrono::steady_clock::now();
+    if (seen.logged.time_since_epoch().count() != 0 && now - seen.logged < kRefusalLogInterval) {
+      ++seen.unlogged;
+      return {};
+    }
+    log()->warn("refused a {} connection from {}: {}{}", role, r.address, d.reason,
+                seen.unlogged
+                    ? fmt::format(" ({} more refusals of it since the last line)", seen.unlogged)
+                    : "");
+    seen = Recent{now, 0};
+    return {};
+  }
+};
+
+std::unique_ptr<Broker::Gate> Broker::open_gate(const MasterOptions& options) {
+  if (!options.security.key) {
+    for (const std::string& endpoint : {options.worker_endpoint, options.client_endpoint}) {
+      if (!net::is_loopback_endpoint(endpoint)) {
+        throw std::runtime_error(
+            "--insecure is allowed only on loopback endpoints, and " + endpoint +
+            " is reachable from other machines: bind 127.0.0.1, or give the master its key and "
+            "allow-lists (--key, --worker-keys, --client-keys; see docs/deploy.md)");
+      }
+    }
+    log()->warn(
+        "INSECURE: no authentication and no encryption on {} and {}; any local process can "
+        "submit jobs or pose as a worker. Use keys (rayfarm keygen) for anything but a quick try",
+        options.worker_endpoint, options.client_endpoint);
+    return nullptr;
+  }
+  net::require_curve();
+  if (options.security.worker_keys.empty() || options.security.client_keys.empty()) {
+    throw net::KeyError(
+        "the master needs an allow-list of worker keys (--worker-keys) and one of client keys "
+        "(--client-keys): files or folders of public keys made by rayfarm keygen");
+  }
+  try {
+    auto gate = std::make_unique<Gate>(options.security);
+    log()->info("CURVE on both sockets, master key {}: {} worker key{} ({}), {} client key{} ({})",
+                net::key_label(options.security.key->public_key), gate->policy.size(kWorkerDomain),
+                gate->policy.size(kWorkerDomain) == 1 ? "" : "s",
+                options.security.worker_keys.string(), gate->policy.size(kClientDomain),
+                gate->policy.size(kClientDomain) == 1 ? "" : "s",
+                options.security.client_keys.string());
+    return gate;
+  } catch (const net::NetError& e) {
+    throw net::NetError(std::string("the master cannot authenticate its peers: ") + e.what());
+  }
+}
 
 Broker::Broker(MasterOptions options)
     : options_(std::move(options)),
       store_(options_.data_dir),
-      jobs_(store_, JobManagerOptions{options_.image_interval, 3,
-                                      [this](const WorkerId& w) { return worker_label(w); }}),
-      workers_socket_(options_.worker_endpoint),
-      clients_socket_(options_.client_endpoint),
+      jobs_(store_, [this] {
+        JobManagerOptions o = options_.jobs;
+        o.image_interval = options_.image_interval;
+        o.worker_name = [this](const WorkerId& w) { return worker_label(w); };
+        return o;
+      }()),
+      gate_(open_gate(options_)),
+      workers_socket_(options_.worker_endpoint, options_.limits.max_message_bytes,
+                      curve_for(options_, kWorkerDomain)),
+      clients_socket_(options_.client_endpoint, options_.limits.max_message_bytes,
+                      curve_for(options_, kClientDomain)),
       next_heartbeat_(Clock::now()) {
   const size_t restarted = jobs_.recover();
   log()->info("master listening: workers on {}, clients on {}; data dir {}{}", worker_endpoint(),
@@ -90,6 +187,7 @@ void Broker::run(const std::atomic<bool>& stop) {
     }
     on_timers();
   }
+  jobs_.shutdown();  // every running job checkpointed before the master exits
   log()->info("master stopping: {} workers connected, {} jobs unfinished (kept in {})",
               workers_.size(), jobs_.active_jobs(), options_.data_dir.string());
 }
@@ -111,6 +209,7 @@ void Broker::on_timers() {
                               std::chrono::duration<double>(options_.heartbeat.expiry()).count()));
   }
   jobs_.tick();
+  if (jobs_.has_pending()) dispatch();  // stragglers become due with time alone
 }
 
 void Broker::send_worker(const net::PeerId& peer, const net::Frames& frames) {
@@ -125,7 +224,8 @@ void Broker::reply(const net::PeerId& peer, const net::Frames& frames) {
   }
 }
 
-void Broker::register_worker(const net::PeerId& peer, const wire::Hello& hello) {
+void Broker::register_worker(const net::PeerId& peer, const wire::Hello& hello,
+                             const std::string& key_name) {
   if (hello.role() != wire::ROLE_WORKER) {
     log()->warn("worker socket: {} said hello as a client; refused", net::peer_label(peer));
     send_worker(
@@ -140,7 +240,9 @@ void Broker::register_worker(const net::PeerId& peer, const wire::Hello& hello) 
   w.threads = hello.threads();
   w.expires = Clock::now() + options_.heartbeat.expiry();
   w.wants = 0;
-  log()->info("{} joined: {} threads, {}; {} worker{} connected", worker_label(peer), w.threads,
+  log()->info("{} joined{}: {} threads, {}; {} worker{} connected", worker_label(peer),
+              key_name.empty() ? "" : " with key '" + protocol::printable(key_name) + "'",
+              w.threads,
               hello.build().empty() ? "unknown build" : protocol::printable(hello.build()),
               workers_.size(), workers_.size() == 1 ? "" : "s");
   wire::Welcome welcome;
@@ -171,7 +273,7 @@ void Broker::dispatch() {
     for (auto& [peer, w] : workers_) {
       if (w.wants == 0) continue;
       auto unit = jobs_.next_unit(peer);
-      if (!unit) break;
+      if (!unit) continue;  // e.g. blocked from the jobs that have units
       if (!workers_socket_.send(peer, encode(std::move(*unit)))) {
         unreachable.push_back(peer);
         w.wants = 0;
@@ -203,7 +305,7 @@ void Broker::handle_worker(const net::Delivery& delivery) {
   }
   try {
     if (const auto* hello = msg.as<wire::Hello>()) {
-      register_worker(peer, *hello);
+      register_worker(peer, *hello, delivery.user);
       return;
     }
     auto it = workers_.find(peer);
@@ -260,7 +362,9 @@ void Broker::handle_worker(const net::Delivery& delivery) {
 
 void Broker::handle_client(const net::Delivery& delivery) {
   const net::PeerId& peer = delivery.peer;
-  const std::string label = "client " + net::peer_label(peer);
+  const std::string label =
+      "client " + net::peer_label(peer) +
+      (delivery.user.empty() ? "" : " (key '" + protocol::printable(delivery.user) + "')");
   protocol::Decoded msg;
   try {
     msg = protocol::decode(delivery.frames);
@@ -290,11 +394,17 @@ void Broker::handle_client(const net::Delivery& delivery) {
       reply(peer, encode(std::move(welcome)));
     } else if (const auto* submit = msg.as<wire::SubmitJob>()) {
       wire::SubmitReply out;
-      try {
-        out.set_job_id(jobs_.submit(*submit));
-      } catch (const JobRejected& e) {
-        log()->warn("job rejected ({}): {}", submit->scene_path(), e.what());
-        out.set_error(e.what());
+      if (auto refusal = check_submission(*submit, jobs_.active_jobs(), options_.limits)) {
+        log()->warn("job refused ({}) from {}: {}", protocol::printable(submit->scene_path()),
+                    label, *refusal);
+        out.set_error(*refusal);
+      } else {
+        try {
+          out.set_job_id(jobs_.submit(*submit));
+        } catch (const JobRejected& e) {
+          log()->warn("job rejected ({}): {}", submit->scene_path(), e.what());
+          out.set_error(e.what());
+        }
       }
       reply(peer, encode(std::move(out)));
       dispatch();

@@ -4,19 +4,38 @@
 // ways every interval; a worker silent for its liveness window is declared lost and its leased
 // units are requeued. Clients send one request at a time and get one reply. Garbage on either
 // socket is logged and ignored; a peer speaking another protocol version gets a Refusal.
+// Both sockets use CURVE: a ZAP handler, bound before them, admits on the worker socket only the
+// keys of the workers' allow-list and on the client socket only those of the clients' list.
+// Submissions are checked against the limits (limits.h) before their scene is loaded.
 #include <atomic>
 #include <chrono>
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 
+#include "common/net/keys.h"
 #include "common/net/socket.h"
 #include "common/protocol/heartbeat.h"
 #include "master/job_manager.h"
 #include "master/job_store.h"
+#include "master/limits.h"
 
 namespace rayfarm::master {
+
+/// How the master's sockets are secured.
+struct MasterSecurity {
+  /// The master's key pair. Without one (the default) the sockets are plain, which the broker
+  /// allows only on loopback endpoints: rayfarm-master --insecure.
+  std::optional<net::KeyPair> key;
+  std::filesystem::path worker_keys;  ///< allow-list of worker public keys (file or folder)
+  std::filesystem::path client_keys;  ///< allow-list of client public keys (file or folder)
+};
+
+/// ZAP domains of the two sockets: a key admitted in one is not admitted in the other.
+inline constexpr const char* kWorkerDomain = "workers";
+inline constexpr const char* kClientDomain = "clients";
 
 struct MasterOptions {
   std::string worker_endpoint = "tcp://*:5555";
@@ -25,12 +44,17 @@ struct MasterOptions {
   protocol::HeartbeatOptions heartbeat;
   /// While results arrive, a job's image is rewritten at least this often.
   std::chrono::milliseconds image_interval{3000};
+  MasterSecurity security;
+  Limits limits;
+  /// Checkpoints, failure limits and stragglers (the broker sets image_interval and worker_name).
+  JobManagerOptions jobs;
 };
 
 class Broker {
  public:
-  /// Opens the data dir, reloads its jobs and binds both endpoints. Throws std::runtime_error
-  /// (net::NetError for an endpoint) naming the cause.
+  /// Opens the data dir, reloads its jobs, binds the ZAP handler and then both endpoints. Throws
+  /// std::runtime_error (net::NetError for an endpoint, net::KeyError for a key or allow-list)
+  /// naming the cause, e.g. plain sockets asked for on an endpoint that is not loopback.
   explicit Broker(MasterOptions options);
   ~Broker();
   Broker(const Broker&) = delete;
@@ -53,17 +77,22 @@ class Broker {
     uint64_t units_sent = 0;
   };
 
+  struct Gate;  // the ZAP handler and its allow-lists
+
   MasterOptions options_;
   JobStore store_;
   JobManager jobs_;
+  std::unique_ptr<Gate> gate_;  // before the sockets: bound first, closed last
   net::Router workers_socket_;
   net::Router clients_socket_;
   std::map<net::PeerId, Worker> workers_;
   Clock::time_point next_heartbeat_;
 
+  static std::unique_ptr<Gate> open_gate(const MasterOptions& options);
   void handle_worker(const net::Delivery& delivery);
   void handle_client(const net::Delivery& delivery);
-  void register_worker(const net::PeerId& peer, const wire::Hello& hello);
+  void register_worker(const net::PeerId& peer, const wire::Hello& hello,
+                       const std::string& key_name);
   void remove_worker(const net::PeerId& peer, const std::string& why);
   void dispatch();
   void send_worker(const net::PeerId& peer, const net::Frames& frames);

@@ -19,15 +19,16 @@ ImageWriter::~ImageWriter() {
   thread_.join();
 }
 
-void ImageWriter::submit(const std::filesystem::path& exr, Image image) {
+void ImageWriter::submit(const std::filesystem::path& exr, Image image, ErrorRecord record) {
   {
     std::lock_guard lock(mutex_);
     auto same =
         std::find_if(queue_.begin(), queue_.end(), [&](const Task& t) { return t.exr == exr; });
     if (same != queue_.end()) {
       same->image = std::move(image);
+      same->record = std::move(record);
     } else {
-      queue_.push_back(Task{exr, std::move(image)});
+      queue_.push_back(Task{exr, std::move(image), std::move(record)});
     }
   }
   wake_.notify_one();
@@ -50,6 +51,11 @@ void ImageWriter::loop() {
     try {
       write_exr(task.exr, task.image);
       write_png_preview(preview_path(task.exr), task.image);
+      if (!task.record.rows.empty()) {
+        const auto dir = task.exr.parent_path();
+        write_error_csv(dir / "error.csv", task.record.rows);
+        write_error_plot(dir / "error.png", task.record.rows, task.record.title);
+      }
     } catch (const std::exception& e) {
       get_logger("jobs")->error("cannot write {}: {}", task.exr.string(), e.what());
     }

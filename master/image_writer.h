@@ -11,6 +11,7 @@
 #include <utility>
 
 #include "common/image/exr.h"
+#include "common/report/error_log.h"
 
 namespace rayfarm::master {
 
@@ -22,8 +23,15 @@ class ImageWriter {
   ImageWriter(const ImageWriter&) = delete;
   ImageWriter& operator=(const ImageWriter&) = delete;
 
-  /// Queues `image` for `exr` and its preview (common/image/film_output.h's preview_path).
-  void submit(const std::filesystem::path& exr, Image image);
+  /// The error record written with an image: error.csv and error.png in the image's folder.
+  struct ErrorRecord {
+    std::vector<ErrorRow> rows;
+    std::string title;
+  };
+
+  /// Queues `image` for `exr` and its preview (common/image/film_output.h's preview_path), and
+  /// the error record when it has rows.
+  void submit(const std::filesystem::path& exr, Image image, ErrorRecord record = {});
   /// Returns when everything queued before the call is written (or failed, which is logged).
   void flush();
 
@@ -31,6 +39,7 @@ class ImageWriter {
   struct Task {
     std::filesystem::path exr;
     Image image;
+    ErrorRecord record;
   };
   std::mutex mutex_;
   std::condition_variable wake_, idle_;

@@ -1,6 +1,7 @@
 #include "master/job_manager.h"
 
 #include <algorithm>
+#include <cmath>
 #include <set>
 #include <system_error>
 
@@ -10,6 +11,7 @@
 #include "common/protocol/codec.h"
 #include "common/protocol/convert.h"
 #include "common/scene/parser.h"
+#include "common/util/atomic_file.h"
 #include "common/util/log.h"
 
 namespace rayfarm::master {
@@ -59,7 +61,45 @@ int64_t unix_ms_now() {
       .count();
 }
 
+std::string describe_stop(const StopRules& stop, uint32_t spp) {
+  std::string out = fmt::format("{} spp", spp);
+  if (stop.target_error > 0) {
+    out += fmt::format(", target relMSE {:g} ({})", stop.target_error,
+                       stop.adaptive ? "per tile" : "whole passes");
+  }
+  if (stop.time_limit_s > 0) out += fmt::format(", time limit {:g} s", stop.time_limit_s);
+  return out;
+}
+
+/// Seconds left: to the last sample, or to the target error (relMSE falls as 1/t) or the time
+/// limit when one of those comes first.
+double estimate_eta(const JobSpec& s, double remaining_samples, double rate, double seconds,
+                    double est_rel_mse) {
+  double eta = rate > 0 ? remaining_samples / rate : 0.0;
+  if (s.stop.target_error > 0 && est_rel_mse > s.stop.target_error && seconds > 0 &&
+      std::isfinite(est_rel_mse)) {
+    eta = std::min(eta, seconds * (est_rel_mse / s.stop.target_error - 1.0));
+  }
+  if (s.stop.time_limit_s > 0) eta = std::min(eta, std::max(0.0, s.stop.time_limit_s - seconds));
+  return eta;
+}
+
 }  // namespace
+
+void JobManager::check_reference_bytes(const std::string& exr, FilmSize film) {
+  const fs::path scratch = store_.make_scratch_dir();
+  std::error_code ec;
+  try {
+    write_file_atomically(scratch / "reference.exr", exr);
+    const Image reference = read_exr(scratch / "reference.exr");
+    check_reference(reference, film, "reference image");
+  } catch (const std::exception& e) {
+    fs::remove_all(scratch, ec);
+    throw JobRejected(replace_all(e.what(), (scratch / "reference.exr").string(),
+                                  "reference image"));
+  }
+  fs::remove_all(scratch, ec);
+}
 
 JobManager::JobManager(JobStore& store, JobManagerOptions options)
     : store_(store), options_(std::move(options)) {}
@@ -71,10 +111,30 @@ std::string JobManager::name_of(const WorkerId& worker) const {
 void JobManager::activate(Job& job) {
   const JobSpec& s = job.record.spec;
   job.merger = std::make_unique<Merger>(UnitGrid(s.film, s.tile_size, s.settings.spp, s.pass_spp));
-  scheduler_.add_job(s.id, job.merger->grid().size());
+  job.planner = std::make_unique<PassPlanner>(split_tiles(s.film, s.tile_size),
+                                              job.merger->grid().pass_count(), s.pass_spp, s.stop);
+  scheduler_.add_job(s.id, job.merger->grid().size(), job.planner->gated());
+  if (job.planner->gated()) scheduler_.release(s.id, job.planner->take_released());
+  std::optional<Image> reference;
+  if (s.has_reference) {
+    try {
+      reference = load_reference(store_.reference_path(s.id), s.film);
+    } catch (const std::exception& e) {
+      log_jobs()->error("job {}: its reference image cannot be read ({}); the error is only "
+                        "estimated",
+                        s.id, e.what());
+    }
+  }
+  job.tracker = std::make_unique<ErrorTracker>(std::move(reference));
+  job.rows.clear();
+  job.unit_failures.clear();
+  job.worker_failures.clear();
+  job.checkpoint_due = false;
+  job.last_checkpoint = Clock::now();
+  job.rounds_recorded = 0;
+  job.samples_recorded = 0;
   job.record.state = wire::JOB_QUEUED;
   job.started = false;
-  job.passes_logged = 0;
   job.dirty = false;
 }
 
@@ -92,23 +152,182 @@ size_t JobManager::recover() {
         log_jobs()->error("job {}: {}; marked failed", id, job.record.error);
         save(job);
       } else {
+        const bool was_running = job.record.state == wire::JOB_RUNNING;
         activate(job);
-        save(job);
         ++restarted;
-        log_jobs()->info(
-            "job {} restarted from the beginning ('{}', {}x{}, {} spp): partial sums "
-            "are not kept across master restarts",
-            id, job.record.spec.name, job.record.spec.film.width, job.record.spec.film.height,
-            job.record.spec.settings.spp);
+        bool resumed = false;
+        try {
+          resumed = resume(job);
+        } catch (const std::exception& e) {  // e.g. out of memory: start over rather than stop
+          log_jobs()->error("job {}: its checkpoint cannot be loaded ({}); starting over", id,
+                            e.what());
+          scheduler_.remove_job(id);
+          activate(job);
+        }
+        if (!resumed) {
+          if (was_running) {
+            log_jobs()->info(
+                "job {} restarted from the beginning ('{}', {}x{}, {} spp): no usable checkpoint",
+                id, job.record.spec.name, job.record.spec.film.width, job.record.spec.film.height,
+                job.record.spec.settings.spp);
+          } else {
+            log_jobs()->info("job {} queued again ('{}'): it had not started", id,
+                             job.record.spec.name);
+          }
+        }
+        save(job);
       }
-    } else if (job.record.state == wire::JOB_DONE) {
+    } else if (job.record.state == wire::JOB_DONE && job.record.stop_reason.empty()) {
+      // A record from before stopping rules: the job ran every unit.
       const JobSpec& s = job.record.spec;
-      job.units_done = UnitGrid(s.film, s.tile_size, s.settings.spp, s.pass_spp).size();
-      job.spp_done = s.settings.spp;
+      job.record.units_done = UnitGrid(s.film, s.tile_size, s.settings.spp, s.pass_spp).size();
+      job.record.spp_min = s.settings.spp;
+      job.record.spp_mean = s.settings.spp;
     }
-    jobs_.emplace(id, std::move(job));
+    if (!is_active_state(job.record.state)) remove_checkpoints(store_.job_dir(id));  // stale
+    auto [it, inserted] = jobs_.emplace(id, std::move(job));
+    // A job whose last unit was merged before the crash, but not yet recorded as done.
+    if (inserted && it->second.planner && it->second.planner->finished()) {
+      finish(it->second, wire::JOB_DONE, "", it->second.planner->reason());
+    }
   }
   return restarted;
+}
+
+bool JobManager::resume(Job& job) {
+  const JobSpec& s = job.record.spec;
+  const UnitGrid grid(s.film, s.tile_size, s.settings.spp, s.pass_spp);
+  const std::vector<TileRect> tiles = split_tiles(s.film, s.tile_size);
+  // Builds the merged state a checkpoint describes, checking it against the job's settings.
+  auto rebuild = [&](const Checkpoint& c, Merger& merger, PassPlanner& planner) {
+    if (c.job_id != s.id || c.width != s.film.width || c.height != s.film.height ||
+        c.tile_size != s.tile_size || c.spp != s.settings.spp || c.pass_spp != s.pass_spp) {
+      throw CheckpointError(fmt::format(
+          "it is of job '{}' {}x{}, tile {}, {} spp in passes of {}, not of this job's settings",
+          c.job_id, c.width, c.height, c.tile_size, c.spp, c.pass_spp));
+    }
+    try {
+      merger.restore(c.merged, c.sum, c.sum_sq, c.pixel_spp, c.nonfinite, c.rays);
+      planner.import_state(c.planner);
+    } catch (const std::invalid_argument& e) {
+      throw CheckpointError(std::string("inconsistent: ") + e.what());
+    }
+    for (uint32_t t = 0; t < tiles.size(); ++t) {
+      uint32_t merged = 0;
+      for (uint32_t p = 0; p < grid.pass_count(); ++p) {
+        const uint64_t unit = uint64_t{p} * tiles.size() + t;
+        if (!c.merged[unit]) continue;
+        ++merged;
+        if (!planner.is_released(unit)) {
+          throw CheckpointError(fmt::format("inconsistent: unit {} is merged but not released",
+                                            unit));
+        }
+      }
+      if (merged != c.planner.tiles[t].merged) {
+        throw CheckpointError(fmt::format(
+            "inconsistent: tile {} has {} merged units, the planner counts {}", t, merged,
+            c.planner.tiles[t].merged));
+      }
+    }
+    if (!(c.elapsed_seconds >= 0) || c.rows.size() > c.planner.tiles.size() * grid.pass_count() + 1) {
+      throw CheckpointError("inconsistent: bad elapsed time or error rows");
+    }
+  };
+  auto fresh_planner = [&] {
+    return std::make_unique<PassPlanner>(tiles, grid.pass_count(), s.pass_spp, s.stop);
+  };
+  std::vector<std::string> problems;
+  auto loaded = load_newest_checkpoint(store_.job_dir(s.id), problems, [&](const Checkpoint& c) {
+    Merger merger(grid);
+    rebuild(c, merger, *fresh_planner());
+  });
+  for (const std::string& problem : problems) {
+    log_jobs()->error("job {}: cannot use checkpoint {}{}", s.id, problem,
+                      loaded ? fmt::format("; falling back to {}", loaded->file.string())
+                             : std::string("; no other checkpoint to fall back to"));
+  }
+  if (!loaded) return false;
+  const Checkpoint& c = loaded->checkpoint;
+  auto merger = std::make_unique<Merger>(grid);
+  auto planner = fresh_planner();
+  rebuild(c, *merger, *planner);
+  // The scheduler: merged units are done, released ones pending.
+  std::vector<uint64_t> released;
+  for (uint64_t unit = 0; unit < grid.size(); ++unit) {
+    if (c.merged[unit]) scheduler_.complete(UnitRef{s.id, unit});
+    if (planner->is_released(unit)) released.push_back(unit);
+  }
+  if (planner->gated()) scheduler_.release(s.id, released);
+  planner->take_released();
+  job.merger = std::move(merger);
+  job.planner = std::move(planner);
+  job.rows = c.rows;
+  job.rounds_recorded = c.rounds_recorded;
+  job.samples_recorded = c.samples_recorded;
+  job.checkpoint_sequence = c.sequence;
+  checkpoints_.set_newest_slot(s.id, loaded->slot);
+  if (c.elapsed_seconds > 0 || job.merger->merged_count() > 0) {
+    job.started = true;
+    job.start_time = Clock::now() - std::chrono::duration_cast<Clock::duration>(
+                                        std::chrono::duration<double>(c.elapsed_seconds));
+    job.record.state = wire::JOB_RUNNING;
+  }
+  log_jobs()->info(
+      "job {} resumed from checkpoint at {}/{} units, pass {} ({:.1f} s rendered; {}, checkpoint "
+      "{})",
+      s.id, job.merger->merged_count(), grid.size(), job.planner->rounds_complete(),
+      c.elapsed_seconds, loaded->file.string(), c.sequence);
+  if (job.merger->merged_count() > 0) write_image(job);
+  return true;
+}
+
+void JobManager::checkpoint(Job& job) {
+  const JobSpec& s = job.record.spec;
+  const Merger& m = *job.merger;
+  Checkpoint c;
+  c.sequence = ++job.checkpoint_sequence;
+  c.job_id = s.id;
+  c.width = s.film.width;
+  c.height = s.film.height;
+  c.tile_size = s.tile_size;
+  c.spp = s.settings.spp;
+  c.pass_spp = s.pass_spp;
+  c.elapsed_seconds = elapsed(job);
+  c.merged = m.merged_map();
+  c.sum = m.film().sum();
+  c.sum_sq = m.film().sum_sq();
+  c.pixel_spp = m.film().spp();
+  c.nonfinite = m.film().nonfinite();
+  c.rays = m.film().rays();
+  c.planner = job.planner->export_state();
+  c.rows = job.rows;
+  c.rounds_recorded = job.rounds_recorded;
+  c.samples_recorded = job.samples_recorded;
+  checkpoints_.submit(store_.job_dir(s.id), std::move(c));
+  job.checkpoint_due = false;
+  job.last_checkpoint = Clock::now();
+}
+
+size_t JobManager::shutdown() {
+  size_t count = 0;
+  for (auto& [id, job] : jobs_) {
+    if (!job.merger || !job.started) continue;  // finished, or nothing to keep yet
+    if (job.dirty) write_image(job);
+    checkpoint(job);
+    ++count;
+  }
+  checkpoints_.flush();
+  writer_.flush();
+  if (count) {
+    log_jobs()->info("{} running job{} checkpointed; they resume there when the master starts again",
+                     count, count == 1 ? "" : "s");
+  }
+  return count;
+}
+
+void JobManager::record_row(Job& job) {
+  job.rows.push_back(job.tracker->record(job.merger->film(), elapsed(job)));
+  job.samples_recorded = job.merger->samples_merged();
 }
 
 std::string JobManager::submit(const wire::SubmitJob& request) {
@@ -182,6 +401,18 @@ std::string JobManager::submit(const wire::SubmitJob& request) {
   spec.pass_spp = o.pass_spp() == 0 ? default_pass_spp(spec.tile_size, spec.settings.spp)
                                     : std::min(o.pass_spp(), spec.settings.spp);
   if (spec.film.width == 0 || spec.film.height == 0) throw JobRejected("the scene's film is empty");
+  if (!std::isfinite(o.target_error()) || o.target_error() < 0 || o.target_error() >= 1e6) {
+    throw JobRejected(fmt::format("target error must be in [0, 1e6), got {}", o.target_error()));
+  }
+  if (!std::isfinite(o.time_limit_s()) || o.time_limit_s() < 0 || o.time_limit_s() > 1e9) {
+    throw JobRejected(fmt::format("time limit must be in [0, 1e9] s, got {}", o.time_limit_s()));
+  }
+  spec.stop.target_error = o.target_error();
+  spec.stop.time_limit_s = o.time_limit_s();
+  spec.stop.adaptive = !o.no_adaptive();
+  spec.stop.min_passes = o.min_passes();
+  spec.has_reference = !request.reference_exr().empty();
+  if (spec.has_reference) check_reference_bytes(request.reference_exr(), spec.film);
   const UnitGrid grid(spec.film, spec.tile_size, spec.settings.spp, spec.pass_spp);
   if (grid.size() > kMaxUnits) {
     throw JobRejected(
@@ -198,7 +429,9 @@ std::string JobManager::submit(const wire::SubmitJob& request) {
     wire::Bundle canonical;
     protocol::bundle_to_wire(bundle, &canonical);
     store_.save_bundle(spec.id, canonical);
-    save(job);
+    if (spec.has_reference) store_.save_reference(spec.id, request.reference_exr());
+    store_.save_record(job.record);  // throws: a job is accepted only once it is on disk
+    store_.sync_job_dir(spec.id);
   } catch (const std::exception& e) {
     fs::remove_all(store_.job_dir(spec.id), ec);
     throw JobRejected(std::string("the master cannot store the job: ") + e.what());
@@ -206,20 +439,31 @@ std::string JobManager::submit(const wire::SubmitJob& request) {
   bundle_owner_.emplace(hash, spec.id);
   activate(job);
   log_jobs()->info(
-      "job {} accepted: '{}', scene {} {}x{}, {} spp, {}, max depth {}, seed {}; {} tiles of {} x "
-      "{} passes of {} spp = {} units; bundle of {} files, {} ({})",
-      spec.id, spec.name, spec.scene_path, spec.film.width, spec.film.height, spec.settings.spp,
+      "job {} accepted: '{}', scene {} {}x{}, {}, {}, max depth {}, seed {}; {} tiles of {} x "
+      "{} passes of {} spp = {} units; bundle of {} files, {} ({}){}",
+      spec.id, spec.name, spec.scene_path, spec.film.width, spec.film.height,
+      describe_stop(spec.stop, spec.settings.spp),
       integrator_name(spec.settings.integrator), spec.settings.max_depth, spec.settings.seed,
       grid.tile_count(), spec.tile_size, grid.pass_count(), spec.pass_spp, grid.size(),
-      bundle.files.size(), human_bytes(bundle.data_bytes()), hash.substr(0, 12));
+      bundle.files.size(), human_bytes(bundle.data_bytes()), hash.substr(0, 12),
+      spec.has_reference ? "; error measured against its reference image" : "");
   for (const auto& w : scene.warnings) log_jobs()->warn("job {}: {}", spec.id, w);
   jobs_.emplace(spec.id, std::move(job));
   return spec.id;
 }
 
 std::optional<wire::WorkUnit> JobManager::next_unit(const WorkerId& worker) {
-  const auto ref = scheduler_.lease(worker);
-  if (!ref) return std::nullopt;
+  auto ref = scheduler_.lease(worker);
+  if (!ref) {
+    const auto straggler = scheduler_.lease_straggler(worker, options_.stragglers);
+    if (!straggler) return std::nullopt;
+    ref = straggler->unit;
+    log_scheduler()->info(
+        "job {} unit {} is a straggler: leased to {} for {:.1f} s, the job's median unit takes "
+        "{:.2f} s; also leased to {}, the first result is merged",
+        ref->job, ref->unit, name_of(straggler->first), straggler->leased_seconds,
+        straggler->median_seconds, name_of(worker));
+  }
   Job& job = jobs_.at(ref->job);
   const JobSpec& s = job.record.spec;
   if (!job.started) {
@@ -269,13 +513,17 @@ MergeOutcome JobManager::on_result(const WorkerId& worker, const wire::UnitResul
   auto reject = [&](const std::string& why) {
     log_merger()->warn("job {} unit {}: result from {} rejected: {}", id, result.unit_id(),
                        name_of(worker), why);
-    if (scheduler_.holder(ref) == worker) scheduler_.requeue(ref);
+    scheduler_.requeue(ref, worker);
+    note_failure(job, worker, result.unit_id(), "result rejected: " + why);
     return MergeOutcome::kRejected;
   };
   if (job.merger->merged(result.unit_id())) {
     log_merger()->info("job {} unit {}: duplicate result from {} dropped (merged before)", id,
                        result.unit_id(), name_of(worker));
     return MergeOutcome::kDuplicate;
+  }
+  if (!job.planner->is_released(result.unit_id())) {
+    return reject("the unit was never handed out (the job's stopping rules have not released it)");
   }
   TileResult tile;
   try {
@@ -288,31 +536,51 @@ MergeOutcome JobManager::on_result(const WorkerId& worker, const wire::UnitResul
   if (outcome == MergeOutcome::kRejected) return reject(why);
   if (outcome == MergeOutcome::kDuplicate) return outcome;  // checked above; kept for clarity
 
-  scheduler_.complete(ref);
+  scheduler_.complete(ref, worker);
   job.dirty = true;
+  job.checkpoint_due = true;
   job.contributors[worker] = Clock::now();
   log_merger()->debug("job {} unit {} merged from {} ({:.3f} s render)", id, result.unit_id(),
                       name_of(worker), result.render_seconds());
-  if (job.merger->passes_complete() > job.passes_logged) on_pass_done(job);
-  if (job.merger->complete()) finish(job, wire::JOB_DONE, "");
+  PassPlanner& planner = *job.planner;
+  planner.on_merged(result.unit_id(), job.merger->film());
+  if (planner.gated()) scheduler_.release(id, planner.take_released());
+  if (planner.rounds_complete() > job.rounds_recorded) on_round_done(job);
+  if (planner.finished()) finish(job, wire::JOB_DONE, "", planner.reason());
   return outcome;
 }
 
-void JobManager::on_pass_done(Job& job) {
+void JobManager::on_round_done(Job& job) {
   const Merger& m = *job.merger;
+  const PassPlanner& planner = *job.planner;
   const JobSpec& s = job.record.spec;
-  job.passes_logged = m.passes_complete();
-  const uint32_t spp_done =
-      m.grid().unit(uint64_t{job.passes_logged} * m.grid().tile_count() - 1).samples.end;
+  job.rounds_recorded = planner.rounds_complete();
   const double seconds = elapsed(job);
-  const double rate = seconds > 0 ? static_cast<double>(m.samples_merged()) / seconds : 0.0;
-  const double remaining = static_cast<double>(m.grid().samples_total() - m.samples_merged());
+  record_row(job);
+  const ErrorRow& row = job.rows.back();
+  const double eta = estimate_eta(
+      s, static_cast<double>(m.grid().samples_total() - m.samples_merged()), row.samples_per_s,
+      seconds, row.est_rel_mse);
+  // The per-tile figure: the tile with the largest estimated error, and where it is.
+  TileRect worst_rect;
+  double worst = -1.0;
+  for (const TileRect& rect : split_tiles(s.film, s.tile_size)) {
+    const double e = estimate_error(m.film(), rect).rel_mse;
+    if (e > worst) worst = e, worst_rect = rect;
+  }
   log_jobs()->info(
-      "job {} pass {}/{} done: {}/{} spp ({:.0f}%), {}, ETA {:.1f} s, {} workers active", s.id,
-      job.passes_logged, m.grid().pass_count(), spp_done, s.settings.spp,
-      100.0 * spp_done / s.settings.spp, human_rate(rate), rate > 0 ? remaining / rate : 0.0,
-      workers_active(job));
+      "job {} pass {}/{} done: {:.1f} spp, estimated relMSE {:.3g} (RMSE {:.3g}){}{}{}, {}, ETA "
+      "{:.1f} s, {} workers active",
+      s.id, job.rounds_recorded, m.grid().pass_count(), row.spp, row.est_rel_mse, row.est_rmse,
+      worst >= 0 ? fmt::format(", worst tile at ({}, {}) {:.3g}", worst_rect.x0, worst_rect.y0, worst)
+                 : "",
+      planner.gated() ? fmt::format(", {}/{} tiles converged", planner.tiles_converged(),
+                                    planner.tile_count())
+                      : "",
+      row.ref_rel_mse ? fmt::format(", measured relMSE {:.3g}", *row.ref_rel_mse) : "",
+      human_rate(row.samples_per_s), eta, workers_active(job));
   write_image(job);
+  checkpoint(job);
 }
 
 void JobManager::on_unit_failed(const WorkerId& worker, const wire::UnitFailed& failed) {
@@ -320,14 +588,34 @@ void JobManager::on_unit_failed(const WorkerId& worker, const wire::UnitFailed& 
   if (it == jobs_.end() || !it->second.merger) return;
   Job& job = it->second;
   const UnitRef ref{failed.job_id(), failed.unit_id()};
-  const int count = ++job.failures[failed.unit_id()];
-  log_jobs()->warn("job {} unit {} failed on {} (attempt {} of {}): {}", ref.job, ref.unit,
-                   name_of(worker), count, options_.max_unit_failures, failed.reason());
-  if (scheduler_.holder(ref) == worker) scheduler_.requeue(ref);
-  if (count >= options_.max_unit_failures) {
+  const std::string reason = protocol::printable(failed.reason(), 500);
+  log_jobs()->warn("job {} unit {} failed on {}: {}", ref.job, ref.unit, name_of(worker), reason);
+  scheduler_.requeue(ref, worker);
+  note_failure(job, worker, ref.unit, reason);
+}
+
+void JobManager::note_failure(Job& job, const WorkerId& worker, uint64_t unit,
+                              const std::string& why) {
+  const std::string& id = job.record.spec.id;
+  if (!job.merger) return;
+  const int worker_count = ++job.worker_failures[worker];
+  auto& on_unit = job.unit_failures[unit];
+  on_unit[worker] = why;
+  if (static_cast<int>(on_unit.size()) >= options_.max_unit_failures) {
+    std::string messages;
+    for (const auto& [w, message] : on_unit) {
+      messages += fmt::format("{}{}: {}", messages.empty() ? "" : "; ", name_of(w), message);
+    }
     finish(job, wire::JOB_FAILED,
-           fmt::format("unit {} failed {} times; last on {}: {}", ref.unit, count, name_of(worker),
-                       failed.reason()));
+           fmt::format("unit {} failed on {} different workers: {}", unit, on_unit.size(),
+                       messages));
+    return;
+  }
+  if (worker_count >= options_.max_worker_failures && !scheduler_.is_blocked(id, worker)) {
+    scheduler_.block(id, worker);
+    log_jobs()->warn("job {}: {} blocked from the job after {} failures (last: {}); it gets "
+                     "other jobs' units",
+                     id, name_of(worker), worker_count, why);
   }
 }
 
@@ -350,29 +638,62 @@ std::optional<wire::JobState> JobManager::cancel(const std::string& id) {
   return it->second.record.state;
 }
 
-void JobManager::finish(Job& job, wire::JobState state, const std::string& error) {
+void JobManager::finish(Job& job, wire::JobState state, const std::string& error,
+                        StopReason reason) {
   JobSpec& s = job.record.spec;
+  if (reason == StopReason::kRunning) {
+    reason = state == wire::JOB_CANCELLED ? StopReason::kCancelled
+             : state == wire::JOB_FAILED  ? StopReason::kFailed
+                                          : StopReason::kSpp;
+  }
+  job.record.stop_reason = stop_reason_name(reason);
   if (job.merger) {
+    // The last row of the error record describes the final image.
+    if (job.merger->samples_merged() > job.samples_recorded) {
+      record_row(job);
+      job.dirty = true;
+    }
     // The final image is on disk before the job is reported finished.
     if (state == wire::JOB_DONE || job.dirty) write_image(job, /*wait=*/true);
-    job.units_done = job.merger->merged_count();
-    job.spp_done = job.merger->film().min_spp();
+    JobRecord& r = job.record;
+    r.units_done = job.merger->merged_count();
+    r.spp_min = job.merger->film().min_spp();
+    r.spp_mean = static_cast<double>(job.merger->samples_merged()) /
+                 (double(s.film.width) * s.film.height);
+    r.tiles_converged = job.planner->tiles_converged();
+    if (!job.rows.empty()) {
+      r.est_rel_mse = job.rows.back().est_rel_mse;
+      if (job.rows.back().ref_rel_mse) r.ref_rel_mse = *job.rows.back().ref_rel_mse;
+    }
   }
   job.record.elapsed_seconds = elapsed(job);
   job.record.state = state;
   job.record.error = error;
   scheduler_.remove_job(s.id);
   const uint64_t samples = job.merger ? job.merger->samples_merged() : 0;
+  const std::string error_summary =
+      job.merger && !job.rows.empty()
+          ? fmt::format(", estimated relMSE {:.3g}{}", job.rows.back().est_rel_mse,
+                        job.rows.back().ref_rel_mse
+                            ? fmt::format(", measured {:.3g}", *job.rows.back().ref_rel_mse)
+                            : "")
+          : "";
   job.merger.reset();
+  job.planner.reset();
+  job.tracker.reset();
+  job.rows.clear();
   save(job);
+  // The record says how the job ended; its checkpoints are of no use any more.
+  checkpoints_.forget(s.id, store_.job_dir(s.id));
   const double seconds = job.record.elapsed_seconds;
   if (state == wire::JOB_DONE) {
-    log_jobs()->info("job {} done: '{}' {}x{}, {} spp in {:.2f} s ({}); image {}", s.id, s.name,
-                     s.film.width, s.film.height, s.settings.spp, seconds,
-                     human_rate(seconds > 0 ? samples / seconds : 0.0),
+    log_jobs()->info("job {} done ({}): '{}' {}x{}, {:.1f} spp mean in {:.2f} s ({}){}; image {}",
+                     s.id, job.record.stop_reason, s.name, s.film.width, s.film.height,
+                     static_cast<double>(samples) / (double(s.film.width) * s.film.height),
+                     seconds, human_rate(seconds > 0 ? samples / seconds : 0.0), error_summary,
                      (store_.job_dir(s.id) / "image.exr").string());
   } else if (state == wire::JOB_CANCELLED) {
-    log_jobs()->info("job {} cancelled after {:.2f} s at {} spp", s.id, seconds, job.spp_done);
+    log_jobs()->info("job {} cancelled after {:.2f} s at {} spp", s.id, seconds, job.record.spp_min);
   } else {
     log_jobs()->error("job {} failed after {:.2f} s: {}", s.id, seconds, error);
   }
@@ -389,7 +710,11 @@ void JobManager::write_image(Job& job, bool wait) {
       {"rayfarm:job", s.id},
       {"rayfarm:spp_target", std::to_string(s.settings.spp)}};
   // The same pixels as `rayfarm render` (film_to_image), written on the writer's thread.
-  writer_.submit(store_.image_path(s.id), film_to_image(job.merger->film(), attributes));
+  ImageWriter::ErrorRecord record;
+  record.rows = job.rows;
+  record.title = fmt::format("job {} '{}' ({})", s.id, s.name, integrator_name(s.settings.integrator));
+  writer_.submit(store_.image_path(s.id), film_to_image(job.merger->film(), attributes),
+                 std::move(record));
   if (wait) writer_.flush();
   job.dirty = false;
   job.last_write = Clock::now();
@@ -398,8 +723,18 @@ void JobManager::write_image(Job& job, bool wait) {
 void JobManager::tick() {
   const auto now = Clock::now();
   for (auto& [id, job] : jobs_) {
+    const double limit = job.record.spec.stop.time_limit_s;
+    if (job.merger && job.started && limit > 0 && elapsed(job) >= limit) {
+      log_jobs()->info("job {}: time limit of {:g} s reached", id, limit);
+      finish(job, wire::JOB_DONE, "", StopReason::kTimeLimit);
+      continue;
+    }
     if (job.merger && job.dirty && now - job.last_write >= options_.image_interval)
       write_image(job);
+    if (job.merger && job.checkpoint_due && options_.checkpoint_interval.count() > 0 &&
+        now - job.last_checkpoint >= options_.checkpoint_interval) {
+      checkpoint(job);
+    }
   }
 }
 
@@ -449,10 +784,24 @@ wire::JobStatus JobManager::make_status(const Job& job, uint32_t workers_total) 
   st.set_workers_total(workers_total);
   st.set_error(job.record.error);
   st.set_eta_seconds(-1.0);
+  st.set_stop_reason(job.record.stop_reason);
+  st.set_tiles_total(static_cast<uint32_t>(split_tiles(s.film, s.tile_size).size()));
+  st.set_est_rel_mse(job.record.est_rel_mse);
+  st.set_ref_rel_mse(job.record.ref_rel_mse);
+  st.set_spp_mean(job.record.spp_mean);
+  st.set_tiles_converged(job.record.tiles_converged);
   if (job.merger) {
     const Merger& m = *job.merger;
     const auto counts = scheduler_.counts(s.id);
-    st.set_passes_done(m.passes_complete());
+    st.set_passes_done(job.planner->rounds_complete());
+    st.set_tiles_converged(job.planner->tiles_converged());
+    st.set_spp_mean(static_cast<double>(m.samples_merged()) /
+                    (double(s.film.width) * s.film.height));
+    if (!job.rows.empty()) {
+      const ErrorRow& row = job.rows.back();
+      st.set_est_rel_mse(row.est_rel_mse);
+      if (row.ref_rel_mse) st.set_ref_rel_mse(*row.ref_rel_mse);
+    }
     st.set_units_done(m.merged_count());
     st.set_units_leased(counts.leased);
     st.set_spp_done(m.film().min_spp());
@@ -461,16 +810,19 @@ wire::JobStatus JobManager::make_status(const Job& job, uint32_t workers_total) 
     if (seconds > 0 && m.samples_merged() > 0) {
       const double rate = static_cast<double>(m.samples_merged()) / seconds;
       st.set_samples_per_second(rate);
-      st.set_eta_seconds(static_cast<double>(grid.samples_total() - m.samples_merged()) / rate);
+      st.set_eta_seconds(estimate_eta(
+          s, static_cast<double>(grid.samples_total() - m.samples_merged()), rate, seconds,
+          job.rows.empty() ? -1.0 : job.rows.back().est_rel_mse));
     }
   } else {
-    st.set_units_done(job.units_done);
-    st.set_spp_done(job.spp_done);
-    st.set_passes_done(job.record.state == wire::JOB_DONE ? grid.pass_count() : 0);
+    st.set_units_done(job.record.units_done);
+    st.set_spp_done(job.record.spp_min);
+    const bool all_passes = job.record.state == wire::JOB_DONE &&
+                            (job.record.stop_reason.empty() || job.record.stop_reason == "spp");
+    st.set_passes_done(all_passes ? grid.pass_count() : 0);
     if (job.record.state == wire::JOB_DONE) st.set_eta_seconds(0.0);
     if (job.record.elapsed_seconds > 0) {
-      st.set_samples_per_second(static_cast<double>(grid.samples_total()) *
-                                (job.record.state == wire::JOB_DONE ? 1.0 : 0.0) /
+      st.set_samples_per_second(job.record.spp_mean * s.film.width * s.film.height /
                                 job.record.elapsed_seconds);
     }
   }
@@ -499,8 +851,10 @@ wire::ImageData JobManager::image(const std::string& id) const {
   out.set_job_id(id);
   out.set_exr(std::move(*exr));
   if (auto png = store_.read_file(id, "image.png")) out.set_png(std::move(*png));
+  if (auto csv = store_.read_file(id, "error.csv")) out.set_error_csv(std::move(*csv));
+  if (auto plot = store_.read_file(id, "error.png")) out.set_error_png(std::move(*plot));
   const Job& job = it->second;
-  out.set_spp_done(job.merger ? job.merger->film().min_spp() : job.spp_done);
+  out.set_spp_done(job.merger ? job.merger->film().min_spp() : job.record.spp_min);
   out.set_state(job.record.state);
   return out;
 }

@@ -13,6 +13,9 @@
 #include <string>
 #include <vector>
 
+#include "common/image/convergence.h"
+#include "common/report/error_tracker.h"
+#include "master/checkpoint.h"
 #include "master/image_writer.h"
 #include "master/job_store.h"
 #include "master/merger.h"
@@ -30,10 +33,18 @@ class JobRejected : public std::runtime_error {
 struct JobManagerOptions {
   /// While results arrive, the image is rewritten at least this often (besides every pass).
   std::chrono::milliseconds image_interval{3000};
-  /// A unit that fails on this many attempts fails its job.
+  /// A unit that fails on this many different workers fails its job (a failure is a UnitFailed
+  /// or a result rejected as malformed).
   int max_unit_failures = 3;
   /// How workers are named in logs; by default the hex of their id.
   std::function<std::string(const WorkerId&)> worker_name;
+  /// While results arrive, a running job is checkpointed at least this often (besides every
+  /// completed round of passes); 0 = only at rounds and at shutdown.
+  std::chrono::milliseconds checkpoint_interval{2000};
+  /// A worker that fails this many times on a job is given no more of its units.
+  int max_worker_failures = 3;
+  /// When a slow unit is leased a second time.
+  StragglerPolicy stragglers;
 };
 
 class JobManager {
@@ -42,21 +53,34 @@ class JobManager {
 
   JobManager(JobStore& store, JobManagerOptions options = {});
 
-  /// Loads the jobs of the data dir: finished ones as they were, unfinished ones from the start
-  /// (partial sums are not stored). Returns how many were restarted.
+  /// Loads the jobs of the data dir: finished ones as they were, unfinished ones from their newest
+  /// usable checkpoint (a corrupt or truncated one is logged and the older one used), or from
+  /// the start when they have none. Returns how many were resumed or restarted.
   size_t recover();
+  /// Checkpoints every running job (queued ones have nothing to keep) and waits until the
+  /// checkpoints and images are on disk (the master is stopping). Returns how many jobs were
+  /// checkpointed.
+  size_t shutdown();
+  /// Returns once every checkpoint queued so far is on disk (tests, benchmarks).
+  void wait_for_checkpoints() { checkpoints_.flush(); }
 
   /// Validates and accepts a job; returns its id. Throws JobRejected naming the cause.
   std::string submit(const wire::SubmitJob& request);
 
   /// The next unit for `worker`, leased to it; nullopt when no job has pending units.
+  /// When nothing is pending, a straggler (a unit leased for much longer than its job's median)
+  /// is leased to `worker` a second time.
   std::optional<wire::WorkUnit> next_unit(const WorkerId& worker);
-  bool has_pending() const { return scheduler_.has_pending(); }
+  /// Some unit could be handed out: pending, or a straggler to lease again.
+  bool has_pending() const {
+    return scheduler_.has_pending() || scheduler_.has_straggler(options_.stragglers);
+  }
 
   /// Merges a result from `worker` (who need not hold the unit: a late result from a worker that
   /// was declared lost still counts when the unit is not merged yet).
   MergeOutcome on_result(const WorkerId& worker, const wire::UnitResult& result);
-  /// A worker could not render a unit: requeue it, or fail the job after repeated failures.
+  /// A worker could not render a unit: requeue it; block the worker from the job after
+  /// max_worker_failures, fail the job when the unit failed on max_unit_failures workers.
   void on_unit_failed(const WorkerId& worker, const wire::UnitFailed& failed);
   /// Takes back the leases of a worker that is lost or gone; returns how many were requeued.
   size_t release_worker(const WorkerId& worker);
@@ -72,38 +96,61 @@ class JobManager {
   /// The bundle with this hash, from the store; nullopt when no job has it.
   std::optional<wire::Bundle> bundle(const std::string& hash) const;
 
-  /// Writes the images that are due (results merged since the last write, interval passed).
+  /// Writes the images that are due (results merged since the last write, interval passed), and
+  /// ends the jobs whose time limit has passed.
   void tick();
   /// Jobs queued or running.
   size_t active_jobs() const;
+  /// Figures of the checkpoint writer (how many, how long the last took).
+  CheckpointWriter::Stats checkpoint_stats() const { return checkpoints_.stats(); }
 
  private:
   struct Job {
     JobRecord record;
     std::unique_ptr<Merger> merger;  // while queued or running
+    std::unique_ptr<PassPlanner> planner;   // which units the stopping rules still need
+    std::unique_ptr<ErrorTracker> tracker;  // computes the error rows
+    std::vector<ErrorRow> rows;             // error against time, one row per round of passes
+    uint32_t rounds_recorded = 0;
+    uint64_t samples_recorded = 0;  // pixel samples behind the last error row
     bool started = false;
     Clock::time_point start_time;
     Clock::time_point last_write;
     bool dirty = false;  // merged since the last image write
-    uint32_t passes_logged = 0;
-    std::map<uint64_t, int> failures;
-    uint64_t units_done = 0;  // kept when the merger is released
-    uint32_t spp_done = 0;
+    // Failures: per unit, the workers it failed on and their messages; per worker, how many.
+    std::map<uint64_t, std::map<WorkerId, std::string>> unit_failures;
+    std::map<WorkerId, int> worker_failures;
+    // Checkpoints.
+    uint64_t checkpoint_sequence = 0;
+    bool checkpoint_due = false;  // merged since the last checkpoint
+    Clock::time_point last_checkpoint;
     std::map<WorkerId, Clock::time_point> contributors;  // last result from each worker
   };
 
   JobStore& store_;
   JobManagerOptions options_;
   ImageWriter writer_;
+  CheckpointWriter checkpoints_;
   Scheduler scheduler_;
   std::map<std::string, Job> jobs_;
   std::map<std::string, std::string> bundle_owner_;  // bundle hash -> a job that has it
 
   void activate(Job& job);
+  /// Brings a freshly activated job to the state of its newest usable checkpoint; false when it
+  /// has none (it starts from the beginning). Logs what it used and what it could not.
+  bool resume(Job& job);
+  /// Queues a checkpoint of the job's merged state.
+  void checkpoint(Job& job);
+  /// Counts a failure of `worker` on `unit`; blocks the worker or fails the job past the limits.
+  void note_failure(Job& job, const WorkerId& worker, uint64_t unit, const std::string& why);
+  void record_row(Job& job);
+  /// Throws JobRejected unless `exr` is a readable EXR of the film's size.
+  void check_reference_bytes(const std::string& exr, FilmSize film);
   /// Queues the job's image; `wait` returns only once it is on disk.
   void write_image(Job& job, bool wait = false);
-  void on_pass_done(Job& job);
-  void finish(Job& job, wire::JobState state, const std::string& error);
+  void on_round_done(Job& job);
+  void finish(Job& job, wire::JobState state, const std::string& error,
+              StopReason reason = StopReason::kRunning);
   void save(const Job& job);
   double elapsed(const Job& job) const;
   wire::JobStatus make_status(const Job& job, uint32_t workers_total) const;

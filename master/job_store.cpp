@@ -9,7 +9,10 @@
 #include <stdexcept>
 #include <system_error>
 
+#include <fcntl.h>
 #include <unistd.h>
+
+#include <cerrno>
 #include <nlohmann/json.hpp>
 
 #include "common/protocol/convert.h"
@@ -44,10 +47,22 @@ json to_json(const JobRecord& r) {
               {"height", s.film.height},
               {"tile_size", s.tile_size},
               {"pass_spp", s.pass_spp},
+              {"target_error", s.stop.target_error},
+              {"time_limit_s", s.stop.time_limit_s},
+              {"adaptive", s.stop.adaptive},
+              {"min_passes", s.stop.min_passes},
+              {"has_reference", s.has_reference},
               {"submitted_unix_ms", s.submitted_unix_ms},
               {"state", protocol::job_state_name(r.state)},
               {"error", r.error},
-              {"elapsed_seconds", r.elapsed_seconds}};
+              {"elapsed_seconds", r.elapsed_seconds},
+              {"stop_reason", r.stop_reason},
+              {"units_done", r.units_done},
+              {"spp_min", r.spp_min},
+              {"spp_mean", r.spp_mean},
+              {"tiles_converged", r.tiles_converged},
+              {"est_rel_mse", r.est_rel_mse},
+              {"ref_rel_mse", r.ref_rel_mse}};
 }
 
 JobRecord from_json(const json& j) {
@@ -67,10 +82,25 @@ JobRecord from_json(const json& j) {
   s.film.height = j.at("height").get<uint32_t>();
   s.tile_size = j.at("tile_size").get<uint32_t>();
   s.pass_spp = j.at("pass_spp").get<uint32_t>();
+  s.stop.target_error = j.value("target_error", 0.0);
+  s.stop.time_limit_s = j.value("time_limit_s", 0.0);
+  s.stop.adaptive = j.value("adaptive", true);
+  s.stop.min_passes = j.value("min_passes", 0u);
+  s.has_reference = j.value("has_reference", false);
   s.submitted_unix_ms = j.at("submitted_unix_ms").get<int64_t>();
   r.state = state_from_key(j.at("state").get<std::string>());
   r.error = j.value("error", "");
   r.elapsed_seconds = j.value("elapsed_seconds", 0.0);
+  r.stop_reason = j.value("stop_reason", "");
+  r.units_done = j.value("units_done", uint64_t{0});
+  r.spp_min = j.value("spp_min", 0u);
+  r.spp_mean = j.value("spp_mean", 0.0);
+  r.tiles_converged = j.value("tiles_converged", 0u);
+  r.est_rel_mse = j.value("est_rel_mse", -1.0);
+  r.ref_rel_mse = j.value("ref_rel_mse", -1.0);
+  if (!(s.stop.target_error >= 0) || !(s.stop.time_limit_s >= 0)) {
+    throw std::runtime_error("negative target error or time limit");
+  }
   if (s.settings.spp == 0 || s.tile_size == 0 || s.pass_spp == 0 || s.film.width == 0 ||
       s.film.height == 0) {
     throw std::runtime_error("zero size, spp, tile or pass");
@@ -143,11 +173,28 @@ void JobStore::save_record(const JobRecord& record) {
   write_file_atomically(job_dir(record.spec.id) / "job.json", to_json(record).dump(2) + "\n");
 }
 
+void JobStore::sync_job_dir(const std::string& id) {
+  for (const fs::path& dir : {job_dir(id), root_ / "jobs"}) {
+    const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (fd < 0 || ::fsync(fd) != 0) {
+      const int error = errno;
+      if (fd >= 0) ::close(fd);
+      throw std::runtime_error("cannot sync " + dir.string() + ": " +
+                               std::generic_category().message(error));
+    }
+    ::close(fd);
+  }
+}
+
 void JobStore::save_bundle(const std::string& id, const wire::Bundle& bundle) {
   std::string bytes;
   if (!bundle.SerializeToString(&bytes))
     throw std::runtime_error("cannot serialize bundle of " + id);
   write_file_atomically(job_dir(id) / "bundle.pb", bytes);
+}
+
+void JobStore::save_reference(const std::string& id, const std::string& exr_bytes) {
+  write_file_atomically(reference_path(id), exr_bytes);
 }
 
 std::optional<wire::Bundle> JobStore::load_bundle(const std::string& id) const {

@@ -6,6 +6,11 @@
 //   <data>/jobs/<id>/bundle.pb   the scene bundle (a serialized rayfarm.wire.Bundle)
 //   <data>/jobs/<id>/image.exr   the current estimate, float32 RGB, rewritten as passes complete
 //   <data>/jobs/<id>/image.png   its sRGB preview
+//   <data>/jobs/<id>/reference.exr  the reference image the job's error is measured against
+//   <data>/jobs/<id>/error.csv   error against time, one row per pass (common/report/error_log.h)
+//   <data>/jobs/<id>/error.png   its log-log plot
+//   <data>/jobs/<id>/checkpoint-0.bin, checkpoint-1.bin  a running job's merged state, two
+//                                generations (checkpoint.h); removed when the job ends
 //   <data>/tmp/                  scratch space (scene validation), emptied at start
 #include <cstdint>
 #include <filesystem>
@@ -13,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "common/image/convergence.h"
 #include "common/scene/scene.h"
 #include "proto/rayfarm.pb.h"
 
@@ -28,6 +34,8 @@ struct JobSpec {
   FilmSize film;
   uint32_t tile_size = 64;
   uint32_t pass_spp = 1;
+  StopRules stop;              ///< target error and time limit, besides settings.spp
+  bool has_reference = false;  ///< reference.exr is in the job's folder
   int64_t submitted_unix_ms = 0;
 };
 
@@ -37,6 +45,14 @@ struct JobRecord {
   wire::JobState state = wire::JOB_QUEUED;
   std::string error;
   double elapsed_seconds = 0.0;  ///< from the first unit handed out to the end
+  std::string stop_reason;       ///< once finished: stop_reason_name() of why
+  // Once finished: the final image's figures.
+  uint64_t units_done = 0;
+  uint32_t spp_min = 0;          ///< fewest samples of any pixel
+  double spp_mean = 0.0;
+  uint32_t tiles_converged = 0;
+  double est_rel_mse = -1.0;     ///< negative: unknown
+  double ref_rel_mse = -1.0;     ///< negative: no reference
 };
 
 class JobStore {
@@ -53,15 +69,23 @@ class JobStore {
 
   /// Writes job.json. Throws std::runtime_error on an I/O error.
   void save_record(const JobRecord& record);
+  /// Syncs the job's folder and the jobs folder, so that files renamed into them (job.json,
+  /// bundle.pb) and the folder itself survive a power cut. Throws std::runtime_error.
+  void sync_job_dir(const std::string& id);
   /// Writes bundle.pb. Throws std::runtime_error on an I/O error.
   void save_bundle(const std::string& id, const wire::Bundle& bundle);
+  /// Writes reference.exr (bytes already checked to be a readable EXR of the film's size).
+  void save_reference(const std::string& id, const std::string& exr_bytes);
+  std::filesystem::path reference_path(const std::string& id) const {
+    return job_dir(id) / "reference.exr";
+  }
   /// Reads bundle.pb; nullopt when missing or unreadable.
   std::optional<wire::Bundle> load_bundle(const std::string& id) const;
   /// Where the job's image goes; its preview is image.png beside it.
   std::filesystem::path image_path(const std::string& id) const {
     return job_dir(id) / "image.exr";
   }
-  /// The bytes of image.exr or image.png (`name`), nullopt when not written yet.
+  /// The bytes of a file of the job's folder (image.exr, error.csv, ...), nullopt when missing.
   std::optional<std::string> read_file(const std::string& id, const std::string& name) const;
   /// Every readable job.json, in id order; unreadable ones are logged and skipped.
   std::vector<JobRecord> load_records() const;

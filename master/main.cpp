@@ -6,6 +6,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "common/net/keys.h"
 #include "common/util/log_options.h"
 #include "master/broker.h"
 
@@ -41,16 +42,99 @@ int main(int argc, char** argv) {
                  "rewrite a running job's image at least this often (milliseconds)")
       ->check(CLI::Range(int64_t{100}, int64_t{3600000}))
       ->capture_default_str();
+  // Durability: checkpoints, failing workers, stragglers (docs/reliability.md).
+  rayfarm::master::JobManagerOptions& durability = options.jobs;
+  int64_t checkpoint_interval_ms = durability.checkpoint_interval.count();
+  int64_t straggler_min_ms = durability.stragglers.floor.count();
+  app.add_option("--checkpoint-interval-ms", checkpoint_interval_ms,
+                 "checkpoint a running job at least this often while results arrive, besides "
+                 "every completed pass (milliseconds; 0 = only at passes and shutdown)")
+      ->check(CLI::Range(int64_t{0}, int64_t{3600000}))
+      ->capture_default_str();
+  app.add_option("--max-worker-failures", durability.max_worker_failures,
+                 "failures (failed units, rejected results) after which a worker gets no more "
+                 "units of that job")
+      ->check(CLI::Range(1, 1000))
+      ->capture_default_str();
+  app.add_option("--max-unit-failures", durability.max_unit_failures,
+                 "different workers a unit may fail on before its job fails")
+      ->check(CLI::Range(1, 1000))
+      ->capture_default_str();
+  app.add_option("--straggler-factor", durability.stragglers.factor,
+                 "lease a unit again to an idle worker once it has run this many times its job's "
+                 "median unit (0 = never)")
+      ->check(CLI::Range(0.0, 1000.0))
+      ->capture_default_str();
+  app.add_option("--straggler-min-ms", straggler_min_ms,
+                 "... and at least this long (milliseconds)")
+      ->check(CLI::Range(int64_t{0}, int64_t{86400000}))
+      ->capture_default_str();
+
+  // Security: CURVE with allow-lists by default; --insecure only on loopback.
+  std::string key_file, worker_keys, client_keys;
+  bool insecure = false;
+  app.add_option("--key", key_file,
+                 "the master's secret key file (NAME.key_secret from rayfarm "
+                 "keygen) [env RAYFARM_MASTER_SECRET_KEY]")
+      ->envname("RAYFARM_MASTER_SECRET_KEY");
+  app.add_option("--worker-keys", worker_keys,
+                 "allow-list of worker public keys: a folder of NAME.key files or a file of keys "
+                 "[env RAYFARM_WORKER_KEYS]")
+      ->envname("RAYFARM_WORKER_KEYS");
+  app.add_option("--client-keys", client_keys,
+                 "allow-list of client public keys: a folder of NAME.key files or a file of keys "
+                 "[env RAYFARM_CLIENT_KEYS]")
+      ->envname("RAYFARM_CLIENT_KEYS");
+  app.add_flag("--insecure", insecure,
+               "plain sockets, no authentication or encryption: only on loopback endpoints");
+
+  // Limits on what a peer can make the master do.
+  rayfarm::master::Limits& limits = options.limits;
+  int64_t max_message_mb = limits.max_message_bytes >> 20;
+  uint64_t max_bundle_mb = limits.max_bundle_bytes >> 20;
+  app.add_option("--max-message-mb", max_message_mb,
+                 "largest message a socket accepts, in MiB; a peer sending more is disconnected")
+      ->check(CLI::Range(int64_t{1}, int64_t{1024}))
+      ->capture_default_str();
+  app.add_option("--max-bundle-mb", max_bundle_mb, "largest scene bundle a job may bring, in MiB")
+      ->check(CLI::Range(uint64_t{1}, uint64_t{4096}))
+      ->capture_default_str();
+  app.add_option("--max-image-pixels", limits.max_image_pixels,
+                 "most pixels (width x height) of a job's image")
+      ->check(CLI::Range(uint64_t{1}, uint64_t{1} << 26))
+      ->capture_default_str();
+  app.add_option("--max-spp", limits.max_spp, "most samples per pixel of a job")
+      ->check(CLI::Range(1u, 1u << 24))
+      ->capture_default_str();
+  app.add_option("--max-queued-jobs", limits.max_queued_jobs,
+                 "most jobs queued or running; more submissions are refused until some finish")
+      ->check(CLI::Range(size_t{1}, size_t{1000000}))
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
+  limits.max_message_bytes = max_message_mb << 20;
+  limits.max_bundle_bytes = max_bundle_mb << 20;
 
   logging.apply();
   options.data_dir = data_dir;
   options.heartbeat.interval = std::chrono::milliseconds{heartbeat_ms};
   options.image_interval = std::chrono::milliseconds{image_interval_ms};
+  durability.checkpoint_interval = std::chrono::milliseconds{checkpoint_interval_ms};
+  durability.stragglers.floor = std::chrono::milliseconds{straggler_min_ms};
 
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
   try {
+    if (!insecure) {
+      if (key_file.empty()) {
+        throw std::runtime_error(
+            "the master needs its key: --key FILE (a secret key file from `rayfarm keygen "
+            "--name master`) with --worker-keys and --client-keys, or --insecure for a quick try "
+            "on loopback endpoints");
+      }
+      options.security.key = rayfarm::net::key_pair_from(key_file, "--key");
+      options.security.worker_keys = worker_keys;
+      options.security.client_keys = client_keys;
+    }
     rayfarm::master::Broker broker(options);
     broker.run(g_stop);
   } catch (const std::exception& e) {

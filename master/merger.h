@@ -34,6 +34,16 @@ class Merger {
   uint64_t samples_merged() const { return samples_merged_; }
   const Film& film() const { return film_; }
   const UnitGrid& grid() const { return grid_; }
+  /// One byte per unit, 1 when merged (for a checkpoint).
+  std::vector<uint8_t> merged_map() const;
+
+  /// Replaces what is merged with a checkpoint's state: the merged units and the film's sums.
+  /// The film is rebuilt tile by tile, so each tile's samples per pixel must be exactly the
+  /// samples of its merged units, and a tile with none must have zero sums. Throws
+  /// std::invalid_argument naming the inconsistency; the merger is unchanged then.
+  void restore(const std::vector<uint8_t>& merged, const std::vector<Fixed>& sum,
+               const std::vector<Fixed>& sum_sq, const std::vector<uint32_t>& pixel_spp,
+               uint64_t nonfinite, uint64_t rays);
 
  private:
   UnitGrid grid_;

@@ -2,8 +2,17 @@
 // Leases units of work to workers that ask for them. Knows nothing of sockets or images: a job is
 // a name and a number of units; a worker is an opaque id. Jobs are served in the order they were
 // added; within a job the lowest-numbered pending unit goes first (pass-major, unit_grid.h). A
-// worker's leases go back to the queue when it is lost, ahead of units never handed out.
+// worker's leases go back to the queue when it is lost, ahead of units never handed out. A gated
+// job (one with a target error, common/image/convergence.h) has only the units its planner has
+// released so far; the others are not pending until released.
+//
+// Failures and slow workers: a worker can be blocked from a job (it keeps failing there) and is
+// then given only other jobs' units. A unit leased for much longer than its job's median unit
+// (StragglerPolicy) may be leased a second time to a worker that has nothing else to do; both
+// leases then stand until either result completes the unit, which ends both.
+#include <chrono>
 #include <cstdint>
+#include <deque>
 #include <map>
 #include <optional>
 #include <set>
@@ -22,31 +31,75 @@ struct UnitRef {
   auto operator<=>(const UnitRef&) const = default;
 };
 
+/// When a unit is slow enough to be leased a second time.
+struct StragglerPolicy {
+  /// Leased for longer than factor x the job's median unit duration; 0 = never.
+  double factor = 4.0;
+  /// ... and for longer than this.
+  std::chrono::milliseconds floor{5000};
+  /// The median is trusted once this many units of the job are done.
+  size_t min_samples = 3;
+};
+
 class Scheduler {
  public:
+  using Clock = std::chrono::steady_clock;
+
+  /// A unit leased a second time because its first lease is slow.
+  struct StragglerLease {
+    UnitRef unit;
+    WorkerId first;             ///< who holds the first lease
+    double leased_seconds = 0;  ///< how long the first lease has run
+    double median_seconds = 0;  ///< the job's median unit duration
+  };
+
   struct Counts {
-    uint64_t total = 0, pending = 0, leased = 0, done = 0;
+    uint64_t total = 0, pending = 0, leased = 0, done = 0;  ///< total: released so far
     uint32_t workers = 0;  ///< distinct workers holding leases of the job
   };
 
-  /// Adds a job of `unit_count` units, all pending. A job id already present is a CHECK.
-  void add_job(const std::string& job, uint64_t unit_count);
+  /// Adds a job of `unit_count` units, all pending, or (gated) none pending until released.
+  /// A job id already present is a CHECK.
+  void add_job(const std::string& job, uint64_t unit_count, bool gated = false);
+  /// Makes units of a gated job pending. Units out of range or released before are ignored.
+  void release(const std::string& job, const std::vector<uint64_t>& units);
   /// Forgets a job (finished or cancelled) and its leases.
   void remove_job(const std::string& job);
   bool has_job(const std::string& job) const { return jobs_.count(job) != 0; }
 
-  /// Leases the next pending unit to `worker`; nullopt when nothing is pending.
-  std::optional<UnitRef> lease(const WorkerId& worker);
-  /// Marks a unit done, whoever held it and even when it was back in the queue. Returns false
-  /// when the job is unknown, the unit out of range, or the unit already done.
-  bool complete(const UnitRef& unit);
-  /// Puts a leased unit back in the queue (its worker failed it). False when it was not leased.
+  /// Leases the next pending unit of a job `worker` is not blocked from; nullopt when none.
+  std::optional<UnitRef> lease(const WorkerId& worker, Clock::time_point now = Clock::now());
+  /// Leases to `worker` a second copy of the slowest straggler (policy) it does not hold, of a
+  /// job it is not blocked from; nullopt when there is none.
+  std::optional<StragglerLease> lease_straggler(const WorkerId& worker,
+                                                const StragglerPolicy& policy,
+                                                Clock::time_point now = Clock::now());
+  /// Some leased unit is a straggler that no second worker holds yet.
+  bool has_straggler(const StragglerPolicy& policy, Clock::time_point now = Clock::now()) const;
+  /// Marks a unit done, whoever held it and even when it was back in the queue; every lease of
+  /// it ends. `by`, when it held a lease, gives the unit's duration to the job's median. Returns
+  /// false when the job is unknown, the unit out of range, or the unit already done.
+  bool complete(const UnitRef& unit, const std::optional<WorkerId>& by = std::nullopt,
+                Clock::time_point now = Clock::now());
+  /// Puts a leased unit back in the queue, dropping every lease of it. False when not leased.
   bool requeue(const UnitRef& unit);
-  /// Takes back every lease of `worker` (lost or gone) and returns those units, now pending.
+  /// Ends `worker`'s lease of `unit` (it failed it); the unit goes back to the queue unless
+  /// another worker still holds it. False when `worker` did not hold it.
+  bool requeue(const UnitRef& unit, const WorkerId& worker);
+  /// Takes back every lease of `worker` (lost or gone) and returns the units that are pending
+  /// again (a unit another worker also holds stays leased to that worker).
   std::vector<UnitRef> release_worker(const WorkerId& worker);
 
-  /// The worker holding `unit`, when it is leased.
+  /// `worker` gets no more units of `job` (it keeps failing there); its current leases stand.
+  void block(const std::string& job, const WorkerId& worker);
+  bool is_blocked(const std::string& job, const WorkerId& worker) const;
+  /// The job's median unit duration so far (lease to result), in seconds; 0 when none is done.
+  double median_seconds(const std::string& job) const;
+
+  /// The first worker holding `unit`, when it is leased.
   std::optional<WorkerId> holder(const UnitRef& unit) const;
+  /// Every worker holding `unit` (two while a straggler runs twice).
+  std::vector<WorkerId> holders(const UnitRef& unit) const;
   bool is_done(const UnitRef& unit) const;
   bool has_pending() const;
   Counts counts(const std::string& job) const;
@@ -56,17 +109,31 @@ class Scheduler {
  private:
   struct Job {
     uint64_t total = 0;
+    bool gated = false;
+    uint64_t released = 0;  // gated: units released so far
+    std::vector<bool> was_released;
+    std::set<uint64_t> ready;  // gated: released, never handed out
     uint64_t done_count = 0;
     uint64_t next_fresh = 0;      // units below it were handed out at least once
     std::set<uint64_t> requeued;  // units handed out, taken back, not done
-    std::map<uint64_t, WorkerId> leased;
+    struct Holder {
+      WorkerId worker;
+      Clock::time_point since;
+    };
+    std::map<uint64_t, std::vector<Holder>> leased;  // one holder, two for a straggler
     std::vector<bool> done;
+    std::set<WorkerId> blocked;
+    std::deque<double> durations;  // seconds of the latest units done
   };
   std::map<std::string, Job> jobs_;
   std::vector<std::string> order_;                   // jobs in the order they were added
   std::map<WorkerId, std::set<UnitRef>> by_worker_;  // leases per worker
 
   void drop_lease(const WorkerId& worker, const UnitRef& unit);
+  static double median(const std::deque<double>& values);
+  /// The threshold past which a lease of `j` is a straggler; nullopt when the policy is off or
+  /// the median is not trusted yet.
+  static std::optional<double> straggler_threshold(const Job& j, const StragglerPolicy& policy);
 };
 
 }  // namespace rayfarm::master

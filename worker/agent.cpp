@@ -14,6 +14,7 @@
 #include <unistd.h>
 
 #include "common/bundle/bundle.h"
+#include "common/net/keys.h"
 #include "common/net/socket.h"
 #include "common/protocol/codec.h"
 #include "common/protocol/convert.h"
@@ -35,6 +36,9 @@ std::shared_ptr<spdlog::logger> log() { return get_logger("worker"); }
 
 /// How long a stopping worker waits for its last messages to leave.
 constexpr milliseconds kFinalLinger{2000};
+/// How long a stopping worker waits for the units in hand; past it, it says goodbye without them
+/// and the master requeues them at once.
+constexpr milliseconds kStopGrace{30000};
 
 double seconds_since(Clock::time_point t) {
   return std::chrono::duration<double>(Clock::now() - t).count();
@@ -101,6 +105,7 @@ struct Agent::Impl {
   uint64_t next_seq = 0;
   std::deque<net::Frames> outbox;  // results to send once welcomed again
   std::atomic<uint64_t> units_done{0};
+  std::string reported_handshake;  // the handshake failure logged last
 
   // Shared with the render threads.
   std::mutex prepare_mutex;  // one job is prepared at a time
@@ -165,7 +170,8 @@ struct Agent::Impl {
   }
 
   void connect() {
-    socket = std::make_unique<net::Dealer>(options.master);
+    socket =
+        std::make_unique<net::Dealer>(options.master, net::kDefaultMaxMessageBytes, options.curve);
     last_heard = Clock::now();
     next_heartbeat = last_heard + options.heartbeat.interval;
     say_hello();
@@ -426,6 +432,21 @@ struct Agent::Impl {
     }
   }
 
+  /// Logs a failed security handshake once per cause (the socket keeps retrying by itself, so a
+  /// key added to the master's allow-list later lets the worker in).
+  void check_handshake() {
+    const net::HandshakeStatus st = socket->handshake();
+    if (st.state == net::Handshake::kSucceeded) reported_handshake.clear();
+    if (st.state == net::Handshake::kSucceeded || st.state == net::Handshake::kPending) return;
+    if (st.detail == reported_handshake) return;
+    reported_handshake = st.detail;
+    log()->error("the master at {} did not let this worker in: {}{}; retrying", options.master,
+                 st.detail,
+                 st.state == net::Handshake::kRefused
+                     ? " (add this worker's public key to the master's --worker-keys)"
+                     : "");
+  }
+
   /// Sleeps for the back-off (in short steps, so that a stop is seen) and connects again.
   void reconnect(const std::atomic<bool>& stop) {
     log()->warn("the master at {} is silent for {:.1f} s; reconnecting in {:.1f} s", options.master,
@@ -464,15 +485,29 @@ struct Agent::Impl {
   }
 
   int run(const std::atomic<bool>& stop) {
+    if (!options.curve.enabled()) {
+      if (!net::is_loopback_endpoint(options.master)) {
+        log()->error(
+            "--insecure is allowed only with a master on loopback, and {} is not: give this "
+            "worker its key and the master's public key (--key, --master-key)",
+            options.master);
+        return 1;
+      }
+      log()->warn("INSECURE: no authentication and no encryption to the master at {}",
+                  options.master);
+    }
     try {
       connect();
     } catch (const net::NetError& e) {
       log()->error("{}", e.what());
       return 1;
     }
+    Clock::time_point stop_deadline;
+    bool abandoned = false;
     while (!refused) {
       if (stop.load() && !stopping) {
         stopping = true;
+        stop_deadline = Clock::now() + kStopGrace;
         if (in_flight.empty()) {
           log()->info("stopping");
         } else {
@@ -481,6 +516,14 @@ struct Agent::Impl {
         }
       }
       if (stopping && in_flight.empty()) break;
+      if (stopping && Clock::now() >= stop_deadline) {
+        log()->warn("the {} unit{} in hand did not finish within {} s of the stop; the master "
+                    "takes {} back",
+                    in_flight.size(), in_flight.size() == 1 ? "" : "s", kStopGrace.count() / 1000,
+                    in_flight.size() == 1 ? "it" : "them");
+        abandoned = true;
+        break;
+      }
 
       auto wait = std::chrono::duration_cast<milliseconds>(next_heartbeat - Clock::now());
       wait_and_handle(std::clamp(wait, milliseconds{0}, milliseconds{100}));
@@ -489,10 +532,11 @@ struct Agent::Impl {
         send(encode(wire::Heartbeat{}));
         next_heartbeat = now + options.heartbeat.interval;
       }
+      if (!welcomed) check_handshake();
       if (now - last_heard > options.heartbeat.expiry()) reconnect(stop);
     }
     // Refused mid-unit: let the renders end before the worker does.
-    while (!in_flight.empty()) {
+    while (!in_flight.empty() && !abandoned) {
       {
         std::unique_lock lock(mutex);
         finished_cv.wait(lock, [&] { return !finished.empty(); });

@@ -12,6 +12,7 @@
 #include <memory>
 #include <string>
 
+#include "common/net/socket.h"
 #include "common/protocol/heartbeat.h"
 
 namespace rayfarm::worker {
@@ -25,6 +26,9 @@ struct AgentOptions {
   /// unit's first; 0 = 2 with two or more threads, else 1.
   uint32_t units_in_flight = 0;
   protocol::HeartbeatOptions heartbeat;
+  /// This worker's key pair and the master's public key; empty for a plain socket (--insecure),
+  /// which `run` allows only to a loopback endpoint.
+  net::Curve curve;
 };
 
 class Agent {
@@ -36,7 +40,8 @@ class Agent {
   Agent& operator=(const Agent&) = delete;
 
   /// Serves the master until `stop` becomes true; returns 0 after a clean stop, 1 when the master
-  /// refused this worker (another protocol version) or the endpoint is invalid.
+  /// refused this worker (another protocol version), the endpoint is invalid, or a plain socket
+  /// was asked for on an endpoint that is not loopback. A refused key is logged and retried.
   int run(const std::atomic<bool>& stop);
 
   /// Units rendered and returned so far.

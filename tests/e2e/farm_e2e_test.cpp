@@ -1,12 +1,15 @@
 // The farm end to end, with real processes on loopback: a master, workers and the rayfarm CLI.
 // The farm's EXR must equal `rayfarm render` of the same scene, spp and seed bit for bit, whatever
 // the number of workers, a worker killed mid-job, a worker joining late or duplicate results.
-// Wrong protocol versions are refused, garbage is ignored, and client errors are clear. Every wait
-// is bounded; every process is killed by PID when its test ends, passed or failed.
+// Wrong protocol versions are refused, garbage is ignored, and client errors are clear. Every
+// process uses CURVE keys (made by `rayfarm keygen` and net::write_key_pair) unless a test asks
+// for --insecure. Every wait is bounded; every process is killed by PID when its test ends,
+// passed or failed.
 #include <gtest/gtest.h>
 
 #include <signal.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cstring>
 #include <map>
@@ -17,6 +20,7 @@
 
 #include "common/bundle/bundle.h"
 #include "common/image/exr.h"
+#include "common/net/keys.h"
 #include "common/net/socket.h"
 #include "common/protocol/codec.h"
 #include "common/protocol/convert.h"
@@ -81,7 +85,8 @@ struct RunResult {
 /// A raw DEALER peer speaking the codec, for what the CLI and the worker never send.
 class RawPeer {
  public:
-  explicit RawPeer(const std::string& endpoint) : socket_(endpoint) {}
+  explicit RawPeer(const std::string& endpoint, const net::Curve& curve = {})
+      : socket_(endpoint, net::kDefaultMaxMessageBytes, curve) {}
   void send(const net::Frames& frames) { ASSERT_TRUE(socket_.send(frames)); }
   /// The next message that is not a heartbeat, within `timeout`.
   std::optional<protocol::Decoded> receive(milliseconds timeout = milliseconds{10000}) {
@@ -117,6 +122,13 @@ class FarmTest : public ::testing::Test {
     fs::create_directories(dir_);
     worker_port_ = free_port();
     client_port_ = free_port();
+    // The master's key from the CLI, the others in-process; public keys go to the allow-lists.
+    const RunResult keygen =
+        cli({"keygen", "-o", keys().string(), "--name", "master"}, /*farm=*/false);
+    ASSERT_EQ(keygen.code, 0) << keygen.err;
+    ASSERT_NE(keygen.out.find("master.key_secret"), std::string::npos) << keygen.out;
+    master_keys_ = net::read_key_pair(keys() / "master.key_secret");
+    client_keys_ = peer_key("cli", "clients");
   }
 
   void TearDown() override {
@@ -132,18 +144,65 @@ class FarmTest : public ::testing::Test {
       fs::remove_all(dir_, ec);  // kept for a look
   }
 
+  /// A key pair named `name`, its secret file in keys/own/, its public one in keys/`list`/ (the
+  /// master's allow-list "workers" or "clients") unless `list` is empty.
+  net::KeyPair peer_key(const std::string& name, const std::string& list) {
+    const fs::path secret = keys() / "own" / (name + ".key_secret");
+    if (!fs::exists(secret)) {
+      net::write_key_pair(keys() / "own", name, net::generate_key_pair());
+      if (!list.empty()) {
+        fs::create_directories(keys() / list);
+        fs::copy_file(keys() / "own" / (name + ".key"), keys() / list / (name + ".key"));
+      }
+    }
+    return net::read_key_pair(secret);
+  }
+  fs::path keys() const { return dir_ / "keys"; }
+  fs::path secret_file(const std::string& name) const {
+    return keys() / "own" / (name + ".key_secret");
+  }
+  fs::path master_public_file() const { return keys() / "master.key"; }
+  /// A raw peer's CURVE settings with `keys`.
+  net::Curve curve(const net::KeyPair& keys) const {
+    return {keys.public_key, keys.secret_key, master_keys_.public_key, ""};
+  }
+  /// A raw client with the test's client key, and a raw worker with its own listed key.
+  RawPeer client_peer() { return RawPeer(client_endpoint(), curve(client_keys_)); }
+  RawPeer worker_peer(const std::string& name) {
+    return RawPeer(worker_endpoint(), curve(peer_key(name, "workers")));
+  }
+
   std::string worker_endpoint() const { return "tcp://127.0.0.1:" + std::to_string(worker_port_); }
   std::string client_endpoint() const { return "tcp://127.0.0.1:" + std::to_string(client_port_); }
   const fs::path& dir() const { return dir_; }
 
-  /// Starts the master (again, after a crash, with `log` another file: the log is appended to).
-  void start_master(const std::string& log = "master.log") {
-    master_ = std::make_unique<Process>(
-        std::vector<std::string>{bin("master/rayfarm-master"), "--worker-endpoint",
-                                 worker_endpoint(), "--client-endpoint", client_endpoint(),
-                                 "--data-dir", (dir_ / "data").string(), "--heartbeat-ms", "200",
-                                 "--liveness", "3", "--image-interval-ms", "500"},
-        dir_ / log);
+  /// Starts the master (again, after a crash, with `log` another file: the log is appended to),
+  /// with its key and allow-lists, and `extra` options.
+  /// `liveness` counts heartbeats of 200 ms: 3 lets tests about lost workers run quickly.
+  void start_master(const std::string& log = "master.log",
+                    const std::vector<std::string>& extra = {}, int liveness = 3) {
+    fs::create_directories(keys() / "workers");
+    std::vector<std::string> argv{bin("master/rayfarm-master"),
+                                  "--worker-endpoint",
+                                  worker_endpoint(),
+                                  "--client-endpoint",
+                                  client_endpoint(),
+                                  "--data-dir",
+                                  (dir_ / "data").string(),
+                                  "--heartbeat-ms",
+                                  "200",
+                                  "--liveness",
+                                  std::to_string(liveness),
+                                  "--image-interval-ms",
+                                  "500",
+                                  "--key",
+                                  (keys() / "master.key_secret").string(),
+                                  "--worker-keys",
+                                  (keys() / "workers").string(),
+                                  "--client-keys",
+                                  (keys() / "clients").string()};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    master_ = std::make_unique<Process>(argv, dir_ / log);
     ASSERT_TRUE(
         wait_until([&] { return master_->log().find("master listening") != std::string::npos; },
                    milliseconds{10000}))
@@ -151,13 +210,32 @@ class FarmTest : public ::testing::Test {
         << master_->log();
   }
 
-  Process& start_worker(const std::string& name, int threads = 1) {
-    auto p = std::make_unique<Process>(
-        std::vector<std::string>{
-            bin("worker/rayfarm-worker"), "--master", worker_endpoint(), "--threads",
-            std::to_string(threads), "--cache-dir", (dir_ / ("cache-" + name)).string(), "--name",
-            name, "--heartbeat-ms", "200", "--liveness", "3", "--reconnect-max-ms", "1000"},
-        dir_ / (name + ".log"));
+  /// Starts a worker with its own key, on the master's allow-list; `auth` replaces the key
+  /// options (e.g. another key, or --insecure).
+  Process& start_worker(const std::string& name, int threads = 1,
+                        std::optional<std::vector<std::string>> auth = std::nullopt) {
+    if (!auth) {
+      peer_key(name, "workers");
+      auth = std::vector<std::string>{"--key", secret_file(name).string(), "--master-key",
+                                      master_public_file().string()};
+    }
+    std::vector<std::string> argv{bin("worker/rayfarm-worker"),
+                                  "--master",
+                                  worker_endpoint(),
+                                  "--threads",
+                                  std::to_string(threads),
+                                  "--cache-dir",
+                                  (dir_ / ("cache-" + name)).string(),
+                                  "--name",
+                                  name,
+                                  "--heartbeat-ms",
+                                  "200",
+                                  "--liveness",
+                                  "3",
+                                  "--reconnect-max-ms",
+                                  "1000"};
+    argv.insert(argv.end(), auth->begin(), auth->end());
+    auto p = std::make_unique<Process>(argv, dir_ / (name + ".log"));
     Process& ref = *p;
     workers_[name] = std::move(p);
     return ref;
@@ -165,9 +243,11 @@ class FarmTest : public ::testing::Test {
 
   Process& master() { return *master_; }
 
-  /// Runs the CLI with `args` (and --master for farm commands) and waits for it.
+  /// Runs the CLI with `args` (and, for farm commands, --master and the client's keys, or
+  /// `auth` instead of the keys) and waits for it.
   RunResult cli(std::vector<std::string> args, bool farm = true,
-                milliseconds timeout = milliseconds{90000}) {
+                milliseconds timeout = milliseconds{90000},
+                std::optional<std::vector<std::string>> auth = std::nullopt) {
     static std::atomic<int> counter{0};
     const int n = counter++;
     std::vector<std::string> argv{bin("cli/rayfarm")};
@@ -175,6 +255,11 @@ class FarmTest : public ::testing::Test {
     if (farm) {
       argv.push_back("--master");
       argv.push_back(client_endpoint());
+      if (!auth) {
+        auth = std::vector<std::string>{"--key", secret_file("cli").string(), "--master-key",
+                                        master_public_file().string()};
+      }
+      argv.insert(argv.end(), auth->begin(), auth->end());
     }
     const fs::path out = dir_ / ("cli-" + std::to_string(n) + ".out");
     const fs::path err = dir_ / ("cli-" + std::to_string(n) + ".err");
@@ -227,7 +312,7 @@ class FarmTest : public ::testing::Test {
   }
 
   wire::JobStatus status(const std::string& job) {
-    RawPeer client(client_endpoint());
+    RawPeer client = client_peer();
     wire::StatusRequest request;
     request.set_job_id(job);
     client.send(protocol::encode(request));
@@ -247,6 +332,7 @@ class FarmTest : public ::testing::Test {
   fs::path dir_;
   int worker_port_ = 0, client_port_ = 0;
   int local_count_ = 0;
+  net::KeyPair master_keys_, client_keys_;
   std::unique_ptr<Process> master_;
   std::map<std::string, std::unique_ptr<Process>> workers_;
 };
@@ -255,6 +341,14 @@ TEST_F(FarmTest, TwoWorkersRenderTheCornellBoxBitIdenticalToALocalRender) {
   start_master();
   Process& a = start_worker("wa", 2);  // two threads: two units at once
   Process& b = start_worker("wb");
+  // Both workers are in before the job: otherwise one may render all of it alone.
+  ASSERT_TRUE(wait_until(
+      [&] {
+        const std::string log = master().log();
+        return has_line(log, "worker wa (", ") joined") && has_line(log, "worker wb (", ") joined");
+      },
+      milliseconds{30000}))
+      << master().log();
   const fs::path scene = small_scene("cornell-box", 64);
   const std::vector<std::string> settings{"--spp",       "32", "--seed",       "7",
                                           "--max-depth", "6",  "--integrator", "mis"};
@@ -281,9 +375,46 @@ TEST_F(FarmTest, TwoWorkersRenderTheCornellBoxBitIdenticalToALocalRender) {
   EXPECT_EQ(b.wait(milliseconds{10000}), std::optional<int>(0));
   EXPECT_NE(a.log().find("job j0001: rendered"), std::string::npos) << a.log();
   EXPECT_NE(b.log().find("job j0001: rendered"), std::string::npos) << b.log();
-  EXPECT_NE(master().log().find("left (stopped)"), std::string::npos);
+  EXPECT_TRUE(wait_until(
+      [&] { return master().log().find("left (stopped)") != std::string::npos; },
+      milliseconds{10000}))
+      << master().log();
   master().signal(SIGTERM);
   EXPECT_EQ(master().wait(milliseconds{10000}), std::optional<int>(0));
+}
+
+TEST_F(FarmTest, AnAdaptiveJobStopsTileByTileAndEqualsTheLocalRender) {
+  // Under a target error, which units a job merges depends only on the scene and the settings,
+  // never on which worker returned what when: the farm's image is still the local one, bit for
+  // bit, and the tiles that converged got fewer samples than the noisy ones.
+  start_master();
+  start_worker("wa", 2);
+  start_worker("wb");
+  const fs::path scene = small_scene("cornell-box", 32);
+  const std::vector<std::string> settings{"--spp",      "1024", "--seed",         "3",
+                                          "--max-depth", "6",   "--target-error", "2e-2",
+                                          "--tile",      "16",  "--pass-spp",     "16"};
+  const fs::path local = local_render(scene, settings);
+  std::vector<std::string> job_settings = settings;
+  job_settings.insert(job_settings.end(), {"--reference", local.string()});
+  const std::string job = submit(scene, job_settings, /*wait=*/true);
+  EXPECT_TRUE(bit_identical(fetch(job), local));
+
+  const wire::JobStatus st = status(job);
+  EXPECT_EQ(st.state(), wire::JOB_DONE);
+  EXPECT_GT(st.tiles_converged(), 0u);
+  EXPECT_LT(st.units_done(), st.units_total()) << "no tile stopped early";
+  EXPECT_LT(st.spp_done(), 1024u);
+  EXPECT_TRUE(st.stop_reason() == "target error" || st.stop_reason() == "spp") << st.stop_reason();
+  EXPECT_GT(st.est_rel_mse(), 0.0);
+  EXPECT_EQ(st.ref_rel_mse(), 0.0) << "measured against the identical local image";
+
+  // The error record: every pass logged with its estimate, and `rayfarm report` draws the plot.
+  EXPECT_NE(master().log().find("estimated relMSE"), std::string::npos);
+  const RunResult report = cli({"report", job, "-o", (fs::path(local).parent_path() / "plot.png").string()});
+  EXPECT_EQ(report.code, 0) << report.err;
+  EXPECT_NE(report.out.find("stop"), std::string::npos) << report.out;
+  EXPECT_TRUE(fs::exists(fs::path(local).parent_path() / "plot.png"));
 }
 
 TEST_F(FarmTest, AWorkerKilledMidJobLosesNothing) {
@@ -325,15 +456,22 @@ TEST_F(FarmTest, AWorkerKilledMidJobLosesNothing) {
 }
 
 TEST_F(FarmTest, AWorkerThatJoinsLateTakesWork) {
-  start_master();
-  start_worker("early");
+  start_master("master.log", {}, /*liveness=*/100);  // 20 s: the early worker is stopped a while
+  Process& early = start_worker("early");
   const fs::path scene = small_scene("cornell-box", 64);
   const std::vector<std::string> settings{"--spp", "512", "--seed", "11"};
   std::vector<std::string> job_settings = settings;
   job_settings.insert(job_settings.end(), {"--tile", "32", "--pass-spp", "32"});  // 64 units
   const std::string job = submit(scene, job_settings);
   wait_for_units(job, 4);
+  // The early worker waits (frozen, its lease safe within the 20 s liveness window) until
+  // the late one has asked for work: otherwise it may finish the job before the late one is in.
+  early.signal(SIGSTOP);
   Process& late = start_worker("late");
+  const bool asked = wait_until(
+      [&] { return late.log().find("fetching bundle") != std::string::npos; }, milliseconds{30000});
+  early.signal(SIGCONT);
+  ASSERT_TRUE(asked) << late.log();
   wait_for_state(job, wire::JOB_DONE);
   late.signal(SIGTERM);
   ASSERT_EQ(late.wait(milliseconds{10000}), std::optional<int>(0));
@@ -359,27 +497,36 @@ TEST_F(FarmTest, WorkersReconnectWhenTheMasterRestarts) {
   // A master that comes back at once: the connection heals by itself, the worker says hello again.
   master().signal(SIGKILL);
   ASSERT_TRUE(master().wait(milliseconds{5000}));
-  start_master(
-      "master-2.log");  // same ports, same data dir: the job is restarted from the beginning
-  EXPECT_NE(master().log().find("job j0001 restarted from the beginning"), std::string::npos)
+  start_master("master-2.log");  // same ports, same data dir: the job resumes (checkpoint.h)
+  EXPECT_TRUE(master().log().find("job j0001 resumed from checkpoint at ") != std::string::npos ||
+              master().log().find("job j0001 restarted from the beginning") != std::string::npos)
       << master().log();
-  wait_for_units(job, 4);
+  // The resumed job may already count the units we waited for: wait for the worker's second hello
+  // and for new units merged by this master.
+  ASSERT_TRUE(wait_until([&] { return count_of(worker.log(), "connected to the master") >= 2; },
+                         milliseconds{10000}))
+      << worker.log();
+  const uint64_t resumed = status(job).units_done();
+  wait_for_units(job, std::min<uint64_t>(resumed + 2, 64));
 
   // A master away for longer than the liveness window: the worker reconnects with back-off.
+  const size_t silences = count_of(worker.log(), "is silent for");
   master().signal(SIGKILL);
   ASSERT_TRUE(master().wait(milliseconds{5000}));
-  ASSERT_TRUE(wait_until([&] { return worker.log().find("is silent for") != std::string::npos; },
+  ASSERT_TRUE(wait_until([&] { return count_of(worker.log(), "is silent for") > silences; },
                          milliseconds{10000}));
   std::this_thread::sleep_for(milliseconds{1500});
   start_master("master-3.log");
   wait_for_state(job, wire::JOB_DONE);
   EXPECT_TRUE(has_line(master().log(), "worker steady (", ") joined"));
-  EXPECT_EQ(count_of(worker.log(), "connected to the master"), 3u) << worker.log();
+  // Three hellos at least: on a loaded machine a missed heartbeat may add one more.
+  EXPECT_GE(count_of(worker.log(), "connected to the master"), 3u) << worker.log();
   EXPECT_TRUE(bit_identical(fetch(job), local_render(scene, settings)));
 }
 
 TEST_F(FarmTest, ADuplicateResultIsDroppedAndChangesNothing) {
-  start_master();
+  peer_key("twice", "workers");
+  start_master("master.log", {}, /*liveness=*/100);  // 20 s: the fake sends no heartbeats
   const fs::path scene = small_scene("cornell-box", 32);
   const std::vector<std::string> settings{"--spp", "16", "--seed", "5"};
   std::vector<std::string> job_settings = settings;
@@ -387,7 +534,7 @@ TEST_F(FarmTest, ADuplicateResultIsDroppedAndChangesNothing) {
   const std::string job = submit(scene, job_settings);
 
   // A worker of our own that sends every result twice.
-  RawPeer fake(worker_endpoint());
+  RawPeer fake = worker_peer("twice");
   wire::Hello hello;
   hello.set_role(wire::ROLE_WORKER);
   hello.set_name("twice");
@@ -425,10 +572,11 @@ TEST_F(FarmTest, ADuplicateResultIsDroppedAndChangesNothing) {
 }
 
 TEST_F(FarmTest, APeerWithAnotherProtocolVersionIsRefused) {
+  peer_key("future", "workers");
   start_master();
   for (const auto& [endpoint, role] : {std::pair{client_endpoint(), wire::ROLE_CLIENT},
                                        std::pair{worker_endpoint(), wire::ROLE_WORKER}}) {
-    RawPeer peer(endpoint);
+    RawPeer peer = role == wire::ROLE_CLIENT ? client_peer() : worker_peer("future");
     wire::Hello hello;
     hello.set_role(role);
     hello.set_name("from-the-future");
@@ -445,6 +593,8 @@ TEST_F(FarmTest, APeerWithAnotherProtocolVersionIsRefused) {
 }
 
 TEST_F(FarmTest, GarbageOnEitherSocketIsLoggedAndIgnored) {
+  peer_key("garbage", "workers");
+  peer_key("w", "workers");
   start_master();
   std::mt19937 rng(9);
   std::string noise(300, '\0');
@@ -458,8 +608,8 @@ TEST_F(FarmTest, GarbageOnEitherSocketIsLoggedAndIgnored) {
       {noise, noise},
       {"", ""},
   };
-  RawPeer client(client_endpoint());
-  RawPeer worker(worker_endpoint());
+  RawPeer client = client_peer();
+  RawPeer worker = worker_peer("garbage");
   for (const auto& frames : garbage) {
     client.send(frames);
     worker.send(frames);
@@ -516,7 +666,7 @@ TEST_F(FarmTest, ClientErrorsAreClear) {
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("scene.json"), std::string::npos) << r.err;
   // ...and by the master, which returns the parser's message.
-  RawPeer client(client_endpoint());
+  RawPeer client = client_peer();
   wire::SubmitJob request;
   protocol::bundle_to_wire(make_bundle({{"scene.json", "{\"film\": {\"width\": -3}}"}}),
                            request.mutable_bundle());
@@ -534,6 +684,228 @@ TEST_F(FarmTest, ClientErrorsAreClear) {
   EXPECT_EQ(cancelled.code, 0);
   EXPECT_NE(cancelled.out.find("cancelled"), std::string::npos);
   EXPECT_EQ(cli({"watch", job}).code, 2);
+}
+
+// --- Keys and limits ---
+
+TEST_F(FarmTest, AClientWithAWrongKeyIsRefusedClearlyAndTheMasterLogsItsAddress) {
+  const net::KeyPair mallory = peer_key("mallory", "");  // on no allow-list
+  peer_key("w1", "workers");
+  start_master();
+  {
+    const auto start = Clock::now();
+    const RunResult r =
+        cli({"list", "--timeout", "30"}, true, milliseconds{60000},
+            std::vector<std::string>{"--key", secret_file("mallory").string(), "--master-key",
+                                     master_public_file().string()});
+    EXPECT_EQ(r.code, 4) << r.err;
+    EXPECT_NE(r.err.find("the master at " + client_endpoint() +
+                         " did not let this client in: authentication refused"),
+              std::string::npos)
+        << r.err;
+    EXPECT_LT(Clock::now() - start, seconds{15}) << "the refusal should not wait for --timeout";
+  }
+  // A worker's key cannot be used to submit either.
+  {
+    const RunResult r =
+        cli({"list", "--timeout", "5"}, true, milliseconds{20000},
+            std::vector<std::string>{"--key", secret_file("w1").string(), "--master-key",
+                                     master_public_file().string()});
+    EXPECT_EQ(r.code, 4) << r.err;
+    EXPECT_NE(r.err.find("authentication refused"), std::string::npos) << r.err;
+  }
+  // The right client key with a wrong master key: the master hangs up, and the message says why.
+  {
+    const RunResult r =
+        cli({"list", "--timeout", "5"}, true, milliseconds{20000},
+            std::vector<std::string>{"--key", secret_file("cli").string(), "--master-key",
+                                     net::generate_key_pair().public_key});
+    EXPECT_EQ(r.code, 4) << r.err;
+    EXPECT_NE(r.err.find("closed the connection during the CURVE handshake"), std::string::npos)
+        << r.err;
+    EXPECT_NE(r.err.find("(--master-key) is probably wrong"), std::string::npos) << r.err;
+  }
+  ASSERT_TRUE(wait_until(
+      [&] {
+        return has_line(
+            master().log(),
+            "refused a client connection from 127.0.0.1: key " + net::key_label(mallory.public_key),
+            "is not on the clients allow-list");
+      },
+      milliseconds{5000}))
+      << master().log();
+  EXPECT_TRUE(has_line(master().log(), "refused a client connection from 127.0.0.1",
+                       "(it is workers key 'w1')"))
+      << master().log();
+  // No key at all: the CLI says what to give before it tries.
+  const RunResult none = cli({"list"}, true, milliseconds{20000}, std::vector<std::string>{});
+  EXPECT_EQ(none.code, 1);
+  EXPECT_NE(none.err.find("--key FILE"), std::string::npos) << none.err;
+  // The master serves its own clients all along.
+  EXPECT_EQ(cli({"list"}).code, 0);
+}
+
+TEST_F(FarmTest, AnUnknownKeyPosingAsAWorkerGetsNoWork) {
+  peer_key("impostor", "");  // not on the workers' list
+  start_master();
+  const fs::path scene = small_scene("furnace", 16);
+  const std::string job = submit(scene, {"--spp", "8", "--tile", "8"});
+  Process& impostor =
+      start_worker("impostor", 1,
+                   std::vector<std::string>{"--key", secret_file("impostor").string(),
+                                            "--master-key", master_public_file().string()});
+  // The client's own key posing as a worker: refused too.
+  Process& client_as_worker =
+      start_worker("client-key", 1,
+                   std::vector<std::string>{"--key", secret_file("cli").string(), "--master-key",
+                                            master_public_file().string()});
+  ASSERT_TRUE(wait_until(
+      [&] {
+        return impostor.log().find("did not let this worker in: authentication refused") !=
+                   std::string::npos &&
+               client_as_worker.log().find("authentication refused") != std::string::npos;
+      },
+      milliseconds{10000}))
+      << impostor.log() << client_as_worker.log();
+  EXPECT_NE(impostor.log().find("add this worker's public key to the master's --worker-keys"),
+            std::string::npos)
+      << impostor.log();
+  std::this_thread::sleep_for(milliseconds{500});
+  const wire::JobStatus st = status(job);
+  EXPECT_EQ(st.units_done(), 0u);
+  EXPECT_EQ(st.units_leased(), 0u);
+  EXPECT_EQ(st.workers_total(), 0u);
+  const std::string log = master().log();
+  EXPECT_TRUE(has_line(log, "refused a worker connection from 127.0.0.1: key ",
+                       "is not on the workers allow-list"))
+      << log;
+  EXPECT_TRUE(has_line(log, "refused a worker connection from 127.0.0.1", "(it is clients key"))
+      << log;
+  EXPECT_EQ(log.find("joined"), std::string::npos) << log;
+  EXPECT_TRUE(impostor.running());  // it keeps knocking, in case its key is added
+
+  // A listed worker does the job.
+  start_worker("honest");
+  wait_for_state(job, wire::JOB_DONE);
+  EXPECT_TRUE(has_line(master().log(), "worker honest (", "joined with key 'honest'"))
+      << master().log();
+}
+
+TEST_F(FarmTest, SubmissionsOverALimitAreRefusedByNameWhileOthersComplete) {
+  start_master("master.log", {"--max-queued-jobs", "2", "--max-spp", "64", "--max-image-pixels",
+                              "1024", "--max-bundle-mb", "1", "--max-message-mb", "3"});
+  const fs::path small = small_scene("furnace", 16);
+  const std::string a = submit(small, {"--spp", "16", "--tile", "8"});
+  {
+    const RunResult r = cli({"submit", small_scene("cornell-box", 48).string()});
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("the master rejected the job: the image is 48x48 = 2304 pixels, over "
+                         "the master's limit of 1024 pixels (--max-image-pixels)"),
+              std::string::npos)
+        << r.err;
+  }
+  {
+    const RunResult r = cli({"submit", small.string(), "--spp", "1000"});
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("1000 samples per pixel is over the master's limit of 64 spp (--max-spp)"),
+              std::string::npos)
+        << r.err;
+  }
+  // A bundle over --max-bundle-mb gets a refusal; a message over --max-message-mb is cut off by
+  // ZeroMQ, and the master goes on serving.
+  const std::string scene_text = "{\"film\": {\"width\": 8, \"height\": 8}}";
+  for (const size_t extra : {size_t{2} << 20, size_t{4} << 20}) {
+    RawPeer client = client_peer();
+    wire::SubmitJob request;
+    protocol::bundle_to_wire(
+        make_bundle({{"scene.json", scene_text}, {"padding.bin", std::string(extra, 'x')}}),
+        request.mutable_bundle());
+    request.set_scene_path("scene.json");
+    client.send(protocol::encode(request));
+    auto reply = client.receive(milliseconds{extra > (size_t{3} << 20) ? 1000 : 10000});
+    if (extra < (size_t{3} << 20)) {
+      ASSERT_TRUE(reply && reply->as<wire::SubmitReply>());
+      EXPECT_NE(reply->as<wire::SubmitReply>()->error().find(
+                    "over the master's limit of 1.0 MiB (--max-bundle-mb)"),
+                std::string::npos)
+          << reply->as<wire::SubmitReply>()->error();
+    } else {
+      EXPECT_FALSE(reply) << "a message over --max-message-mb was answered";
+    }
+  }
+  const std::string b = submit(small, {"--spp", "8", "--tile", "8"});
+  {
+    const RunResult r = cli({"submit", small.string()});
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("the master's queue is full: 2 jobs are queued or running, the limit is 2 "
+                         "(--max-queued-jobs)"),
+              std::string::npos)
+        << r.err;
+  }
+  EXPECT_GE(count_of(master().log(), "job refused"), 4u) << master().log();
+  start_worker("w");
+  wait_for_state(a, wire::JOB_DONE);
+  wait_for_state(b, wire::JOB_DONE);
+  EXPECT_EQ(cli({"list"}).code, 0);
+}
+
+TEST_F(FarmTest, InsecureWorksOnLoopbackOnlyAndSaysSoLoudly) {
+  // A master with plain sockets on a public endpoint refuses to start, and so does one without
+  // keys that did not ask for --insecure.
+  const std::vector<std::string> base{bin("master/rayfarm-master"), "--client-endpoint",
+                                      client_endpoint(), "--data-dir", (dir() / "data").string()};
+  {
+    std::vector<std::string> argv = base;
+    argv.insert(argv.end(), {"--insecure", "--worker-endpoint",
+                             "tcp://0.0.0.0:" + std::to_string(free_port())});
+    Process p(argv, dir() / "public.log");
+    EXPECT_EQ(p.wait(milliseconds{10000}), std::optional<int>(1));
+    EXPECT_NE(p.log().find("--insecure is allowed only on loopback endpoints"), std::string::npos)
+        << p.log();
+  }
+  {
+    std::vector<std::string> argv = base;
+    argv.insert(argv.end(), {"--worker-endpoint", worker_endpoint()});
+    Process p(argv, dir() / "keyless.log");
+    EXPECT_EQ(p.wait(milliseconds{10000}), std::optional<int>(1));
+    EXPECT_NE(p.log().find("the master needs its key"), std::string::npos) << p.log();
+  }
+  // Workers and clients refuse --insecure towards a master that is not on loopback.
+  {
+    Process w({bin("worker/rayfarm-worker"), "--insecure", "--master", "tcp://192.0.2.1:5555",
+               "--cache-dir", (dir() / "c").string()},
+              dir() / "public-worker.log");
+    EXPECT_EQ(w.wait(milliseconds{10000}), std::optional<int>(1));
+    EXPECT_NE(w.log().find("--insecure is allowed only with a master on loopback"),
+              std::string::npos)
+        << w.log();
+    const RunResult r = cli({"list", "--insecure", "--master", "tcp://192.0.2.1:5556"}, false);
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("--insecure is allowed only with a master on loopback"), std::string::npos)
+        << r.err;
+  }
+  // On loopback it works, with a warning in every log.
+  {
+    std::vector<std::string> argv = base;
+    argv.insert(argv.end(), {"--insecure", "--worker-endpoint", worker_endpoint(),
+                             "--heartbeat-ms", "200", "--liveness", "3"});
+    Process m(argv, dir() / "insecure-master.log");
+    ASSERT_TRUE(wait_until([&] { return m.log().find("master listening") != std::string::npos; },
+                           milliseconds{10000}))
+        << m.log();
+    EXPECT_NE(m.log().find("INSECURE: no authentication and no encryption"), std::string::npos);
+    Process& w = start_worker("plain", 1, std::vector<std::string>{"--insecure"});
+    const std::vector<std::string> plain{"--insecure"};
+    const RunResult r = cli({"submit", small_scene("furnace", 16).string(), "--spp", "4", "--wait"},
+                            true, milliseconds{60000}, plain);
+    EXPECT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.err.find("INSECURE"), std::string::npos) << r.err;
+    EXPECT_NE(w.log().find("INSECURE"), std::string::npos) << w.log();
+    // A client with keys cannot talk to a plain master: it is told the mechanisms differ.
+    const RunResult keyed = cli({"list", "--timeout", "5"});
+    EXPECT_EQ(keyed.code, 4) << keyed.err;
+    EXPECT_NE(keyed.err.find("--insecure"), std::string::npos) << keyed.err;
+  }
 }
 
 }  // namespace

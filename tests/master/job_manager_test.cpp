@@ -7,6 +7,10 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <chrono>
+#include <algorithm>
+#include <cmath>
+#include <thread>
 #include <fstream>
 #include <iterator>
 
@@ -49,7 +53,9 @@ wire::SubmitJob job_with_scene_text(const std::string& text) {
 wire::UnitResult result_for(const wire::WorkUnit& unit, double value = 0.5) {
   const TileRect rect = protocol::rect_from_wire(unit.tile());
   TileResult r(rect, {unit.sample_begin(), unit.sample_end()});
-  for (auto& s : r.sum) s = to_fixed(value * (unit.sample_end() - unit.sample_begin()));
+  const double n = unit.sample_end() - unit.sample_begin();
+  for (auto& s : r.sum) s = to_fixed(value * n);
+  for (auto& s : r.sum_sq) s = to_fixed(value * value * n);
   return protocol::result_to_wire(unit.job_id(), unit.unit_id(), r, 0.01);
 }
 
@@ -167,22 +173,56 @@ TEST_F(JobManagerTest, InconsistentResultsAreRejectedAndTheUnitRequeued) {
   EXPECT_EQ(jobs.on_result("w1", unknown), MergeOutcome::kRejected);
 }
 
-TEST_F(JobManagerTest, RepeatedUnitFailuresFailTheJob) {
+TEST_F(JobManagerTest, AUnitThatFailsOnThreeWorkersFailsTheJobWithTheirMessages) {
   const std::string id = jobs.submit(furnace_job(4, 16, 4));
-  for (int attempt = 0; attempt < 3; ++attempt) {
-    const auto unit = jobs.next_unit("w1");
+  for (const std::string w : {"w1", "w2", "w3"}) {
+    const auto unit = jobs.next_unit(w);
     ASSERT_TRUE(unit);
     EXPECT_EQ(unit->unit_id(), 0u);
     wire::UnitFailed failed;
     failed.set_job_id(id);
     failed.set_unit_id(0);
-    failed.set_reason("out of memory");
-    jobs.on_unit_failed("w1", failed);
+    failed.set_reason("out of memory on " + w);
+    jobs.on_unit_failed(w, failed);
   }
   const auto st = jobs.status(id, 0);
   EXPECT_EQ(st->state(), wire::JOB_FAILED);
-  EXPECT_NE(st->error().find("out of memory"), std::string::npos);
+  EXPECT_NE(st->error().find("unit 0 failed on 3 different workers"), std::string::npos)
+      << st->error();
+  for (const char* w : {"w1", "w2", "w3"})
+    EXPECT_NE(st->error().find(std::string("out of memory on ") + w), std::string::npos);
   EXPECT_FALSE(jobs.next_unit("w1"));
+}
+
+TEST_F(JobManagerTest, AWorkerThatKeepsFailingIsBlockedFromTheJobOnly) {
+  const std::string id = jobs.submit(furnace_job(4, 16, 4));  // 4 units
+  // The same unit fails three times on one worker: the job goes on, the worker is blocked.
+  for (int attempt = 0; attempt < 3; ++attempt) {
+    const auto unit = jobs.next_unit("bad");
+    ASSERT_TRUE(unit);
+    wire::UnitFailed failed;
+    failed.set_job_id(id);
+    failed.set_unit_id(unit->unit_id());
+    failed.set_reason("GPU fell off the bus");
+    jobs.on_unit_failed("bad", failed);
+  }
+  EXPECT_EQ(jobs.status(id, 0)->state(), wire::JOB_RUNNING);
+  EXPECT_FALSE(jobs.next_unit("bad")) << "blocked from the only job";
+  // Another job's units still go to it; malformed results count like failures.
+  const std::string other = jobs.submit(furnace_job(4, 16, 4));
+  for (int attempt = 0; attempt < 3; ++attempt) {
+    const auto unit = jobs.next_unit("bad");
+    ASSERT_TRUE(unit);
+    EXPECT_EQ(unit->job_id(), other);
+    wire::UnitResult bad = result_for(*unit);
+    bad.mutable_sum()->resize(8);
+    EXPECT_EQ(jobs.on_result("bad", bad), MergeOutcome::kRejected);
+  }
+  EXPECT_FALSE(jobs.next_unit("bad"));
+  // Good workers finish both jobs.
+  while (auto unit = jobs.next_unit("good")) jobs.on_result("good", result_for(*unit));
+  EXPECT_EQ(jobs.status(id, 0)->state(), wire::JOB_DONE);
+  EXPECT_EQ(jobs.status(other, 0)->state(), wire::JOB_DONE);
 }
 
 TEST_F(JobManagerTest, CancelStopsHandingOutUnitsAndKeepsTheImage) {
@@ -217,6 +257,337 @@ TEST_F(JobManagerTest, UnfinishedJobsRestartAfterAMasterRestart) {
   // The bundle is served from the data dir, and new ids do not collide.
   EXPECT_TRUE(restarted.bundle(first->bundle_hash()));
   EXPECT_EQ(restarted.submit(furnace_job(4, 32, 4)), "j0003");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Stopping rules: target error, time limit, reference image
+
+/// A 2x2 EXR of constant `value`, as bytes.
+std::string constant_exr(const TempDir& dir, uint32_t width, uint32_t height, float value) {
+  Image image;
+  image.width = width;
+  image.height = height;
+  image.rgb.assign(size_t{width} * height * 3, value);
+  const fs::path path = dir.path() / "reference.exr";
+  write_exr(path, image);
+  return read_file(path);
+}
+
+TEST_F(JobManagerTest, ATargetErrorStopsConvergedTilesAndSaysWhy) {
+  wire::SubmitJob request = furnace_job(64, 16, 4);  // 4 tiles x 16 passes
+  request.mutable_overrides()->set_target_error(1e-3);
+  request.mutable_overrides()->set_min_passes(2);
+  const std::string id = jobs.submit(request);
+  EXPECT_EQ(jobs.status(id, 1)->units_total(), 64u);
+
+  // Only the first two passes are out; nothing more until they are merged.
+  std::vector<wire::WorkUnit> units;
+  while (auto unit = jobs.next_unit("w1")) units.push_back(*unit);
+  ASSERT_EQ(units.size(), 8u);
+  EXPECT_EQ(units.back().pass(), 1u);
+
+  // A result for a unit the rules never released is refused, and changes nothing.
+  wire::WorkUnit never = units.back();
+  never.set_unit_id(12);  // pass 3
+  never.set_sample_begin(12);
+  never.set_sample_end(16);
+  EXPECT_EQ(jobs.on_result("w1", result_for(never)), MergeOutcome::kRejected);
+
+  // Constant samples have no variance: every tile meets the target after its minimum.
+  for (const auto& unit : units) EXPECT_EQ(jobs.on_result("w1", result_for(unit)), MergeOutcome::kMerged);
+  const auto st = jobs.status(id, 1);
+  EXPECT_EQ(st->state(), wire::JOB_DONE);
+  EXPECT_EQ(st->stop_reason(), "target error");
+  EXPECT_EQ(st->units_done(), 8u);
+  EXPECT_EQ(st->spp_done(), 8u);
+  EXPECT_DOUBLE_EQ(st->spp_mean(), 8.0);
+  EXPECT_EQ(st->tiles_converged(), 4u);
+  EXPECT_EQ(st->tiles_total(), 4u);
+  EXPECT_EQ(st->est_rel_mse(), 0.0);
+  EXPECT_LT(st->ref_rel_mse(), 0.0) << "no reference, no measured error";
+
+  // The error record is on disk and served with the image.
+  const wire::ImageData data = jobs.image(id);
+  EXPECT_NE(data.error_csv().find("time_s"), std::string::npos);
+  EXPECT_FALSE(data.error_png().empty());
+  const Image image = read_exr(dir.path() / "data" / "jobs" / id / "image.exr");
+  ASSERT_TRUE(image.extra.count("variance.R"));
+  ASSERT_TRUE(image.extra.count("spp.Y"));
+  EXPECT_EQ(image.extra.at("spp.Y")[0], 8.0f);
+  EXPECT_EQ(image.extra.at("variance.G")[0], 0.0f);
+
+  // The figures survive a master restart.
+  JobStore store2(dir.path() / "data");
+  JobManager restarted(store2);
+  restarted.recover();
+  EXPECT_EQ(restarted.status(id, 0)->stop_reason(), "target error");
+  EXPECT_DOUBLE_EQ(restarted.status(id, 0)->spp_mean(), 8.0);
+}
+
+TEST_F(JobManagerTest, ATimeLimitEndsTheJobWithWhatIsMerged) {
+  wire::SubmitJob request = furnace_job(64, 16, 4);
+  request.mutable_overrides()->set_time_limit_s(2.0);
+  const std::string id = jobs.submit(request);
+  const auto unit = jobs.next_unit("w1");  // the clock starts with the first unit out
+  ASSERT_TRUE(unit);
+  EXPECT_EQ(jobs.on_result("w1", result_for(*unit)), MergeOutcome::kMerged);
+  jobs.tick();
+  EXPECT_EQ(jobs.status(id, 1)->state(), wire::JOB_RUNNING);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (jobs.status(id, 1)->state() == wire::JOB_RUNNING &&
+         std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    jobs.tick();
+  }
+  const auto st = jobs.status(id, 1);
+  EXPECT_EQ(st->state(), wire::JOB_DONE);
+  EXPECT_EQ(st->stop_reason(), "time limit");
+  EXPECT_EQ(st->units_done(), 1u);
+  EXPECT_FALSE(jobs.next_unit("w1")) << "a finished job hands out nothing";
+  EXPECT_NO_THROW(jobs.image(id));
+}
+
+TEST_F(JobManagerTest, AReferenceMustFitTheImageAndIsMeasuredAgainst) {
+  wire::SubmitJob request = furnace_job(8, 16, 4);
+  request.set_reference_exr(constant_exr(dir, 16, 16, 0.5f));
+  try {
+    jobs.submit(request);
+    FAIL() << "accepted a reference of the wrong size";
+  } catch (const JobRejected& e) {
+    EXPECT_NE(std::string(e.what()).find("16x16"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("32x32"), std::string::npos) << e.what();
+  }
+  request.set_reference_exr("not an EXR");
+  EXPECT_THROW(jobs.submit(request), JobRejected);
+
+  request.set_reference_exr(constant_exr(dir, 32, 32, 0.25f));
+  const std::string id = jobs.submit(request);
+  while (auto unit = jobs.next_unit("w1")) jobs.on_result("w1", result_for(*unit, 0.5));
+  const auto st = jobs.status(id, 1);
+  EXPECT_EQ(st->state(), wire::JOB_DONE);
+  // Every value is 0.5 against 0.25: (0.25)^2 / (0.25^2 + 0.01).
+  EXPECT_NEAR(st->ref_rel_mse(), 0.0625 / 0.0725, 1e-6);
+  EXPECT_NE(jobs.image(id).error_csv().find(",0.8620"), std::string::npos)
+      << jobs.image(id).error_csv();
+}
+
+TEST_F(JobManagerTest, BadStoppingRulesAreRejected) {
+  wire::SubmitJob request = furnace_job(8, 16, 4);
+  request.mutable_overrides()->set_target_error(-1);
+  EXPECT_THROW(jobs.submit(request), JobRejected);
+  request.mutable_overrides()->set_target_error(std::nan(""));
+  EXPECT_THROW(jobs.submit(request), JobRejected);
+  request.mutable_overrides()->set_target_error(0);
+  request.mutable_overrides()->set_time_limit_s(INFINITY);
+  EXPECT_THROW(jobs.submit(request), JobRejected);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Durability: checkpoints and resuming after a master restart
+
+/// A result whose samples vary by tile (so the error estimate, and a target error's decisions,
+/// differ from tile to tile), exactly the same whenever it is made.
+wire::UnitResult noisy_result_for(const wire::WorkUnit& unit) {
+  const TileRect rect = protocol::rect_from_wire(unit.tile());
+  TileResult r(rect, {unit.sample_begin(), unit.sample_end()});
+  const double n = unit.sample_end() - unit.sample_begin();
+  const double v = 0.25 + 0.01 * (rect.x0 + 3 * rect.y0);
+  const double spread = 1.0 + (rect.x0 / 8 + rect.y0 / 8) % 4;
+  for (size_t i = 0; i < r.sum.size(); ++i) {
+    r.sum[i] = to_fixed(v * n + 1e-3 * double(i % 7) + 1e-4 * unit.unit_id());
+    r.sum_sq[i] = to_fixed(spread * v * v * n);
+  }
+  r.rays = 100 + unit.unit_id();
+  return protocol::result_to_wire(unit.job_id(), unit.unit_id(), r, 0.01);
+}
+
+/// Leases and merges up to `limit` units from `worker`; returns how many were merged.
+size_t merge_units(JobManager& jobs, size_t limit, const std::string& worker = "w1") {
+  size_t merged = 0;
+  while (merged < limit) {
+    const auto unit = jobs.next_unit(worker);
+    if (!unit) break;
+    if (jobs.on_result(worker, noisy_result_for(*unit)) == MergeOutcome::kMerged) ++merged;
+  }
+  return merged;
+}
+
+/// The pixels of a job's image.
+std::vector<float> pixels_of(const fs::path& data, const std::string& id) {
+  return read_exr(data / "jobs" / id / "image.exr").rgb;
+}
+
+/// The same job rendered without interruption, in a data dir of its own: its final pixels.
+std::vector<float> uninterrupted(const wire::SubmitJob& request, wire::JobStatus* status = nullptr) {
+  TempDir other;
+  JobStore other_store(other.path() / "data");
+  JobManager manager(other_store);
+  const std::string id = manager.submit(request);
+  merge_units(manager, 100000);
+  EXPECT_EQ(manager.status(id, 0)->state(), wire::JOB_DONE);
+  if (status) *status = *manager.status(id, 0);
+  return pixels_of(other.path() / "data", id);
+}
+
+JobManagerOptions checkpoint_every_tick() {
+  JobManagerOptions o;
+  o.checkpoint_interval = std::chrono::milliseconds{1};
+  return o;
+}
+
+void checkpoint_now(JobManager& jobs) {
+  std::this_thread::sleep_for(std::chrono::milliseconds{3});
+  jobs.tick();
+  jobs.wait_for_checkpoints();
+}
+
+TEST_F(JobManagerTest, AJobResumesFromItsCheckpointAndEndsBitIdentical) {
+  const wire::SubmitJob request = furnace_job(16, 8, 4);  // 16 tiles x 4 passes = 64 units
+  const std::vector<float> expected = uninterrupted(request);
+
+  JobManager first(store, checkpoint_every_tick());
+  const std::string id = first.submit(request);
+  EXPECT_EQ(merge_units(first, 23), 23u);
+  checkpoint_now(first);
+  // Merged after the checkpoint, and units leased when the master dies: rendered again later.
+  merge_units(first, 5);
+  ASSERT_TRUE(first.next_unit("w2"));
+  EXPECT_TRUE(fs::exists(dir.path() / "data" / "jobs" / id / "checkpoint-0.bin"));
+
+  JobStore store2(dir.path() / "data");
+  JobManager resumed(store2);
+  EXPECT_EQ(resumed.recover(), 1u);
+  auto st = resumed.status(id, 0);
+  EXPECT_EQ(st->state(), wire::JOB_RUNNING);
+  EXPECT_EQ(st->units_done(), 23u);
+  EXPECT_EQ(st->passes_done(), 1u);
+  EXPECT_GT(st->elapsed_seconds(), 0.0);
+  // A unit merged before the checkpoint is a duplicate now; nothing is merged twice.
+  const auto next = resumed.next_unit("w3");
+  ASSERT_TRUE(next);
+  EXPECT_EQ(next->unit_id(), 23u) << "the first unit not merged at the checkpoint";
+  wire::WorkUnit old = *next;
+  old.set_unit_id(0);
+  old.set_sample_begin(0);
+  old.set_sample_end(4);
+  *old.mutable_tile() = protocol::rect_to_wire({0, 0, 8, 8});
+  EXPECT_EQ(resumed.on_result("w3", noisy_result_for(old)), MergeOutcome::kDuplicate);
+  EXPECT_EQ(resumed.on_result("w3", noisy_result_for(*next)), MergeOutcome::kMerged);
+  merge_units(resumed, 1000, "w3");
+  st = resumed.status(id, 0);
+  EXPECT_EQ(st->state(), wire::JOB_DONE);
+  EXPECT_EQ(st->units_done(), 64u);
+  EXPECT_EQ(pixels_of(dir.path() / "data", id), expected) << "not bit-identical";
+  resumed.wait_for_checkpoints();
+  EXPECT_FALSE(fs::exists(dir.path() / "data" / "jobs" / id / "checkpoint-0.bin"))
+      << "a finished job keeps no checkpoint";
+  // The error record continued across the restart: one row per pass and the final one.
+  const std::string csv = read_file(dir.path() / "data" / "jobs" / id / "error.csv");
+  EXPECT_GE(std::count(csv.begin(), csv.end(), '\n'), 5) << csv;
+}
+
+TEST_F(JobManagerTest, ATargetErrorJobResumesWithItsPlannersDecisions) {
+  wire::SubmitJob request = furnace_job(64, 8, 4);  // 16 tiles x 16 passes
+  request.mutable_overrides()->set_target_error(0.05);
+  request.mutable_overrides()->set_min_passes(2);
+  wire::JobStatus reference;
+  const std::vector<float> expected = uninterrupted(request, &reference);
+  ASSERT_EQ(reference.stop_reason(), "target error");
+  ASSERT_LT(reference.units_done(), 256u) << "some tiles must stop early";
+  ASSERT_GT(reference.units_done(), 32u) << "some tiles must need more than the minimum";
+
+  // Interrupted twice, at different points.
+  std::string id;
+  for (size_t cut : {size_t{40}, size_t{25}}) {
+    JobStore s(dir.path() / "data");
+    JobManager manager(s, checkpoint_every_tick());
+    if (id.empty()) {
+      id = manager.submit(request);
+    } else {
+      ASSERT_EQ(manager.recover(), 1u);
+    }
+    merge_units(manager, cut);
+    checkpoint_now(manager);
+  }
+  JobStore s(dir.path() / "data");
+  JobManager last(s);
+  ASSERT_EQ(last.recover(), 1u);
+  EXPECT_EQ(last.status(id, 0)->units_done(), 65u);
+  merge_units(last, 100000);
+  const auto st = last.status(id, 0);
+  EXPECT_EQ(st->state(), wire::JOB_DONE);
+  EXPECT_EQ(st->stop_reason(), "target error");
+  EXPECT_EQ(st->units_done(), reference.units_done());
+  EXPECT_EQ(st->tiles_converged(), reference.tiles_converged());
+  EXPECT_EQ(pixels_of(dir.path() / "data", id), expected) << "not bit-identical";
+}
+
+TEST_F(JobManagerTest, ACorruptCheckpointFallsBackToThePreviousOneOrToTheStart) {
+  const wire::SubmitJob request = furnace_job(16, 8, 4);
+  const std::vector<float> expected = uninterrupted(request);
+  JobManager first(store, checkpoint_every_tick());
+  const std::string id = first.submit(request);
+  merge_units(first, 10);
+  checkpoint_now(first);
+  merge_units(first, 10);  // a round completes at 16: a checkpoint there, and one at 20
+  checkpoint_now(first);
+  const fs::path job_dir = dir.path() / "data" / "jobs" / id;
+  const Checkpoint c0 = read_checkpoint(checkpoint_path(job_dir, 0));
+  const Checkpoint c1 = read_checkpoint(checkpoint_path(job_dir, 1));
+  const int newest = c0.sequence > c1.sequence ? 0 : 1;
+  const Checkpoint& older = newest == 0 ? c1 : c0;
+  const uint64_t older_units = std::count(older.merged.begin(), older.merged.end(), 1);
+  EXPECT_EQ(std::max(c0.sequence, c1.sequence), 3u);
+  EXPECT_EQ(older_units, 16u);
+  {
+    // Flip one byte in the middle of the newest.
+    std::fstream f(checkpoint_path(job_dir, newest),
+                   std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(2000);
+    f.put('\x5a');
+  }
+  {
+    JobStore s(dir.path() / "data");
+    JobManager resumed(s);
+    ASSERT_EQ(resumed.recover(), 1u);
+    EXPECT_EQ(resumed.status(id, 0)->units_done(), older_units) << "the previous checkpoint";
+  }
+  // Both broken (the older one truncated): from the start.
+  fs::resize_file(checkpoint_path(job_dir, 1 - newest), 100);
+  JobStore s(dir.path() / "data");
+  JobManager restarted(s);
+  ASSERT_EQ(restarted.recover(), 1u);
+  EXPECT_EQ(restarted.status(id, 0)->units_done(), 0u);
+  EXPECT_EQ(restarted.status(id, 0)->state(), wire::JOB_QUEUED);
+  merge_units(restarted, 1000);
+  EXPECT_EQ(restarted.status(id, 0)->state(), wire::JOB_DONE);
+  EXPECT_EQ(pixels_of(dir.path() / "data", id), expected);
+}
+
+TEST_F(JobManagerTest, ShutdownCheckpointsEveryRunningJob) {
+  const std::string a = jobs.submit(furnace_job(16, 8, 4));
+  const std::string b = jobs.submit(furnace_job(8, 8, 4));
+  const std::string c = jobs.submit(furnace_job(8, 8, 4));  // queued: nothing to checkpoint
+  merge_units(jobs, 70);  // all of a (64) and 6 of b
+  EXPECT_EQ(jobs.status(a, 0)->state(), wire::JOB_DONE);
+  EXPECT_EQ(jobs.shutdown(), 1u);
+  JobStore s(dir.path() / "data");
+  JobManager resumed(s);
+  EXPECT_EQ(resumed.recover(), 2u);  // b resumed, c queued again
+  EXPECT_EQ(resumed.status(b, 0)->units_done(), 6u);
+  EXPECT_EQ(resumed.status(a, 0)->state(), wire::JOB_DONE);
+  EXPECT_EQ(resumed.status(c, 0)->state(), wire::JOB_QUEUED);
+  EXPECT_FALSE(fs::exists(dir.path() / "data" / "jobs" / c / "checkpoint-0.bin"));
+}
+
+TEST_F(JobManagerTest, TheRecordIsOnDiskBeforeTheJobIsAccepted) {
+  const std::string id = jobs.submit(furnace_job(4, 16, 4));
+  // What a master killed right after answering finds: the record and the bundle.
+  JobStore s(dir.path() / "data");
+  const auto records = s.load_records();
+  ASSERT_EQ(records.size(), 1u);
+  EXPECT_EQ(records[0].spec.id, id);
+  EXPECT_TRUE(s.load_bundle(id));
 }
 
 }  // namespace

@@ -1,6 +1,7 @@
 // The scheduler without sockets: units go out lowest first (pass-major), jobs in the order they
 // came, one lease per request; a lost worker's units go back to the queue ahead of fresh ones; a
-// unit is done once, whoever finishes it.
+// unit is done once, whoever finishes it. A blocked worker gets only other jobs' units; a straggler
+// is leased a second time to an idle worker, and the first result ends both leases.
 #include <gtest/gtest.h>
 
 #include "master/scheduler.h"
@@ -133,6 +134,116 @@ TEST(Scheduler, RemovingAJobDropsItsLeases) {
   ASSERT_TRUE(next);
   EXPECT_EQ(next->job, "b");
   EXPECT_TRUE(s.release_worker("w") == (std::vector<UnitRef>{{"b", 0}}));
+}
+
+TEST(Scheduler, AGatedJobHandsOutOnlyReleasedUnits) {
+  Scheduler s;
+  s.add_job("a", 10, /*gated=*/true);
+  EXPECT_FALSE(s.has_pending());
+  EXPECT_FALSE(s.lease("w1"));
+  s.release("a", {4, 2, 99});  // 99 is out of range
+  EXPECT_EQ(s.counts("a").total, 2u);
+  EXPECT_EQ(lease_unit(s, "w1"), 2u);
+  s.release("a", {2, 3});  // 2 again: ignored
+  EXPECT_EQ(s.counts("a").total, 3u);
+  EXPECT_EQ(lease_unit(s, "w1"), 3u);
+  EXPECT_EQ(lease_unit(s, "w2"), 4u);
+  EXPECT_FALSE(s.lease("w1"));
+  // A lost worker's gated unit comes back like any other.
+  EXPECT_EQ(s.release_worker("w2").size(), 1u);
+  EXPECT_EQ(lease_unit(s, "w1"), 4u);
+  EXPECT_TRUE(s.complete({"a", 4}));
+  EXPECT_EQ(s.counts("a").done, 1u);
+}
+
+TEST(Scheduler, ABlockedWorkerGetsOnlyOtherJobsUnits) {
+  Scheduler s;
+  s.add_job("a", 2);
+  s.add_job("b", 1);
+  s.block("a", "bad");
+  EXPECT_TRUE(s.is_blocked("a", "bad"));
+  EXPECT_FALSE(s.is_blocked("b", "bad"));
+  const auto got = s.lease("bad");
+  ASSERT_TRUE(got);
+  EXPECT_EQ(*got, (UnitRef{"b", 0}));
+  EXPECT_FALSE(s.lease("bad")) << "only job a has units left, and bad is blocked from it";
+  EXPECT_TRUE(s.has_pending());
+  EXPECT_EQ(lease_unit(s, "good"), 0u);
+}
+
+using namespace std::chrono_literals;
+
+TEST(Scheduler, AStragglerIsLeasedTwiceAndTheFirstResultEndsBothLeases) {
+  Scheduler s;
+  s.add_job("a", 6);
+  const StragglerPolicy policy{4.0, 5000ms, 3};
+  const auto t0 = Scheduler::Clock::now();
+  // Three units of 1 s each give a median of 1 s.
+  for (int i = 0; i < 3; ++i) {
+    const auto u = s.lease("w1", t0);
+    ASSERT_TRUE(u);
+    EXPECT_TRUE(s.complete(*u, WorkerId("w1"), t0 + 1s));
+  }
+  EXPECT_DOUBLE_EQ(s.median_seconds("a"), 1.0);
+  ASSERT_TRUE(s.lease("slow", t0 + 1s));  // unit 3
+  ASSERT_TRUE(s.lease("w1", t0 + 1s));    // unit 4
+  ASSERT_TRUE(s.lease("w2", t0 + 1s));    // unit 5
+  EXPECT_FALSE(s.lease("idle", t0 + 1s));
+  // 4 s is 4x the median but under the 5 s floor: not yet.
+  EXPECT_FALSE(s.has_straggler(policy, t0 + 5s));
+  EXPECT_FALSE(s.lease_straggler("idle", policy, t0 + 5s));
+  // Past both: the oldest lease is the straggler; its own holder never gets it twice.
+  EXPECT_TRUE(s.has_straggler(policy, t0 + 7s));
+  EXPECT_TRUE(s.complete({"a", 4}, WorkerId("w1"), t0 + 2s));
+  EXPECT_TRUE(s.complete({"a", 5}, WorkerId("w2"), t0 + 2s));
+  EXPECT_FALSE(s.lease_straggler("slow", policy, t0 + 7s));
+  const auto again = s.lease_straggler("idle", policy, t0 + 7s);
+  ASSERT_TRUE(again);
+  EXPECT_EQ(again->unit, (UnitRef{"a", 3}));
+  EXPECT_EQ(again->first, "slow");
+  EXPECT_DOUBLE_EQ(again->leased_seconds, 6.0);
+  EXPECT_EQ(s.holders({"a", 3}), (std::vector<WorkerId>{"slow", "idle"}));
+  EXPECT_EQ(s.counts("a").leased, 1u);
+  EXPECT_EQ(s.counts("a").workers, 2u);
+  // Held twice: no third copy.
+  EXPECT_FALSE(s.has_straggler(policy, t0 + 60s));
+  EXPECT_FALSE(s.lease_straggler("third", policy, t0 + 60s));
+  // One holder lost: the other keeps it, nothing is requeued.
+  EXPECT_TRUE(s.release_worker("slow").empty());
+  EXPECT_EQ(s.holders({"a", 3}), (std::vector<WorkerId>{"idle"}));
+  EXPECT_FALSE(s.has_pending());
+  // The result ends the lease; a late one from anybody else finds the unit done.
+  EXPECT_TRUE(s.complete({"a", 3}, WorkerId("idle"), t0 + 8s));
+  EXPECT_EQ(s.leases_of("idle"), 0u);
+  EXPECT_FALSE(s.complete({"a", 3}, WorkerId("slow"), t0 + 9s));
+  EXPECT_EQ(s.counts("a").done, 6u);
+}
+
+TEST(Scheduler, BothLeasesOfAStragglerEndWhenEitherFinishesOrFails) {
+  Scheduler s;
+  s.add_job("a", 4);
+  const StragglerPolicy policy{2.0, 0ms, 1};
+  const auto t0 = Scheduler::Clock::now();
+  const auto first = s.lease("w1", t0);
+  ASSERT_TRUE(first);
+  EXPECT_TRUE(s.complete(*first, WorkerId("w1"), t0 + 1s));
+  ASSERT_TRUE(s.lease("slow", t0));  // unit 1
+  ASSERT_TRUE(s.lease("w1", t0));    // unit 2
+  ASSERT_TRUE(s.lease("w1", t0));    // unit 3
+  const auto again = s.lease_straggler("w2", policy, t0 + 3s);
+  ASSERT_TRUE(again);
+  // The second holder fails it: the first still holds it, so it is not requeued.
+  EXPECT_TRUE(s.requeue(again->unit, WorkerId("w2")));
+  EXPECT_FALSE(s.requeue(again->unit, WorkerId("w2")));
+  EXPECT_EQ(s.holders(again->unit), (std::vector<WorkerId>{"slow"}));
+  EXPECT_FALSE(s.has_pending());
+  // The first holder's result arrives: both leases are gone.
+  ASSERT_TRUE(s.lease_straggler("w3", policy, t0 + 4s));
+  EXPECT_TRUE(s.complete(again->unit, WorkerId("slow"), t0 + 4s));
+  EXPECT_EQ(s.leases_of("slow"), 0u);
+  EXPECT_EQ(s.leases_of("w3"), 0u);
+  // A policy factor of 0 never leases twice.
+  EXPECT_FALSE(s.lease_straggler("w3", StragglerPolicy{0.0, 0ms, 1}, t0 + 100s));
 }
 
 }  // namespace

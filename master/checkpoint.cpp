@@ -1,0 +1,462 @@
+#include "master/checkpoint.h"
+
+#include <fcntl.h>
+#include <openssl/evp.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cerrno>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+#include <system_error>
+
+#include "common/util/log.h"
+
+namespace rayfarm::master {
+namespace fs = std::filesystem;
+namespace {
+
+static_assert(std::endian::native == std::endian::little,
+              "checkpoints are written in the machine's byte order, which must be little-endian");
+
+constexpr char kMagic[8] = {'R', 'F', 'C', 'K', 'P', 'T', '\r', '\n'};
+constexpr size_t kHeaderSize = 8 + 4 + 8;
+constexpr size_t kDigestSize = 32;
+
+using Digest = std::array<unsigned char, kDigestSize>;
+
+Digest sha256(const char* data, size_t size) {
+  Digest digest{};
+  unsigned int length = 0;
+  if (EVP_Digest(data, size, digest.data(), &length, EVP_sha256(), nullptr) != 1 ||
+      length != kDigestSize) {
+    throw std::runtime_error("SHA-256 failed (OpenSSL)");
+  }
+  return digest;
+}
+
+/// Appends little-endian fields to a byte string.
+class Writer {
+ public:
+  explicit Writer(std::string& out) : out_(out) {}
+  template <class T>
+  void pod(const T& value) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    out_.append(reinterpret_cast<const char*>(&value), sizeof value);
+  }
+  template <class T>
+  void array(const std::vector<T>& values) {
+    pod(uint64_t{values.size()});
+    if (!values.empty()) {
+      out_.append(reinterpret_cast<const char*>(values.data()), values.size() * sizeof(T));
+    }
+  }
+  void string(const std::string& s) {
+    pod(uint64_t{s.size()});
+    out_.append(s);
+  }
+
+ private:
+  std::string& out_;
+};
+
+/// Reads what Writer wrote, with bounds checks naming the field.
+class Reader {
+ public:
+  Reader(const char* data, size_t size) : data_(data), size_(size) {}
+  template <class T>
+  T pod(const char* field) {
+    T value;
+    need(sizeof value, field);
+    std::memcpy(&value, data_ + pos_, sizeof value);
+    pos_ += sizeof value;
+    return value;
+  }
+  template <class T>
+  std::vector<T> array(const char* field) {
+    const uint64_t count = pod<uint64_t>(field);
+    if (count > (size_ - pos_) / sizeof(T)) fail(field, "its length runs past the end");
+    std::vector<T> values(count);
+    if (count > 0) std::memcpy(values.data(), data_ + pos_, count * sizeof(T));
+    pos_ += count * sizeof(T);
+    return values;
+  }
+  std::string string(const char* field) {
+    const uint64_t count = pod<uint64_t>(field);
+    if (count > size_ - pos_) fail(field, "its length runs past the end");
+    std::string s(data_ + pos_, count);
+    pos_ += count;
+    return s;
+  }
+  bool done() const { return pos_ == size_; }
+  size_t position() const { return pos_; }
+  [[noreturn]] void fail(const char* field, const std::string& why) const {
+    throw CheckpointError("malformed payload at byte " + std::to_string(kHeaderSize + pos_) + " (" +
+                          field + "): " + why);
+  }
+
+ private:
+  const char* data_;
+  size_t size_;
+  size_t pos_ = 0;
+
+  void need(size_t n, const char* field) const {
+    if (n > size_ - pos_) fail(field, "it runs past the end");
+  }
+};
+
+// Payload fields, in this order.
+void encode_payload(const Checkpoint& c, Writer& w) {
+  w.pod(c.sequence);
+  w.string(c.job_id);
+  w.pod(c.width);
+  w.pod(c.height);
+  w.pod(c.tile_size);
+  w.pod(c.spp);
+  w.pod(c.pass_spp);
+  w.pod(c.elapsed_seconds);
+  w.array(c.merged);
+  w.array(c.sum);
+  w.array(c.sum_sq);
+  w.array(c.pixel_spp);
+  w.pod(c.nonfinite);
+  w.pod(c.rays);
+  w.pod(uint64_t{c.planner.tiles.size()});
+  for (const PlannerState::Tile& t : c.planner.tiles) {
+    w.pod(t.released);
+    w.pod(t.merged);
+    w.pod(uint8_t{t.open});
+    w.pod(uint8_t{t.converged});
+    w.pod(t.error);
+    w.pod(t.budget);
+  }
+  w.array(c.planner.pending);
+  w.pod(uint64_t{c.rows.size()});
+  for (const ErrorRow& r : c.rows) {
+    w.pod(r.time_s);
+    w.pod(r.spp);
+    w.pod(r.samples_per_s);
+    w.pod(r.est_rel_mse);
+    w.pod(r.est_rmse);
+    for (const auto* o : {&r.ref_rel_mse, &r.ref_rmse, &r.ref_mae, &r.ref_max}) {
+      w.pod(uint8_t{o->has_value()});
+      w.pod(o->value_or(0.0));
+    }
+  }
+  w.pod(c.rounds_recorded);
+  w.pod(c.samples_recorded);
+}
+
+bool read_bool(Reader& r, const char* field) {
+  const uint8_t v = r.pod<uint8_t>(field);
+  if (v > 1) r.fail(field, "not 0 or 1");
+  return v == 1;
+}
+
+Checkpoint decode_payload(Reader& r) {
+  Checkpoint c;
+  c.sequence = r.pod<uint64_t>("sequence");
+  c.job_id = r.string("job id");
+  c.width = r.pod<uint32_t>("width");
+  c.height = r.pod<uint32_t>("height");
+  c.tile_size = r.pod<uint32_t>("tile size");
+  c.spp = r.pod<uint32_t>("spp");
+  c.pass_spp = r.pod<uint32_t>("pass spp");
+  c.elapsed_seconds = r.pod<double>("elapsed seconds");
+  c.merged = r.array<uint8_t>("merged units");
+  c.sum = r.array<Fixed>("sums");
+  c.sum_sq = r.array<Fixed>("sums of squares");
+  c.pixel_spp = r.array<uint32_t>("samples per pixel");
+  c.nonfinite = r.pod<uint64_t>("nonfinite");
+  c.rays = r.pod<uint64_t>("rays");
+  const uint64_t tiles = r.pod<uint64_t>("planner tiles");
+  if (tiles > (uint64_t{1} << 32)) r.fail("planner tiles", "too many");
+  for (uint64_t i = 0; i < tiles; ++i) {
+    PlannerState::Tile t;
+    t.released = r.pod<uint32_t>("planner tile");
+    t.merged = r.pod<uint32_t>("planner tile");
+    t.open = read_bool(r, "planner tile");
+    t.converged = read_bool(r, "planner tile");
+    t.error = r.pod<double>("planner tile");
+    t.budget = r.pod<double>("planner tile");
+    c.planner.tiles.push_back(t);
+  }
+  c.planner.pending = r.array<uint64_t>("planner pending units");
+  const uint64_t rows = r.pod<uint64_t>("error rows");
+  if (rows > (uint64_t{1} << 32)) r.fail("error rows", "too many");
+  for (uint64_t i = 0; i < rows; ++i) {
+    ErrorRow row;
+    row.time_s = r.pod<double>("error row");
+    row.spp = r.pod<double>("error row");
+    row.samples_per_s = r.pod<double>("error row");
+    row.est_rel_mse = r.pod<double>("error row");
+    row.est_rmse = r.pod<double>("error row");
+    for (auto* o : {&row.ref_rel_mse, &row.ref_rmse, &row.ref_mae, &row.ref_max}) {
+      const bool has = read_bool(r, "error row");
+      const double v = r.pod<double>("error row");
+      if (has) *o = v;
+    }
+    c.rows.push_back(row);
+  }
+  c.rounds_recorded = r.pod<uint32_t>("rounds recorded");
+  c.samples_recorded = r.pod<uint64_t>("samples recorded");
+  if (!r.done()) r.fail("end", "bytes left over after the last field");
+  // Sizes that must agree with each other (agreement with the job is the caller's check).
+  const uint64_t pixels = uint64_t{c.width} * c.height;
+  if (c.sum.size() != pixels * 3 || c.sum_sq.size() != pixels * 3 || c.pixel_spp.size() != pixels) {
+    throw CheckpointError("malformed payload: the film's arrays do not match its size " +
+                          std::to_string(c.width) + "x" + std::to_string(c.height));
+  }
+  for (uint8_t m : c.merged) {
+    if (m > 1)
+      throw CheckpointError("malformed payload: the merged-unit map holds a value not 0 or 1");
+  }
+  return c;
+}
+
+void sync_path(const fs::path& path, int flags) {
+  const int fd = ::open(path.c_str(), flags | O_CLOEXEC);
+  if (fd < 0) throw std::system_error(errno, std::generic_category(), "cannot open to sync");
+  const int result = ::fsync(fd);
+  const int sync_errno = errno;
+  ::close(fd);
+  if (result != 0) throw std::system_error(sync_errno, std::generic_category(), "fsync failed");
+}
+
+std::shared_ptr<spdlog::logger> log_jobs() { return get_logger("jobs"); }
+
+}  // namespace
+
+std::string encode_checkpoint(const Checkpoint& checkpoint) {
+  std::string out;
+  out.reserve(kHeaderSize + kDigestSize + checkpoint.sum.size() * sizeof(Fixed) * 2 +
+              checkpoint.pixel_spp.size() * 4 + checkpoint.merged.size() + 4096);
+  out.append(kMagic, sizeof kMagic);
+  Writer w(out);
+  w.pod(kCheckpointVersion);
+  w.pod(uint64_t{0});  // payload size, filled in below
+  encode_payload(checkpoint, w);
+  const uint64_t payload = out.size() - kHeaderSize;
+  std::memcpy(out.data() + 12, &payload, sizeof payload);
+  const Digest digest = sha256(out.data(), out.size());
+  out.append(reinterpret_cast<const char*>(digest.data()), digest.size());
+  return out;
+}
+
+Checkpoint decode_checkpoint(const std::string& bytes) {
+  if (bytes.size() < kHeaderSize) {
+    throw CheckpointError("truncated: " + std::to_string(bytes.size()) +
+                          " bytes, shorter than the header");
+  }
+  if (std::memcmp(bytes.data(), kMagic, sizeof kMagic) != 0) {
+    throw CheckpointError("not a rayfarm checkpoint (wrong magic bytes)");
+  }
+  uint32_t version = 0;
+  uint64_t payload = 0;
+  std::memcpy(&version, bytes.data() + 8, sizeof version);
+  std::memcpy(&payload, bytes.data() + 12, sizeof payload);
+  if (version != kCheckpointVersion) {
+    throw CheckpointError("format version " + std::to_string(version) + ", this master reads " +
+                          std::to_string(kCheckpointVersion));
+  }
+  const uint64_t available = bytes.size() - kHeaderSize;
+  if (payload > available || available - payload != kDigestSize) {
+    const bool short_file = payload > available || available - payload < kDigestSize;
+    throw CheckpointError(std::string(short_file ? "truncated" : "trailing bytes") + ": " +
+                          std::to_string(bytes.size()) + " bytes, the header announces " +
+                          std::to_string(payload + kHeaderSize + kDigestSize));
+  }
+  const Digest digest = sha256(bytes.data(), kHeaderSize + payload);
+  if (std::memcmp(digest.data(), bytes.data() + kHeaderSize + payload, kDigestSize) != 0) {
+    throw CheckpointError("checksum mismatch (SHA-256): the file is corrupt");
+  }
+  Reader r(bytes.data() + kHeaderSize, payload);
+  return decode_payload(r);
+}
+
+fs::path checkpoint_path(const fs::path& job_dir, int slot) {
+  return job_dir / ("checkpoint-" + std::to_string(slot) + ".bin");
+}
+
+void write_durably(const fs::path& path, const std::string& bytes) {
+  const fs::path temporary = path.parent_path() / (path.filename().string() + ".tmp");
+  try {
+    {
+      std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
+      out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+      out.close();
+      if (!out) throw std::runtime_error("short write to " + temporary.string());
+    }
+    sync_path(temporary, O_RDONLY);
+    fs::rename(temporary, path);
+    sync_path(path.parent_path(), O_RDONLY | O_DIRECTORY);
+  } catch (const std::exception& e) {
+    std::error_code ignored;
+    fs::remove(temporary, ignored);
+    throw std::runtime_error("cannot write " + path.string() + ": " + e.what());
+  }
+}
+
+Checkpoint read_checkpoint(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw CheckpointError(path.string() + ": cannot be opened");
+  std::string bytes{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  if (in.bad()) throw CheckpointError(path.string() + ": read error");
+  try {
+    return decode_checkpoint(bytes);
+  } catch (const CheckpointError& e) {
+    throw CheckpointError(path.string() + ": " + e.what());
+  }
+}
+
+std::optional<LoadedCheckpoint> load_newest_checkpoint(
+    const fs::path& job_dir, std::vector<std::string>& problems,
+    const std::function<void(const Checkpoint&)>& accept) {
+  std::vector<LoadedCheckpoint> usable;
+  for (int slot = 0; slot < 2; ++slot) {
+    const fs::path file = checkpoint_path(job_dir, slot);
+    std::error_code ec;
+    if (!fs::exists(file, ec)) continue;
+    try {
+      Checkpoint c = read_checkpoint(file);
+      if (accept) {
+        try {
+          accept(c);
+        } catch (const CheckpointError& e) {
+          throw CheckpointError(file.string() + ": " + e.what());
+        }
+      }
+      usable.push_back({std::move(c), slot, file});
+    } catch (const CheckpointError& e) {
+      problems.push_back(e.what());
+    }
+  }
+  if (usable.empty()) return std::nullopt;
+  if (usable.size() == 2 && usable[0].checkpoint.sequence > usable[1].checkpoint.sequence) {
+    return std::move(usable[0]);
+  }
+  return std::move(usable.back());
+}
+
+void remove_checkpoints(const fs::path& job_dir) {
+  std::error_code ec;
+  for (int slot = 0; slot < 2; ++slot) {
+    fs::remove(checkpoint_path(job_dir, slot), ec);
+    fs::remove(checkpoint_path(job_dir, slot).string() + ".tmp", ec);
+  }
+}
+
+// --- CheckpointWriter ---
+
+CheckpointWriter::CheckpointWriter() : thread_([this] { loop(); }) {}
+
+CheckpointWriter::~CheckpointWriter() {
+  {
+    std::lock_guard lock(mutex_);
+    stopping_ = true;
+  }
+  wake_.notify_all();
+  thread_.join();
+}
+
+void CheckpointWriter::submit(const fs::path& job_dir, Checkpoint checkpoint) {
+  {
+    std::lock_guard lock(mutex_);
+    auto same = std::find_if(queue_.begin(), queue_.end(), [&](const Task& t) {
+      return !t.remove && t.checkpoint.job_id == checkpoint.job_id;
+    });
+    if (same != queue_.end()) {
+      same->checkpoint = std::move(checkpoint);
+    } else {
+      queue_.push_back(Task{job_dir, std::move(checkpoint)});
+    }
+  }
+  wake_.notify_one();
+}
+
+void CheckpointWriter::set_newest_slot(const std::string& job_id, int slot) {
+  std::lock_guard lock(mutex_);
+  newest_slot_[job_id] = slot;
+}
+
+void CheckpointWriter::flush() {
+  std::unique_lock lock(mutex_);
+  idle_.wait(lock, [&] { return queue_.empty() && writing_.empty(); });
+}
+
+void CheckpointWriter::forget(const std::string& job_id, const fs::path& job_dir) {
+  {
+    std::lock_guard lock(mutex_);
+    queue_.erase(std::remove_if(queue_.begin(), queue_.end(),
+                                [&](const Task& t) { return t.checkpoint.job_id == job_id; }),
+                 queue_.end());
+    Task task;
+    task.job_dir = job_dir;
+    task.checkpoint.job_id = job_id;
+    task.remove = true;
+    queue_.push_back(std::move(task));
+  }
+  wake_.notify_one();
+}
+
+CheckpointWriter::Stats CheckpointWriter::stats() const {
+  std::lock_guard lock(mutex_);
+  return stats_;
+}
+
+void CheckpointWriter::loop() {
+  std::unique_lock lock(mutex_);
+  while (true) {
+    wake_.wait(lock, [&] { return stopping_ || !queue_.empty(); });
+    if (queue_.empty()) return;  // stopping, nothing left
+    Task task = std::move(queue_.front());
+    queue_.pop_front();
+    const std::string id = task.checkpoint.job_id;
+    if (task.remove) {
+      newest_slot_.erase(id);
+      remove_checkpoints(task.job_dir);  // no error: what is left is ignored for a finished job
+      if (queue_.empty()) idle_.notify_all();
+      continue;
+    }
+    writing_ = id;
+    auto newest = newest_slot_.find(id);
+    const int slot = newest == newest_slot_.end() ? 0 : 1 - newest->second;
+    lock.unlock();
+    const auto start = std::chrono::steady_clock::now();
+    bool ok = false;
+    size_t bytes = 0;
+    try {
+      const std::string encoded = encode_checkpoint(task.checkpoint);
+      bytes = encoded.size();
+      write_durably(checkpoint_path(task.job_dir, slot), encoded);
+      ok = true;
+    } catch (const std::exception& e) {
+      log_jobs()->error("job {}: checkpoint {} not written: {}", id, task.checkpoint.sequence,
+                        e.what());
+    }
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (ok) {
+      log_jobs()->debug("job {}: checkpoint {} written to {} ({:.1f} MB in {:.3f} s)", id,
+                        task.checkpoint.sequence, checkpoint_path(task.job_dir, slot).string(),
+                        bytes / 1e6, seconds);
+    }
+    lock.lock();
+    if (ok) {
+      newest_slot_[id] = slot;
+      ++stats_.written;
+      stats_.bytes_last = bytes;
+      stats_.seconds_last = seconds;
+      stats_.seconds_max = std::max(stats_.seconds_max, seconds);
+    } else {
+      ++stats_.failed;
+    }
+    writing_.clear();
+    idle_.notify_all();
+  }
+}
+
+}  // namespace rayfarm::master
