@@ -2,6 +2,7 @@
 # The farm's overhead over `rayfarm render`, and how it scales from 1 to 2 workers.
 #
 #   bench/farm_overhead.sh [--scene FILE] [--size N] [--spp N] [--threads T] [--repeat R] [--build DIR]
+#                          [--insecure]
 #
 # Defaults: scenes/cornell-box/scene.json at 512x512, 256 spp, T = 2, binaries from ./build (or
 # $RAYFARM_BIN). Runs, on this machine, the same job:
@@ -11,7 +12,9 @@
 # Farm times are the master's (first unit handed out to final image written) and the client's
 # (`rayfarm submit --wait` from start to exit). Every farm image is compared with the reference;
 # they must be bit-identical. With --repeat R each figure is the fastest of R runs, which tames the
-# noise of a shared machine. Prints figures only; nothing here is a test.
+# noise of a shared machine. The farm uses CURVE keys made for the run (as deployed); --insecure
+# runs it on plain sockets instead, to measure what encryption costs. Prints figures only; nothing
+# here is a test.
 set -euo pipefail
 
 repo_root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -21,6 +24,7 @@ spp=256
 threads=2
 repeat=1
 build="${RAYFARM_BIN:-$repo_root/build}"
+insecure=0
 
 while [ $# -gt 0 ]; do
   case $1 in
@@ -30,7 +34,8 @@ while [ $# -gt 0 ]; do
     --threads) threads=$2; shift 2 ;;
     --repeat) repeat=$2; shift 2 ;;
     --build) build=$2; shift 2 ;;
-    -h|--help) sed -n '2,17p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    --insecure) insecure=1; shift ;;
+    -h|--help) sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "farm_overhead: unknown option '$1'" >&2; exit 2 ;;
   esac
 done
@@ -70,11 +75,27 @@ scene["film"] = {"width": size, "height": size}
 json.dump(scene, open(path, "w"), indent=2)
 PY
 
+# Keys for the master, the workers (one key for all) and the client, unless --insecure.
+if [ "$insecure" = 1 ]; then
+  master_auth=(--insecure); worker_auth=(--insecure); client_auth=(--insecure)
+else
+  for name in master worker client; do
+    "$rayfarm" keygen -o "$work/keys" --name "$name" >/dev/null
+  done
+  mkdir -p "$work/keys/workers" "$work/keys/clients"
+  cp "$work/keys/worker.key" "$work/keys/workers/"
+  cp "$work/keys/client.key" "$work/keys/clients/"
+  master_auth=(--key "$work/keys/master.key_secret" --worker-keys "$work/keys/workers"
+               --client-keys "$work/keys/clients")
+  worker_auth=(--key "$work/keys/worker.key_secret" --master-key "$work/keys/master.key")
+  client_auth=(--key "$work/keys/client.key_secret" --master-key "$work/keys/master.key")
+fi
+
 free_port() { python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])'; }
 now() { date +%s.%N; }
 calc() { python3 -c "print($1)"; }
 
-echo "scene $(basename "$(dirname "$scene")")/$(basename "$scene") at ${size}x${size}, $spp spp; $(nproc) cores"
+echo "scene $(basename "$(dirname "$scene")")/$(basename "$scene") at ${size}x${size}, $spp spp; $(nproc) cores; $([ "$insecure" = 1 ] && echo "plain sockets (--insecure)" || echo "CURVE")"
 
 min() { python3 -c "print(min($1, $2))"; }
 
@@ -92,26 +113,26 @@ run_farm() {
   wport=$(free_port); cport=$(free_port)
   data=$(mktemp -d "$work/data-$n-$t.XXXX")
   "$master_bin" --worker-endpoint "tcp://127.0.0.1:$wport" --client-endpoint "tcp://127.0.0.1:$cport" \
-    --data-dir "$data" --log-level warn >"$work/master-$n-$t.log" 2>&1 &
+    --data-dir "$data" --log-level warn "${master_auth[@]}" >"$work/master-$n-$t.log" 2>&1 &
   pids+=($!)
   local farm_pids=($!)
   for i in $(seq 1 "$n"); do
     "$worker_bin" --master "tcp://127.0.0.1:$wport" --threads "$t" --cache-dir "$work/cache-$n-$t-$i" \
-      --log-level warn >"$work/worker-$n-$t-$i.log" 2>&1 &
+      --log-level warn "${worker_auth[@]}" >"$work/worker-$n-$t-$i.log" 2>&1 &
     pids+=($!); farm_pids+=($!)
   done
   # Every worker says hello before the clock starts.
   for _ in $(seq 100); do
-    "$rayfarm" status --master "tcp://127.0.0.1:$cport" --timeout 1 >/dev/null 2>&1 && break
+    "$rayfarm" status --master "tcp://127.0.0.1:$cport" --timeout 1 "${client_auth[@]}" >/dev/null 2>&1 && break
     sleep 0.1
   done
   sleep 0.5
   start_s=$(now)
-  job=$("$rayfarm" submit "$job_scene" --spp "$spp" --master "tcp://127.0.0.1:$cport" --wait 2>/dev/null)
+  job=$("$rayfarm" submit "$job_scene" --spp "$spp" --master "tcp://127.0.0.1:$cport" "${client_auth[@]}" --wait 2>/dev/null)
   job=${job%%$'\n'*}  # the first line is the job id; progress follows
   client_s=$(calc "$(now) - $start_s")
   master_s=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["elapsed_seconds"])' "$data/jobs/$job/job.json")
-  "$rayfarm" fetch "$job" -o "$work/farm-$n-$t.exr" --master "tcp://127.0.0.1:$cport" >/dev/null
+  "$rayfarm" fetch "$job" -o "$work/farm-$n-$t.exr" --master "tcp://127.0.0.1:$cport" "${client_auth[@]}" >/dev/null
   if ! "$rayfarm" compare "$work/farm-$n-$t.exr" "$work/local.exr" >/dev/null 2>&1; then
     echo "farm_overhead: the farm's image ($n x $t threads) differs from rayfarm render's" >&2
     exit 1

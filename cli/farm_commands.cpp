@@ -18,8 +18,11 @@
 #include <fmt/format.h>
 
 #include "cli/commands.h"
+#include "cli/farm_client.h"
+#include "cli/stop_options.h"
 #include "common/bundle/bundle.h"
 #include "common/image/film_output.h"
+#include "common/net/keys.h"
 #include "common/net/socket.h"
 #include "common/protocol/codec.h"
 #include "common/protocol/convert.h"
@@ -36,11 +39,19 @@ using protocol::encode;
 constexpr int kExitError = 1;
 constexpr int kExitJobUnsuccessful = 2;  // the job failed or was cancelled
 constexpr int kExitUnreachable = 3;
+constexpr int kExitRefused = 4;  // the master did not admit this client (key, security)
 constexpr int kExitInterrupted = 130;
 constexpr auto kWatchPeriod = std::chrono::milliseconds{500};
 
 /// The master did not answer in time.
 class Unreachable : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// The master did not admit this client: its key is not on the allow-list, or the two sides'
+/// security does not match.
+class NotAdmitted : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
@@ -62,6 +73,9 @@ std::string default_master() {
 struct ClientArgs {
   std::string master = default_master();
   double timeout = 10.0;
+  std::string key;         // this client's secret key file or Z85 secret key
+  std::string master_key;  // the master's public key file or Z85 key
+  bool insecure = false;
 };
 
 void add_client_options(CLI::App* cmd, ClientArgs& args) {
@@ -70,6 +84,44 @@ void add_client_options(CLI::App* cmd, ClientArgs& args) {
   cmd->add_option("--timeout", args.timeout, "seconds to wait for the master")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+  cmd->add_option("--key", args.key,
+                  "this client's secret key file (NAME.key_secret from rayfarm keygen) or Z85 "
+                  "secret key (env RAYFARM_KEY)")
+      ->envname("RAYFARM_KEY");
+  cmd->add_option("--master-key", args.master_key,
+                  "the master's public key file (NAME.key) or Z85 key (env RAYFARM_MASTER_KEY)")
+      ->envname("RAYFARM_MASTER_KEY");
+  cmd->add_flag("--insecure", args.insecure,
+                "plain socket, no authentication or encryption: only to a master on loopback "
+                "started with --insecure");
+}
+
+/// The socket's CURVE settings from the arguments; throws naming what is missing.
+net::Curve client_curve(const ClientArgs& args) {
+  if (args.insecure) {
+    if (!net::is_loopback_endpoint(args.master)) {
+      throw std::runtime_error("--insecure is allowed only with a master on loopback, and " +
+                               args.master +
+                               " is not: give --key and --master-key (or RAYFARM_KEY and "
+                               "RAYFARM_MASTER_KEY)");
+    }
+    std::cerr << "rayfarm: warning: INSECURE: no authentication and no encryption to "
+              << args.master << "\n";
+    return {};
+  }
+  if (args.key.empty() || args.master_key.empty()) {
+    throw std::runtime_error(
+        "the farm commands need this client's key and the master's public key: --key FILE "
+        "(from `rayfarm keygen`) and --master-key FILE|KEY, or RAYFARM_KEY and "
+        "RAYFARM_MASTER_KEY; --insecure only for a master on loopback started with --insecure");
+  }
+  net::require_curve();
+  const net::KeyPair pair = net::key_pair_from(args.key, "--key");
+  net::Curve curve;
+  curve.public_key = pair.public_key;
+  curve.secret_key = pair.secret_key;
+  curve.server_key = net::public_key_from(args.master_key, "--master-key");
+  return curve;
 }
 
 /// One connection to the master's client endpoint.
@@ -79,7 +131,7 @@ class FarmClient {
       : endpoint_(args.master),
         timeout_(std::chrono::duration_cast<std::chrono::milliseconds>(
             std::chrono::duration<double>(args.timeout))),
-        socket_(args.master) {
+        socket_(args.master, net::kDefaultMaxMessageBytes, client_curve(args)) {
     wire::Hello hello;
     hello.set_role(wire::ROLE_CLIENT);
     hello.set_name("rayfarm-cli");
@@ -91,8 +143,15 @@ class FarmClient {
   /// and MasterError on an Error or Refusal.
   template <class Reply>
   Reply call(const net::Frames& request) {
-    if (!socket_.send(request)) throw Unreachable(unreachable_message());
     const auto deadline = std::chrono::steady_clock::now() + timeout_;
+    // A send fails while no connection can take the message (e.g. one refused in its handshake):
+    // try again until the deadline, saying why as soon as the handshake tells.
+    while (!socket_.send(request)) {
+      check_admitted();
+      if (std::chrono::steady_clock::now() >= deadline) throw Unreachable(unreachable_message());
+      if (g_interrupted.load()) throw MasterError("interrupted");
+      std::this_thread::sleep_for(std::chrono::milliseconds{20});
+    }
     while (true) {
       const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
           deadline - std::chrono::steady_clock::now());
@@ -100,6 +159,7 @@ class FarmClient {
       auto frames = socket_.receive(std::min(left, std::chrono::milliseconds{100}));
       if (!frames) {
         if (g_interrupted.load()) throw MasterError("interrupted");
+        check_admitted();
         continue;
       }
       protocol::Decoded msg = protocol::decode(*frames);
@@ -115,9 +175,32 @@ class FarmClient {
   std::chrono::milliseconds timeout_;
   net::Dealer socket_;
 
-  std::string unreachable_message() const {
-    return fmt::format("cannot reach master at {} within {:g} s", endpoint_,
-                       timeout_.count() / 1000.0);
+  /// Throws NotAdmitted when the master refused this client's key or security.
+  void check_admitted() {
+    const net::HandshakeStatus hs = socket_.handshake();
+    if (hs.state == net::Handshake::kRefused || hs.state == net::Handshake::kFailed) {
+      throw NotAdmitted(
+          fmt::format("the master at {} did not let this client in: {}", endpoint_, hs.detail));
+    }
+  }
+
+  /// Why nothing came back: the handshake's state says whether a connection was made at all.
+  std::string unreachable_message() {
+    const net::HandshakeStatus hs = socket_.handshake();
+    std::string why;
+    if (hs.state == net::Handshake::kDropped) {
+      why = "the master did not answer: " + hs.detail;
+    } else if (hs.state == net::Handshake::kSucceeded) {
+      why =
+          "the master did not answer in time (it is connected but busy, or the message was "
+          "too large for it)";
+    } else {
+      why =
+          "the master did not answer (is it running there? if it is, the key may be wrong: "
+          "check --master-key and --key)";
+    }
+    return fmt::format("cannot reach master at {} within {:g} s: {}", endpoint_,
+                       timeout_.count() / 1000.0, why);
   }
 };
 
@@ -129,6 +212,9 @@ int guarded(const char* command, Body&& body) {
   } catch (const Unreachable& e) {
     std::cerr << "rayfarm " << command << ": error: " << e.what() << "\n";
     return kExitUnreachable;
+  } catch (const NotAdmitted& e) {
+    std::cerr << "rayfarm " << command << ": error: " << e.what() << "\n";
+    return kExitRefused;
   } catch (const std::exception& e) {
     if (g_interrupted.load()) return kExitInterrupted;
     std::cerr << "rayfarm " << command << ": error: " << e.what() << "\n";
@@ -165,11 +251,14 @@ std::string progress_line(const wire::JobStatus& st) {
   std::string line = fmt::format(
       "{} {:<9} pass {}/{}  {}/{} spp  {:5.1f}%", st.job_id(), protocol::job_state_name(st.state()),
       st.passes_done(), st.passes_total(), st.spp_done(), st.settings().spp(), percent(st));
+  if (st.spp_mean() >= st.spp_done() + 1.0) line += fmt::format(" (mean {:.0f})", st.spp_mean());
+  if (st.est_rel_mse() >= 0) line += fmt::format("  relMSE {:.3g}", st.est_rel_mse());
+  if (st.ref_rel_mse() >= 0) line += fmt::format(" (measured {:.3g})", st.ref_rel_mse());
   if (st.state() == wire::JOB_RUNNING) {
     line += fmt::format("  {}  ETA {}  workers {} busy/{}", format_rate(st.samples_per_second()),
                         format_duration(st.eta_seconds()), st.workers_busy(), st.workers_total());
   } else if (st.state() == wire::JOB_DONE) {
-    line += fmt::format("  in {}", format_duration(st.elapsed_seconds()));
+    line += fmt::format("  in {} ({})", format_duration(st.elapsed_seconds()), st.stop_reason());
   }
   return line;
 }
@@ -194,8 +283,20 @@ void print_status(const wire::JobStatus& st) {
       "work       tiles of {} px, passes of {} spp: {}/{} units ({:.1f}%), {} leased\n",
       st.tile_size(), st.pass_spp(), st.units_done(), st.units_total(), percent(st),
       st.units_leased());
-  std::cout << fmt::format("progress   pass {}/{}, {}/{} spp\n", st.passes_done(),
-                           st.passes_total(), st.spp_done(), st.settings().spp());
+  std::cout << fmt::format("progress   pass {}/{}, {}/{} spp, {:.1f} spp mean\n", st.passes_done(),
+                           st.passes_total(), st.spp_done(), st.settings().spp(), st.spp_mean());
+  if (st.est_rel_mse() >= 0 || st.ref_rel_mse() >= 0) {
+    std::cout << fmt::format(
+        "error      estimated relMSE {}{}\n",
+        st.est_rel_mse() >= 0 ? fmt::format("{:.4g}", st.est_rel_mse()) : "unknown",
+        st.ref_rel_mse() >= 0 ? fmt::format(", measured against the reference {:.4g}",
+                                            st.ref_rel_mse())
+                              : "");
+  }
+  if (st.tiles_converged() > 0) {
+    std::cout << fmt::format("tiles      {}/{} converged\n", st.tiles_converged(), st.tiles_total());
+  }
+  if (!st.stop_reason().empty()) std::cout << fmt::format("stopped    {}\n", st.stop_reason());
   std::cout << fmt::format("time       {} elapsed, ETA {}, {}\n",
                            format_duration(st.elapsed_seconds()), format_duration(st.eta_seconds()),
                            format_rate(st.samples_per_second()));
@@ -262,7 +363,6 @@ int watch_job(FarmClient& client, const std::string& job) {
   }
 }
 
-
 // --- Commands ---
 
 struct SubmitArgs {
@@ -273,6 +373,7 @@ struct SubmitArgs {
   std::optional<std::string> integrator;
   std::string name;
   bool wait = false;
+  StopArgs stop;
 };
 
 int run_submit(const SubmitArgs& args) {
@@ -293,6 +394,17 @@ int run_submit(const SubmitArgs& args) {
     o->set_integrator(protocol::integrator_to_wire(*parse_integrator(*args.integrator)));
   if (args.tile) o->set_tile_size(*args.tile);
   if (args.pass_spp) o->set_pass_spp(*args.pass_spp);
+  o->set_target_error(args.stop.target_error);
+  o->set_time_limit_s(args.stop.time_limit);
+  o->set_no_adaptive(args.stop.no_adaptive);
+  o->set_min_passes(args.stop.min_passes);
+  if (const auto& reference = args.stop.reference) {
+    std::ifstream in(*reference, std::ios::binary);
+    std::string bytes{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+    if (!in.good() && !in.eof()) throw std::runtime_error(*reference + ": cannot read the reference");
+    if (bytes.empty()) throw std::runtime_error(*reference + ": the reference is missing or empty");
+    request.set_reference_exr(std::move(bytes));
+  }
 
   FarmClient client(args.client);
   const auto reply = client.call<wire::SubmitReply>(encode(std::move(request)));
@@ -320,6 +432,8 @@ void add_submit(CLI::App& app, int& exit_code) {
   cmd->add_option("--pass-spp", args->pass_spp,
                   "Samples per pass (default: automatic); does not change the image")
       ->check(CLI::PositiveNumber);
+  add_stop_options(cmd, args->stop,
+                   "Reference EXR sent with the job: the error against it is measured at every pass");
   cmd->add_option("--name", args->name, "Job name (default: the scene file's name)");
   cmd->add_flag("--wait", args->wait,
                 "Show progress until the job ends; exit 0 only when it is done");
@@ -424,6 +538,27 @@ void add_fetch(CLI::App& app, int& exit_code) {
 }
 
 }  // namespace
+
+JobFetcher add_job_fetch_options(CLI::App* cmd) {
+  auto args = std::make_shared<ClientArgs>();
+  add_client_options(cmd, *args);
+  return [args](const std::string& job) {
+    FarmClient client(*args);
+    JobSnapshot snapshot{query_status(client, job), std::nullopt, {}};
+    wire::FetchImage request;
+    request.set_job_id(job);
+    try {
+      snapshot.image = client.call<wire::ImageData>(encode(std::move(request)));
+    } catch (const MasterError& e) {
+      snapshot.no_image_reason = e.what();  // e.g. no unit merged yet
+    }
+    return snapshot;
+  };
+}
+
+int run_farm_command(const char* command, const std::function<int()>& body) {
+  return guarded(command, body);
+}
 
 void add_farm_commands(CLI::App& app, int& exit_code) {
   add_submit(app, exit_code);

@@ -18,6 +18,8 @@ int main(int argc, char** argv) {
   rayfarm::cli::add_render_command(app, exit_code);
   rayfarm::cli::add_compare_command(app, exit_code);
   rayfarm::cli::add_farm_commands(app, exit_code);
+  rayfarm::cli::add_keygen_command(app, exit_code);
+  rayfarm::cli::add_report_command(app, exit_code);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
