@@ -25,103 +25,15 @@
 #include "common/protocol/codec.h"
 #include "common/protocol/convert.h"
 #include "common/scene/parser.h"
-#include "tests/e2e/process.h"
+#include "tests/e2e/farm_fixture.h"
 #include "worker/renderer.h"
 
 namespace rayfarm::test {
 namespace {
-namespace fs = std::filesystem;
-namespace protocol = rayfarm::protocol;
-namespace wire = rayfarm::wire;
-using std::chrono::seconds;
-
-std::string bin(const std::string& relative) {
-  return (fs::path(RAYFARM_BINARY_DIR) / relative).string();
-}
-
-std::string read_text(const fs::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
-/// True when some line of `text` holds `first` and, after it, `then`.
-bool has_line(const std::string& text, const std::string& first, const std::string& then) {
-  for (size_t start = 0; start < text.size();) {
-    const size_t end = std::min(text.find('\n', start), text.size());
-    const std::string line = text.substr(start, end - start);
-    const size_t a = line.find(first);
-    if (a != std::string::npos && line.find(then, a + first.size()) != std::string::npos)
-      return true;
-    start = end + 1;
-  }
-  return false;
-}
-
-struct RunResult {
-  int code = -1;
-  std::string out, err;
-};
-
-/// Two images hold the same float bits in the same layout.
-::testing::AssertionResult bit_identical(const fs::path& a, const fs::path& b) {
-  const Image x = read_exr(a), y = read_exr(b);
-  if (x.width != y.width || x.height != y.height) {
-    return ::testing::AssertionFailure() << "sizes differ: " << x.width << "x" << x.height << " vs "
-                                         << y.width << "x" << y.height;
-  }
-  if (x.rgb.size() != y.rgb.size() ||
-      std::memcmp(x.rgb.data(), y.rgb.data(), x.rgb.size() * sizeof(float)) != 0) {
-    size_t differing = 0;
-    for (size_t i = 0; i < std::min(x.rgb.size(), y.rgb.size()); ++i)
-      differing += x.rgb[i] != y.rgb[i];
-    return ::testing::AssertionFailure() << differing << " of " << x.rgb.size() << " values differ";
-  }
-  bool any_light = false;
-  for (float v : x.rgb) any_light |= v > 0.f;
-  if (!any_light) return ::testing::AssertionFailure() << "the image is black";
-  return ::testing::AssertionSuccess();
-}
-
-/// A raw DEALER peer speaking the codec, for what the CLI and the worker never send.
-class RawPeer {
- public:
-  explicit RawPeer(const std::string& endpoint, const net::Curve& curve = {})
-      : socket_(endpoint, net::kDefaultMaxMessageBytes, curve) {}
-  void send(const net::Frames& frames) { ASSERT_TRUE(socket_.send(frames)); }
-  /// The next message that is not a heartbeat, within `timeout`.
-  std::optional<protocol::Decoded> receive(milliseconds timeout = milliseconds{10000}) {
-    const auto deadline = Clock::now() + timeout;
-    while (Clock::now() < deadline) {
-      auto frames = socket_.receive(milliseconds{50});
-      if (!frames) continue;
-      protocol::Decoded d = protocol::decode(*frames);
-      if (d.as<wire::Heartbeat>()) continue;
-      return d;
-    }
-    return std::nullopt;
-  }
-  template <class T>
-  T expect(milliseconds timeout = milliseconds{10000}) {
-    auto d = receive(timeout);
-    if (!d)
-      throw std::runtime_error(std::string("no reply, expected ") + T::descriptor()->full_name());
-    if (const T* m = d->as<T>()) return *m;
-    throw std::runtime_error("got " + d->type + ", expected " + T::descriptor()->full_name());
-  }
-
- private:
-  net::Dealer socket_;
-};
-
-class FarmTest : public ::testing::Test {
+class FarmTest : public FarmFixture {
  protected:
   void SetUp() override {
-    static std::atomic<int> counter{0};
-    dir_ = fs::temp_directory_path() /
-           ("rayfarm-e2e-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
-    fs::create_directories(dir_);
-    worker_port_ = free_port();
-    client_port_ = free_port();
+    FarmFixture::SetUp();
     // The master's key from the CLI, the others in-process; public keys go to the allow-lists.
     const RunResult keygen =
         cli({"keygen", "-o", keys().string(), "--name", "master"}, /*farm=*/false);
@@ -129,19 +41,6 @@ class FarmTest : public ::testing::Test {
     ASSERT_NE(keygen.out.find("master.key_secret"), std::string::npos) << keygen.out;
     master_keys_ = net::read_key_pair(keys() / "master.key_secret");
     client_keys_ = peer_key("cli", "clients");
-  }
-
-  void TearDown() override {
-    if (HasFailure()) {
-      if (master_) std::cerr << "---- master log ----\n" << master_->log() << "\n";
-      for (const auto& [name, w] : workers_)
-        std::cerr << "---- " << name << " log ----\n" << w->log() << "\n";
-    }
-    workers_.clear();  // SIGKILL whatever still runs
-    master_.reset();
-    std::error_code ec;
-    if (!HasFailure() && !std::getenv("RAYFARM_E2E_KEEP"))
-      fs::remove_all(dir_, ec);  // kept for a look
   }
 
   /// A key pair named `name`, its secret file in keys/own/, its public one in keys/`list`/ (the
@@ -157,7 +56,7 @@ class FarmTest : public ::testing::Test {
     }
     return net::read_key_pair(secret);
   }
-  fs::path keys() const { return dir_ / "keys"; }
+  fs::path keys() const { return dir() / "keys"; }
   fs::path secret_file(const std::string& name) const {
     return keys() / "own" / (name + ".key_secret");
   }
@@ -166,15 +65,16 @@ class FarmTest : public ::testing::Test {
   net::Curve curve(const net::KeyPair& keys) const {
     return {keys.public_key, keys.secret_key, master_keys_.public_key, ""};
   }
+  /// The CLI and raw clients use the test's client key.
+  std::vector<std::string> client_auth() const override {
+    return {"--key", secret_file("cli").string(), "--master-key", master_public_file().string()};
+  }
+  net::Curve client_curve() const override { return curve(client_keys_); }
   /// A raw client with the test's client key, and a raw worker with its own listed key.
-  RawPeer client_peer() { return RawPeer(client_endpoint(), curve(client_keys_)); }
+  RawPeer client_peer() { return RawPeer(client_endpoint(), client_curve()); }
   RawPeer worker_peer(const std::string& name) {
     return RawPeer(worker_endpoint(), curve(peer_key(name, "workers")));
   }
-
-  std::string worker_endpoint() const { return "tcp://127.0.0.1:" + std::to_string(worker_port_); }
-  std::string client_endpoint() const { return "tcp://127.0.0.1:" + std::to_string(client_port_); }
-  const fs::path& dir() const { return dir_; }
 
   /// Starts the master (again, after a crash, with `log` another file: the log is appended to),
   /// with its key and allow-lists, and `extra` options.
@@ -182,32 +82,20 @@ class FarmTest : public ::testing::Test {
   void start_master(const std::string& log = "master.log",
                     const std::vector<std::string>& extra = {}, int liveness = 3) {
     fs::create_directories(keys() / "workers");
-    std::vector<std::string> argv{bin("master/rayfarm-master"),
-                                  "--worker-endpoint",
-                                  worker_endpoint(),
-                                  "--client-endpoint",
-                                  client_endpoint(),
-                                  "--data-dir",
-                                  (dir_ / "data").string(),
-                                  "--heartbeat-ms",
-                                  "200",
-                                  "--liveness",
-                                  std::to_string(liveness),
-                                  "--image-interval-ms",
-                                  "500",
-                                  "--key",
-                                  (keys() / "master.key_secret").string(),
-                                  "--worker-keys",
-                                  (keys() / "workers").string(),
-                                  "--client-keys",
-                                  (keys() / "clients").string()};
-    argv.insert(argv.end(), extra.begin(), extra.end());
-    master_ = std::make_unique<Process>(argv, dir_ / log);
-    ASSERT_TRUE(
-        wait_until([&] { return master_->log().find("master listening") != std::string::npos; },
-                   milliseconds{10000}))
-        << "master did not start:\n"
-        << master_->log();
+    std::vector<std::string> options{"--heartbeat-ms",
+                                     "200",
+                                     "--liveness",
+                                     std::to_string(liveness),
+                                     "--image-interval-ms",
+                                     "500",
+                                     "--key",
+                                     (keys() / "master.key_secret").string(),
+                                     "--worker-keys",
+                                     (keys() / "workers").string(),
+                                     "--client-keys",
+                                     (keys() / "clients").string()};
+    options.insert(options.end(), extra.begin(), extra.end());
+    run_master(log, options);
   }
 
   /// Starts a worker with its own key, on the master's allow-list; `auth` replaces the key
@@ -219,122 +107,15 @@ class FarmTest : public ::testing::Test {
       auth = std::vector<std::string>{"--key", secret_file(name).string(), "--master-key",
                                       master_public_file().string()};
     }
-    std::vector<std::string> argv{bin("worker/rayfarm-worker"),
-                                  "--master",
-                                  worker_endpoint(),
-                                  "--threads",
-                                  std::to_string(threads),
-                                  "--cache-dir",
-                                  (dir_ / ("cache-" + name)).string(),
-                                  "--name",
-                                  name,
-                                  "--heartbeat-ms",
-                                  "200",
-                                  "--liveness",
-                                  "3",
-                                  "--reconnect-max-ms",
-                                  "1000"};
-    argv.insert(argv.end(), auth->begin(), auth->end());
-    auto p = std::make_unique<Process>(argv, dir_ / (name + ".log"));
-    Process& ref = *p;
-    workers_[name] = std::move(p);
-    return ref;
-  }
-
-  Process& master() { return *master_; }
-
-  /// Runs the CLI with `args` (and, for farm commands, --master and the client's keys, or
-  /// `auth` instead of the keys) and waits for it.
-  RunResult cli(std::vector<std::string> args, bool farm = true,
-                milliseconds timeout = milliseconds{90000},
-                std::optional<std::vector<std::string>> auth = std::nullopt) {
-    static std::atomic<int> counter{0};
-    const int n = counter++;
-    std::vector<std::string> argv{bin("cli/rayfarm")};
-    argv.insert(argv.end(), args.begin(), args.end());
-    if (farm) {
-      argv.push_back("--master");
-      argv.push_back(client_endpoint());
-      if (!auth) {
-        auth = std::vector<std::string>{"--key", secret_file("cli").string(), "--master-key",
-                                        master_public_file().string()};
-      }
-      argv.insert(argv.end(), auth->begin(), auth->end());
-    }
-    const fs::path out = dir_ / ("cli-" + std::to_string(n) + ".out");
-    const fs::path err = dir_ / ("cli-" + std::to_string(n) + ".err");
-    Process p(argv, out, err);
-    RunResult r;
-    r.code = p.wait(timeout).value_or(-1);
-    r.out = read_text(out);
-    r.err = read_text(err);
-    return r;
-  }
-
-  /// Copies a bundled scene (and its files) into the test folder with a smaller film.
-  fs::path small_scene(const std::string& name, uint32_t size) {
-    const fs::path from = fs::path(RAYFARM_SOURCE_DIR) / "scenes" / name;
-    const fs::path to = dir_ / "scenes" / name;
-    fs::create_directories(to);
-    fs::copy(from, to, fs::copy_options::recursive | fs::copy_options::overwrite_existing);
-    nlohmann::json scene = nlohmann::json::parse(read_text(to / "scene.json"));
-    scene["film"] = {{"width", size}, {"height", size}};
-    std::ofstream(to / "scene.json") << scene.dump(2);
-    return to / "scene.json";
-  }
-
-  /// `rayfarm render` of the same job on this machine, for reference.
-  fs::path local_render(const fs::path& scene, const std::vector<std::string>& settings) {
-    const fs::path out = dir_ / ("local-" + std::to_string(local_count_++) + ".exr");
-    std::vector<std::string> args{"render", scene.string(), "-o", out.string(), "--threads", "2"};
-    args.insert(args.end(), settings.begin(), settings.end());
-    const RunResult r = cli(args, false);
-    EXPECT_EQ(r.code, 0) << r.err;
-    return out;
-  }
-
-  std::string submit(const fs::path& scene, const std::vector<std::string>& settings,
-                     bool wait = false) {
-    std::vector<std::string> args{"submit", scene.string()};
-    args.insert(args.end(), settings.begin(), settings.end());
-    if (wait) args.push_back("--wait");
-    const RunResult r = cli(args);
-    EXPECT_EQ(r.code, 0) << r.out << r.err;
-    return r.out.substr(0, r.out.find('\n'));
-  }
-
-  fs::path fetch(const std::string& job) {
-    const fs::path out = dir_ / (job + ".exr");
-    const RunResult r = cli({"fetch", job, "-o", out.string()});
-    EXPECT_EQ(r.code, 0) << r.err;
-    EXPECT_TRUE(fs::exists(dir_ / (job + ".png")));
-    return out;
-  }
-
-  wire::JobStatus status(const std::string& job) {
-    RawPeer client = client_peer();
-    wire::StatusRequest request;
-    request.set_job_id(job);
-    client.send(protocol::encode(request));
-    return client.expect<wire::JobStatus>();
-  }
-
-  void wait_for_state(const std::string& job, wire::JobState state, seconds timeout = seconds{60}) {
-    ASSERT_TRUE(wait_until([&] { return status(job).state() == state; }, timeout))
-        << "job " << job << " never reached " << protocol::job_state_name(state);
-  }
-
-  void wait_for_units(const std::string& job, uint64_t units) {
-    ASSERT_TRUE(wait_until([&] { return status(job).units_done() >= units; }, milliseconds{60000}));
+    std::vector<std::string> options{"--threads",    std::to_string(threads), "--heartbeat-ms",
+                                     "200",          "--liveness",            "3",
+                                     "--reconnect-max-ms", "1000"};
+    options.insert(options.end(), auth->begin(), auth->end());
+    return run_worker(name, options);
   }
 
  private:
-  fs::path dir_;
-  int worker_port_ = 0, client_port_ = 0;
-  int local_count_ = 0;
   net::KeyPair master_keys_, client_keys_;
-  std::unique_ptr<Process> master_;
-  std::map<std::string, std::unique_ptr<Process>> workers_;
 };
 
 TEST_F(FarmTest, TwoWorkersRenderTheCornellBoxBitIdenticalToALocalRender) {

@@ -9,241 +9,28 @@
 
 #include <signal.h>
 
-#include <atomic>
-#include <cstring>
-#include <map>
-#include <memory>
-
-#include <nlohmann/json.hpp>
-
-#include "common/image/exr.h"
-#include "common/net/socket.h"
-#include "common/protocol/codec.h"
-#include "common/protocol/convert.h"
-#include "tests/e2e/process.h"
+#include "tests/e2e/farm_fixture.h"
 
 namespace rayfarm::test {
 namespace {
-namespace fs = std::filesystem;
-namespace protocol = rayfarm::protocol;
-namespace wire = rayfarm::wire;
-using std::chrono::seconds;
 
-std::string bin(const std::string& relative) {
-  return (fs::path(RAYFARM_BINARY_DIR) / relative).string();
-}
-
-std::string read_text(const fs::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
-/// True when some line of `text` holds `first` and, after it, `then`.
-bool has_line(const std::string& text, const std::string& first, const std::string& then) {
-  for (size_t start = 0; start < text.size();) {
-    const size_t end = std::min(text.find('\n', start), text.size());
-    const std::string line = text.substr(start, end - start);
-    const size_t a = line.find(first);
-    if (a != std::string::npos && line.find(then, a + first.size()) != std::string::npos)
-      return true;
-    start = end + 1;
-  }
-  return false;
-}
-
-/// Two images hold the same float bits, and some light.
-::testing::AssertionResult bit_identical(const fs::path& a, const fs::path& b) {
-  const Image x = read_exr(a), y = read_exr(b);
-  if (x.width != y.width || x.height != y.height || x.rgb.size() != y.rgb.size()) {
-    return ::testing::AssertionFailure() << "sizes differ";
-  }
-  if (std::memcmp(x.rgb.data(), y.rgb.data(), x.rgb.size() * sizeof(float)) != 0) {
-    size_t differing = 0;
-    for (size_t i = 0; i < x.rgb.size(); ++i) differing += x.rgb[i] != y.rgb[i];
-    return ::testing::AssertionFailure() << differing << " of " << x.rgb.size() << " values differ";
-  }
-  for (float v : x.rgb)
-    if (v > 0.f) return ::testing::AssertionSuccess();
-  return ::testing::AssertionFailure() << "the image is black";
-}
-
-/// A raw DEALER peer speaking the codec: a client, or a worker of the test's own.
-class RawPeer {
- public:
-  explicit RawPeer(const std::string& endpoint) : socket_(endpoint) {}
-  void send(const net::Frames& frames) { ASSERT_TRUE(socket_.send(frames)); }
-  /// The next message that is not a heartbeat, within `timeout`.
-  std::optional<protocol::Decoded> receive(milliseconds timeout) {
-    const auto deadline = Clock::now() + timeout;
-    while (Clock::now() < deadline) {
-      auto frames = socket_.receive(milliseconds{50});
-      if (!frames) continue;
-      protocol::Decoded d = protocol::decode(*frames);
-      if (d.as<wire::Heartbeat>()) continue;
-      return d;
-    }
-    return std::nullopt;
-  }
-  template <class T>
-  T expect(milliseconds timeout = milliseconds{10000}) {
-    auto d = receive(timeout);
-    if (!d)
-      throw std::runtime_error(std::string("no reply, expected ") + T::descriptor()->full_name());
-    if (const T* m = d->as<T>()) return *m;
-    throw std::runtime_error("got " + d->type + ", expected " + T::descriptor()->full_name());
-  }
-
- private:
-  net::Dealer socket_;
-};
-
-class FaultTest : public ::testing::Test {
+class FaultTest : public FarmFixture {
  protected:
-  void SetUp() override {
-    static std::atomic<int> counter{0};
-    dir_ = fs::temp_directory_path() /
-           ("rayfarm-fault-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
-    fs::create_directories(dir_);
-    worker_port_ = free_port();
-    client_port_ = free_port();
-  }
-
-  void TearDown() override {
-    if (HasFailure()) {
-      for (const auto& [name, log] : logs_)
-        std::cerr << "---- " << name << " ----\n" << read_text(dir_ / name) << "\n";
-    }
-    workers_.clear();  // SIGKILL whatever still runs
-    master_.reset();
-    std::error_code ec;
-    if (!HasFailure() && !std::getenv("RAYFARM_E2E_KEEP")) fs::remove_all(dir_, ec);
-  }
-
-  std::string worker_endpoint() const { return "tcp://127.0.0.1:" + std::to_string(worker_port_); }
-  std::string client_endpoint() const { return "tcp://127.0.0.1:" + std::to_string(client_port_); }
-  const fs::path& dir() const { return dir_; }
-  fs::path job_dir(const std::string& job) const { return dir_ / "data" / "jobs" / job; }
+  std::vector<std::string> client_auth() const override { return {"--insecure"}; }
+  net::Curve client_curve() const override { return {}; }
 
   /// Starts the master (again: same ports, same data dir) logging to `log`.
   void start_master(const std::string& log, const std::vector<std::string>& extra = {}) {
-    std::vector<std::string> argv{bin("master/rayfarm-master"),
-                                  "--insecure",
-                                  "--worker-endpoint",
-                                  worker_endpoint(),
-                                  "--client-endpoint",
-                                  client_endpoint(),
-                                  "--data-dir",
-                                  (dir_ / "data").string(),
-                                  "--image-interval-ms",
-                                  "500"};
-    argv.insert(argv.end(), extra.begin(), extra.end());
-    logs_[log] = true;
-    master_ = std::make_unique<Process>(argv, dir_ / log);
-    ASSERT_TRUE(
-        wait_until([&] { return master_->log().find("master listening") != std::string::npos; },
-                   milliseconds{10000}))
-        << "master did not start:\n"
-        << master_->log();
+    std::vector<std::string> options{"--insecure", "--image-interval-ms", "500"};
+    options.insert(options.end(), extra.begin(), extra.end());
+    run_master(log, options);
   }
 
   Process& start_worker(const std::string& name, const std::vector<std::string>& extra = {}) {
-    std::vector<std::string> argv{bin("worker/rayfarm-worker"),
-                                  "--insecure",
-                                  "--master",
-                                  worker_endpoint(),
-                                  "--threads",
-                                  "1",
-                                  "--cache-dir",
-                                  (dir_ / ("cache-" + name)).string(),
-                                  "--name",
-                                  name,
-                                  "--reconnect-max-ms",
-                                  "500"};
-    argv.insert(argv.end(), extra.begin(), extra.end());
-    logs_[name + ".log"] = true;
-    auto p = std::make_unique<Process>(argv, dir_ / (name + ".log"));
-    Process& ref = *p;
-    workers_[name] = std::move(p);
-    return ref;
+    std::vector<std::string> options{"--insecure", "--threads", "1", "--reconnect-max-ms", "500"};
+    options.insert(options.end(), extra.begin(), extra.end());
+    return run_worker(name, options);
   }
-
-  Process& master() { return *master_; }
-
-  struct RunResult {
-    int code = -1;
-    std::string out, err;
-  };
-  RunResult cli(std::vector<std::string> args, bool farm = true) {
-    static std::atomic<int> counter{0};
-    const int n = counter++;
-    std::vector<std::string> argv{bin("cli/rayfarm")};
-    argv.insert(argv.end(), args.begin(), args.end());
-    if (farm) argv.insert(argv.end(), {"--master", client_endpoint(), "--insecure"});
-    const fs::path out = dir_ / ("cli-" + std::to_string(n) + ".out");
-    const fs::path err = dir_ / ("cli-" + std::to_string(n) + ".err");
-    Process p(argv, out, err);
-    RunResult r;
-    r.code = p.wait(milliseconds{60000}).value_or(-1);
-    r.out = read_text(out);
-    r.err = read_text(err);
-    return r;
-  }
-
-  /// A bundled scene with a smaller film, in the test folder.
-  fs::path small_scene(const std::string& name, uint32_t size) {
-    const fs::path from = fs::path(RAYFARM_SOURCE_DIR) / "scenes" / name;
-    const fs::path to = dir_ / "scenes" / name;
-    fs::create_directories(to);
-    fs::copy(from, to, fs::copy_options::recursive | fs::copy_options::overwrite_existing);
-    nlohmann::json scene = nlohmann::json::parse(read_text(to / "scene.json"));
-    scene["film"] = {{"width", size}, {"height", size}};
-    std::ofstream(to / "scene.json") << scene.dump(2);
-    return to / "scene.json";
-  }
-
-  fs::path local_render(const fs::path& scene, const std::vector<std::string>& settings) {
-    const fs::path out = dir_ / "local.exr";
-    std::vector<std::string> args{"render", scene.string(), "-o", out.string(), "--threads", "2"};
-    args.insert(args.end(), settings.begin(), settings.end());
-    const RunResult r = cli(args, false);
-    EXPECT_EQ(r.code, 0) << r.err;
-    return out;
-  }
-
-  std::string submit(const fs::path& scene, const std::vector<std::string>& settings) {
-    std::vector<std::string> args{"submit", scene.string()};
-    args.insert(args.end(), settings.begin(), settings.end());
-    const RunResult r = cli(args);
-    EXPECT_EQ(r.code, 0) << r.out << r.err;
-    return r.out.substr(0, r.out.find('\n'));
-  }
-
-  fs::path fetch(const std::string& job) {
-    const fs::path out = dir_ / (job + ".exr");
-    const RunResult r = cli({"fetch", job, "-o", out.string()});
-    EXPECT_EQ(r.code, 0) << r.err;
-    return out;
-  }
-
-  wire::JobStatus status(const std::string& job) {
-    RawPeer client(client_endpoint());
-    wire::StatusRequest request;
-    request.set_job_id(job);
-    client.send(protocol::encode(request));
-    return client.expect<wire::JobStatus>();
-  }
-
-  void wait_for_state(const std::string& job, wire::JobState state, seconds timeout = seconds{40}) {
-    ASSERT_TRUE(wait_until([&] { return status(job).state() == state; }, timeout))
-        << "job " << job << " never reached " << protocol::job_state_name(state);
-  }
-
- private:
-  fs::path dir_;
-  int worker_port_ = 0, client_port_ = 0;
-  std::unique_ptr<Process> master_;
-  std::map<std::string, std::unique_ptr<Process>> workers_;
-  std::map<std::string, bool> logs_;
 };
 
 /// The number after `marker` in the last line of `log` holding it ("... at 12/64 units").
@@ -319,7 +106,7 @@ TEST_F(FaultTest, TheMasterStoppedOrKilledMidJobResumesFromItsCheckpoint) {
   EXPECT_TRUE(bit_identical(fetch(job), local_render(scene, settings)));
   // Nothing was merged twice: the merger never saw a duplicate (one worker, no stragglers).
   for (const char* log : {"master-1.log", "master-2.log", "master-3.log"}) {
-    EXPECT_EQ(count_of(read_text(dir() / log), "duplicate result"), 0u) << log;
+    EXPECT_EQ(count_of(read_file(dir() / log), "duplicate result"), 0u) << log;
   }
   EXPECT_TRUE(wait_until([&] { return !fs::exists(a) && !fs::exists(b); }, milliseconds{10000}))
       << "a finished job keeps no checkpoint";

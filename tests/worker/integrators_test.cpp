@@ -6,76 +6,29 @@
 #include <cmath>
 
 #include "common/scene/parser.h"
+#include "tests/worker/mc_stats.h"
 #include "worker/renderer.h"
 
 namespace rayfarm {
 namespace {
 
-struct BlockStats {
-  std::vector<double> mean, variance_of_mean;  // per block and channel
-};
-
-// Renders `spp` samples and reduces them to block x block pixel blocks: the mean radiance of
-// each block and the variance of that mean, from the per-sample second moments.
-BlockStats render_blocks(const Scene& scene, IntegratorType integrator, uint32_t spp, uint32_t block) {
-  RenderSettings settings = scene.render;
-  settings.integrator = integrator;
-  settings.spp = spp;
-  settings.seed = 1000 + static_cast<uint64_t>(integrator);  // independent estimates
-  Renderer renderer(scene, settings);
-  const TileResult r = renderer.render({0, 0, scene.film.width, scene.film.height}, {0, spp});
-  EXPECT_EQ(r.nonfinite, 0u);
-  const uint32_t bw = scene.film.width / block, bh = scene.film.height / block;
-  BlockStats stats;
-  stats.mean.assign(size_t{bw} * bh * 3, 0.0);
-  stats.variance_of_mean.assign(size_t{bw} * bh * 3, 0.0);
-  const double n = double(block) * block * spp;
-  for (uint32_t by = 0; by < bh; ++by) {
-    for (uint32_t bx = 0; bx < bw; ++bx) {
-      for (int c = 0; c < 3; ++c) {
-        double s = 0.0, s2 = 0.0;
-        for (uint32_t y = by * block; y < (by + 1) * block; ++y) {
-          for (uint32_t x = bx * block; x < (bx + 1) * block; ++x) {
-            const size_t i = (size_t{y} * scene.film.width + x) * 3 + c;
-            s += from_fixed(r.sum[i]);
-            s2 += from_fixed(r.sum_sq[i]);
-          }
-        }
-        const double mean = s / n;
-        const size_t b = (size_t{by} * bw + bx) * 3 + c;
-        stats.mean[b] = mean;
-        stats.variance_of_mean[b] = std::max(0.0, s2 / n - mean * mean) / (n - 1.0);
-      }
-    }
-  }
-  return stats;
-}
-
 TEST(Integrators, AgreeOnTheCornellBoxWithinTheirStatisticalError) {
   Scene scene = load_scene(std::string(RAYFARM_SOURCE_DIR) + "/scenes/cornell-box/scene.json");
   scene.film = {32, 32};
   const uint32_t block = 8;
-  const BlockStats mis = render_blocks(scene, IntegratorType::kMis, 256, block);
-  const BlockStats nee = render_blocks(scene, IntegratorType::kNee, 256, block);
-  const BlockStats naive = render_blocks(scene, IntegratorType::kNaive, 1024, block);
-  // Two-sided z-test per block and channel; Bonferroni over all comparisons at 1e-3 overall:
-  // 2 pairs x 48 values -> per test p = 1e-5, |z| < 4.42.
-  const double z_max = 4.42;
-  int compared = 0;
-  for (size_t b = 0; b < mis.mean.size(); ++b) {
-    for (const BlockStats* other : {&nee, &naive}) {
-      const double se = std::sqrt(mis.variance_of_mean[b] + other->variance_of_mean[b]);
-      if (se == 0.0) {
-        EXPECT_EQ(mis.mean[b], other->mean[b]);
-        continue;
-      }
-      const double z = (mis.mean[b] - other->mean[b]) / se;
-      EXPECT_LT(std::fabs(z), z_max) << "block value " << b << ": mis " << mis.mean[b]
-                                     << " vs " << other->mean[b] << " (se " << se << ")";
-      ++compared;
-    }
-  }
-  EXPECT_GT(compared, 60);
+  // Independent estimates: each integrator with a seed of its own.
+  const auto render = [&](IntegratorType integrator, uint32_t spp) {
+    return testing::render_blocks(scene, integrator, spp, 1000 + static_cast<uint64_t>(integrator),
+                                  block);
+  };
+  const testing::BlockStats mis = render(IntegratorType::kMis, 256);
+  const testing::BlockStats nee = render(IntegratorType::kNee, 256);
+  const testing::BlockStats naive = render(IntegratorType::kNaive, 1024);
+  for (const testing::BlockStats* s : {&mis, &nee, &naive}) EXPECT_EQ(s->nonfinite, 0u);
+  // Two-sided z-test per block and channel, Bonferroni-corrected (mc_stats.h).
+  const size_t compared = testing::expect_same_within_noise(mis, nee, "mis vs nee") +
+                          testing::expect_same_within_noise(mis, naive, "mis vs naive");
+  EXPECT_GT(compared, 60u);
   // MIS must be the better estimator here: lower total variance than naive at equal samples.
   double var_mis = 0.0, var_naive = 0.0;
   for (size_t b = 0; b < mis.mean.size(); ++b) {
