@@ -351,30 +351,11 @@ void remove_checkpoints(const fs::path& job_dir) {
 
 // --- CheckpointWriter ---
 
-CheckpointWriter::CheckpointWriter() : thread_([this] { loop(); }) {}
-
-CheckpointWriter::~CheckpointWriter() {
-  {
-    std::lock_guard lock(mutex_);
-    stopping_ = true;
-  }
-  wake_.notify_all();
-  thread_.join();
-}
-
 void CheckpointWriter::submit(const fs::path& job_dir, Checkpoint checkpoint) {
-  {
-    std::lock_guard lock(mutex_);
-    auto same = std::find_if(queue_.begin(), queue_.end(), [&](const Task& t) {
-      return !t.remove && t.checkpoint.job_id == checkpoint.job_id;
-    });
-    if (same != queue_.end()) {
-      same->checkpoint = std::move(checkpoint);
-    } else {
-      queue_.push_back(Task{job_dir, std::move(checkpoint)});
-    }
-  }
-  wake_.notify_one();
+  const std::string id = checkpoint.job_id;
+  tasks_.submit(Task{job_dir, std::move(checkpoint)}, [&](const Task& waiting) {
+    return !waiting.remove && waiting.checkpoint.job_id == id;
+  });
 }
 
 void CheckpointWriter::set_newest_slot(const std::string& job_id, int slot) {
@@ -382,24 +363,15 @@ void CheckpointWriter::set_newest_slot(const std::string& job_id, int slot) {
   newest_slot_[job_id] = slot;
 }
 
-void CheckpointWriter::flush() {
-  std::unique_lock lock(mutex_);
-  idle_.wait(lock, [&] { return queue_.empty() && writing_.empty(); });
-}
+void CheckpointWriter::flush() { tasks_.flush(); }
 
 void CheckpointWriter::forget(const std::string& job_id, const fs::path& job_dir) {
-  {
-    std::lock_guard lock(mutex_);
-    queue_.erase(std::remove_if(queue_.begin(), queue_.end(),
-                                [&](const Task& t) { return t.checkpoint.job_id == job_id; }),
-                 queue_.end());
-    Task task;
-    task.job_dir = job_dir;
-    task.checkpoint.job_id = job_id;
-    task.remove = true;
-    queue_.push_back(std::move(task));
-  }
-  wake_.notify_one();
+  tasks_.discard([&](const Task& waiting) { return waiting.checkpoint.job_id == job_id; });
+  Task task;
+  task.job_dir = job_dir;
+  task.checkpoint.job_id = job_id;
+  task.remove = true;
+  tasks_.submit(std::move(task), [](const Task&) { return false; });
 }
 
 CheckpointWriter::Stats CheckpointWriter::stats() const {
@@ -407,55 +379,50 @@ CheckpointWriter::Stats CheckpointWriter::stats() const {
   return stats_;
 }
 
-void CheckpointWriter::loop() {
-  std::unique_lock lock(mutex_);
-  while (true) {
-    wake_.wait(lock, [&] { return stopping_ || !queue_.empty(); });
-    if (queue_.empty()) return;  // stopping, nothing left
-    Task task = std::move(queue_.front());
-    queue_.pop_front();
-    const std::string id = task.checkpoint.job_id;
-    if (task.remove) {
+void CheckpointWriter::write(Task& task) {
+  const std::string& id = task.checkpoint.job_id;
+  if (task.remove) {
+    {
+      std::lock_guard lock(mutex_);
       newest_slot_.erase(id);
-      remove_checkpoints(task.job_dir);  // no error: what is left is ignored for a finished job
-      if (queue_.empty()) idle_.notify_all();
-      continue;
     }
-    writing_ = id;
+    remove_checkpoints(task.job_dir);  // no error: what is left is ignored for a finished job
+    return;
+  }
+  int slot = 0;
+  {
+    std::lock_guard lock(mutex_);
     auto newest = newest_slot_.find(id);
-    const int slot = newest == newest_slot_.end() ? 0 : 1 - newest->second;
-    lock.unlock();
-    const auto start = std::chrono::steady_clock::now();
-    bool ok = false;
-    size_t bytes = 0;
-    try {
-      const std::string encoded = encode_checkpoint(task.checkpoint);
-      bytes = encoded.size();
-      write_durably(checkpoint_path(task.job_dir, slot), encoded);
-      ok = true;
-    } catch (const std::exception& e) {
-      log_jobs()->error("job {}: checkpoint {} not written: {}", id, task.checkpoint.sequence,
-                        e.what());
-    }
-    const double seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    if (ok) {
-      log_jobs()->debug("job {}: checkpoint {} written to {} ({:.1f} MB in {:.3f} s)", id,
-                        task.checkpoint.sequence, checkpoint_path(task.job_dir, slot).string(),
-                        bytes / 1e6, seconds);
-    }
-    lock.lock();
-    if (ok) {
-      newest_slot_[id] = slot;
-      ++stats_.written;
-      stats_.bytes_last = bytes;
-      stats_.seconds_last = seconds;
-      stats_.seconds_max = std::max(stats_.seconds_max, seconds);
-    } else {
-      ++stats_.failed;
-    }
-    writing_.clear();
-    idle_.notify_all();
+    slot = newest == newest_slot_.end() ? 0 : 1 - newest->second;
+  }
+  const auto start = std::chrono::steady_clock::now();
+  bool ok = false;
+  size_t bytes = 0;
+  try {
+    const std::string encoded = encode_checkpoint(task.checkpoint);
+    bytes = encoded.size();
+    write_durably(checkpoint_path(task.job_dir, slot), encoded);
+    ok = true;
+  } catch (const std::exception& e) {
+    log_jobs()->error("job {}: checkpoint {} not written: {}", id, task.checkpoint.sequence,
+                      e.what());
+  }
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (ok) {
+    log_jobs()->debug("job {}: checkpoint {} written to {} ({:.1f} MB in {:.3f} s)", id,
+                      task.checkpoint.sequence, checkpoint_path(task.job_dir, slot).string(),
+                      bytes / 1e6, seconds);
+  }
+  std::lock_guard lock(mutex_);
+  if (ok) {
+    newest_slot_[id] = slot;
+    ++stats_.written;
+    stats_.bytes_last = bytes;
+    stats_.seconds_last = seconds;
+    stats_.seconds_max = std::max(stats_.seconds_max, seconds);
+  } else {
+    ++stats_.failed;
   }
 }
 

@@ -16,9 +16,7 @@
 //   payload       checkpoint.cpp: encode_payload lists the fields in order
 //   32 bytes      SHA-256 of everything before it
 #include <chrono>
-#include <condition_variable>
 #include <cstdint>
-#include <deque>
 #include <filesystem>
 #include <functional>
 #include <map>
@@ -26,12 +24,12 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "common/image/convergence.h"
 #include "common/image/fixed.h"
 #include "common/report/error_log.h"
+#include "master/background_writer.h"
 
 namespace rayfarm::master {
 
@@ -101,12 +99,6 @@ class CheckpointWriter {
     double seconds_max = 0.0;
   };
 
-  CheckpointWriter();
-  /// Writes what is still queued, then stops the thread.
-  ~CheckpointWriter();
-  CheckpointWriter(const CheckpointWriter&) = delete;
-  CheckpointWriter& operator=(const CheckpointWriter&) = delete;
-
   /// Queues `checkpoint` for the job whose folder is `job_dir`.
   void submit(const std::filesystem::path& job_dir, Checkpoint checkpoint);
   /// The job's newest checkpoint is in slot `slot` (it was loaded from there).
@@ -124,16 +116,12 @@ class CheckpointWriter {
     Checkpoint checkpoint;
     bool remove = false;  // delete the job's checkpoints instead
   };
-  mutable std::mutex mutex_;
-  std::condition_variable wake_, idle_;
-  std::deque<Task> queue_;
+  mutable std::mutex mutex_;  // guards newest_slot_ and stats_
   std::map<std::string, int> newest_slot_;
-  std::string writing_;  // the job being written, "" when idle
-  bool stopping_ = false;
   Stats stats_;
-  std::thread thread_;
+  BackgroundWriter<Task> tasks_{[this](Task& task) { write(task); }};  // last: uses the above
 
-  void loop();
+  void write(Task& task);
 };
 
 }  // namespace rayfarm::master

@@ -2,27 +2,17 @@
 // Writes job images (EXR + PNG preview) on a thread of its own, so that the broker's reactor keeps
 // serving heartbeats and results while a large image is compressed. Only the newest image of each
 // file matters: one queued for a file that already has an unwritten one replaces it.
-#include <condition_variable>
-#include <deque>
 #include <filesystem>
-#include <mutex>
 #include <string>
-#include <thread>
-#include <utility>
 
 #include "common/image/exr.h"
 #include "common/report/error_log.h"
+#include "master/background_writer.h"
 
 namespace rayfarm::master {
 
 class ImageWriter {
  public:
-  ImageWriter();
-  /// Writes whatever is still queued, then stops the thread.
-  ~ImageWriter();
-  ImageWriter(const ImageWriter&) = delete;
-  ImageWriter& operator=(const ImageWriter&) = delete;
-
   /// The error record written with an image: error.csv and error.png in the image's folder.
   struct ErrorRecord {
     std::vector<ErrorRow> rows;
@@ -33,7 +23,7 @@ class ImageWriter {
   /// the error record when it has rows.
   void submit(const std::filesystem::path& exr, Image image, ErrorRecord record = {});
   /// Returns when everything queued before the call is written (or failed, which is logged).
-  void flush();
+  void flush() { tasks_.flush(); }
 
  private:
   struct Task {
@@ -41,14 +31,8 @@ class ImageWriter {
     Image image;
     ErrorRecord record;
   };
-  std::mutex mutex_;
-  std::condition_variable wake_, idle_;
-  std::deque<Task> queue_;
-  bool busy_ = false;
-  bool stopping_ = false;
-  std::thread thread_;
-
-  void loop();
+  static void write(Task& task);
+  BackgroundWriter<Task> tasks_{&ImageWriter::write};  // writes what is queued when destroyed
 };
 
 }  // namespace rayfarm::master
