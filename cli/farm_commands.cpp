@@ -23,6 +23,7 @@
 #include "common/bundle/bundle.h"
 #include "common/image/film_output.h"
 #include "common/net/keys.h"
+#include "common/net/peer_options.h"
 #include "common/net/socket.h"
 #include "common/protocol/codec.h"
 #include "common/protocol/convert.h"
@@ -73,9 +74,7 @@ std::string default_master() {
 struct ClientArgs {
   std::string master = default_master();
   double timeout = 10.0;
-  std::string key;         // this client's secret key file or Z85 secret key
-  std::string master_key;  // the master's public key file or Z85 key
-  bool insecure = false;
+  net::PeerKeyOptions keys;
 };
 
 void add_client_options(CLI::App* cmd, ClientArgs& args) {
@@ -84,21 +83,12 @@ void add_client_options(CLI::App* cmd, ClientArgs& args) {
   cmd->add_option("--timeout", args.timeout, "seconds to wait for the master")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
-  cmd->add_option("--key", args.key,
-                  "this client's secret key file (NAME.key_secret from rayfarm keygen) or Z85 "
-                  "secret key (env RAYFARM_KEY)")
-      ->envname("RAYFARM_KEY");
-  cmd->add_option("--master-key", args.master_key,
-                  "the master's public key file (NAME.key) or Z85 key (env RAYFARM_MASTER_KEY)")
-      ->envname("RAYFARM_MASTER_KEY");
-  cmd->add_flag("--insecure", args.insecure,
-                "plain socket, no authentication or encryption: only to a master on loopback "
-                "started with --insecure");
+  net::add_peer_key_options(*cmd, args.keys, "client");
 }
 
 /// The socket's CURVE settings from the arguments; throws naming what is missing.
 net::Curve client_curve(const ClientArgs& args) {
-  if (args.insecure) {
+  if (args.keys.insecure) {
     if (!net::is_loopback_endpoint(args.master)) {
       throw std::runtime_error("--insecure is allowed only with a master on loopback, and " +
                                args.master +
@@ -107,21 +97,8 @@ net::Curve client_curve(const ClientArgs& args) {
     }
     std::cerr << "rayfarm: warning: INSECURE: no authentication and no encryption to "
               << args.master << "\n";
-    return {};
   }
-  if (args.key.empty() || args.master_key.empty()) {
-    throw std::runtime_error(
-        "the farm commands need this client's key and the master's public key: --key FILE "
-        "(from `rayfarm keygen`) and --master-key FILE|KEY, or RAYFARM_KEY and "
-        "RAYFARM_MASTER_KEY; --insecure only for a master on loopback started with --insecure");
-  }
-  net::require_curve();
-  const net::KeyPair pair = net::key_pair_from(args.key, "--key");
-  net::Curve curve;
-  curve.public_key = pair.public_key;
-  curve.secret_key = pair.secret_key;
-  curve.server_key = net::public_key_from(args.master_key, "--master-key");
-  return curve;
+  return net::peer_curve(args.keys, "this client");
 }
 
 /// One connection to the master's client endpoint.

@@ -7,7 +7,7 @@
 
 #include <CLI/CLI.hpp>
 
-#include "common/net/keys.h"
+#include "common/net/peer_options.h"
 #include "common/util/log_options.h"
 #include "worker/agent.h"
 
@@ -44,18 +44,8 @@ int main(int argc, char** argv) {
   app.add_option("--reconnect-max-ms", reconnect_max_ms, "longest back-off between reconnections")
       ->check(CLI::Range(int64_t{10}, int64_t{600000}))
       ->capture_default_str();
-  std::string key, master_key;
-  bool insecure = false;
-  app.add_option("--key", key,
-                 "this worker's secret key file (NAME.key_secret from rayfarm keygen), or the "
-                 "Z85 secret key [env RAYFARM_KEY]")
-      ->envname("RAYFARM_KEY");
-  app.add_option("--master-key", master_key,
-                 "the master's public key: its NAME.key file or the Z85 key "
-                 "[env RAYFARM_MASTER_KEY]")
-      ->envname("RAYFARM_MASTER_KEY");
-  app.add_flag("--insecure", insecure,
-               "plain socket, no authentication or encryption: only to a master on loopback");
+  rayfarm::net::PeerKeyOptions keys;
+  rayfarm::net::add_peer_key_options(app, keys, "worker");
   CLI11_PARSE(app, argc, argv);
 
   logging.apply();
@@ -68,19 +58,7 @@ int main(int argc, char** argv) {
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
   try {
-    if (!insecure) {
-      if (key.empty() || master_key.empty()) {
-        throw std::runtime_error(
-            "the worker needs its key pair and the master's public key: --key FILE and "
-            "--master-key FILE|KEY (or RAYFARM_KEY, RAYFARM_MASTER_KEY), or --insecure for a "
-            "master on loopback");
-      }
-      rayfarm::net::require_curve();
-      const rayfarm::net::KeyPair pair = rayfarm::net::key_pair_from(key, "--key");
-      options.curve.public_key = pair.public_key;
-      options.curve.secret_key = pair.secret_key;
-      options.curve.server_key = rayfarm::net::public_key_from(master_key, "--master-key");
-    }
+    options.curve = rayfarm::net::peer_curve(keys, "the worker");
     rayfarm::worker::Agent agent(options);
     return agent.run(g_stop);
   } catch (const std::exception& e) {
