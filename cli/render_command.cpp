@@ -89,7 +89,7 @@ int run_render(const RenderArgs& args) {
 
   std::optional<Image> reference;
   if (args.stop.reference) reference = load_reference(*args.stop.reference, scene.film);
-  ErrorTracker tracker(std::move(reference));
+  ErrorTracker tracker(split_tiles(scene.film, options.tile_size), std::move(reference));
 
   Renderer renderer(scene, settings);
   log->info("{}: {}x{}, {} spp, seed {}; {}", args.scene, scene.film.width, scene.film.height,

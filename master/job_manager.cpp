@@ -125,7 +125,8 @@ void JobManager::activate(Job& job) {
                         s.id, e.what());
     }
   }
-  job.tracker = std::make_unique<ErrorTracker>(std::move(reference));
+  job.tracker =
+      std::make_unique<ErrorTracker>(split_tiles(s.film, s.tile_size), std::move(reference));
   job.rows.clear();
   job.unit_failures.clear();
   job.worker_failures.clear();
@@ -261,6 +262,7 @@ bool JobManager::resume(Job& job) {
   planner->take_released();
   job.merger = std::move(merger);
   job.planner = std::move(planner);
+  job.tracker->estimate_all(job.merger->film());
   job.rows = c.rows;
   job.rounds_recorded = c.rounds_recorded;
   job.samples_recorded = c.samples_recorded;
@@ -326,7 +328,8 @@ size_t JobManager::shutdown() {
 }
 
 void JobManager::record_row(Job& job) {
-  job.rows.push_back(job.tracker->record(job.merger->film(), elapsed(job)));
+  // Every merge updated its tile's estimate (on_result), so the row costs O(tiles).
+  job.rows.push_back(job.tracker->record(job.merger->film(), elapsed(job), /*tiles_current=*/true));
   job.samples_recorded = job.merger->samples_merged();
 }
 
@@ -542,6 +545,7 @@ MergeOutcome JobManager::on_result(const WorkerId& worker, const wire::UnitResul
   job.contributors[worker] = Clock::now();
   log_merger()->debug("job {} unit {} merged from {} ({:.3f} s render)", id, result.unit_id(),
                       name_of(worker), result.render_seconds());
+  job.tracker->update_tile(job.merger->film(), job.merger->grid().tile_of(result.unit_id()));
   PassPlanner& planner = *job.planner;
   planner.on_merged(result.unit_id(), job.merger->film());
   if (planner.gated()) scheduler_.release(id, planner.take_released());
@@ -562,12 +566,10 @@ void JobManager::on_round_done(Job& job) {
       s, static_cast<double>(m.grid().samples_total() - m.samples_merged()), row.samples_per_s,
       seconds, row.est_rel_mse);
   // The per-tile figure: the tile with the largest estimated error, and where it is.
-  TileRect worst_rect;
-  double worst = -1.0;
-  for (const TileRect& rect : split_tiles(s.film, s.tile_size)) {
-    const double e = estimate_error(m.film(), rect).rel_mse;
-    if (e > worst) worst = e, worst_rect = rect;
-  }
+  const TiledErrorEstimate& tiles = job.tracker->estimate();
+  const int worst_tile = tiles.worst_tile();
+  const double worst = worst_tile >= 0 ? tiles.tile(worst_tile).rel_mse : -1.0;
+  const TileRect worst_rect = worst_tile >= 0 ? tiles.tiles()[worst_tile] : TileRect{};
   log_jobs()->info(
       "job {} pass {}/{} done: {:.1f} spp, estimated relMSE {:.3g} (RMSE {:.3g}){}{}{}, {}, ETA "
       "{:.1f} s, {} workers active",

@@ -26,6 +26,8 @@ class UnitGrid {
   uint32_t tile_count() const { return static_cast<uint32_t>(tiles_.size()); }
   uint32_t pass_count() const { return static_cast<uint32_t>(passes_.size()); }
   FilmSize film() const { return film_; }
+  /// The tile of unit `id`, as an index into split_tiles(film, tile_size).
+  uint32_t tile_of(uint64_t id) const { return static_cast<uint32_t>(id % tiles_.size()); }
   /// Unit `id` (CHECKs id < size()).
   Unit unit(uint64_t id) const;
   /// Pixel samples in one unit (pixels of the tile x samples of the pass).

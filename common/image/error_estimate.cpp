@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 namespace rayfarm {
 
@@ -21,24 +22,29 @@ double ErrorEstimate::rmse() const { return std::sqrt(mse); }
 
 namespace {
 
-double mean_at(const Film& film, size_t p, int c) {
-  const uint32_t n = film.spp()[p];
-  return n > 0 ? from_fixed(film.sum()[p * 3 + c]) / n : 0.0;
-}
-
-/// The median of pixel (x, y)'s channel `c` over its 3x3 neighbourhood within `rect` (pixels
-/// with samples). A firefly is one pixel: it cannot move the median. Staying within `rect` keeps
-/// a tile's estimate a function of the tile's own samples (convergence.h relies on it).
-double median_mean(const Film& film, uint32_t x, uint32_t y, int c, const TileRect& rect) {
-  double v[9];
-  int k = 0;
-  for (uint32_t yy = y > rect.y0 ? y - 1 : y; yy <= std::min(y + 1, rect.y1 - 1); ++yy) {
-    for (uint32_t xx = x > rect.x0 ? x - 1 : x; xx <= std::min(x + 1, rect.x1 - 1); ++xx) {
-      const size_t p = size_t{yy} * film.width() + xx;
-      if (film.spp()[p] > 0) v[k++] = mean_at(film, p, c);
-    }
+/// The median of the first `k` (1 to 9) values: the value nth_element would give, since the
+/// median of a set does not depend on how it is found. Nine values (a pixel away from the
+/// rectangle's border) go through a branch-free network of 19 min/max exchanges; fewer through an
+/// insertion sort.
+double median_of(double* v, int k) {
+  if (k == 9) {
+    const auto exchange = [v](int a, int b) {
+      const double lo = std::min(v[a], v[b]), hi = std::max(v[a], v[b]);
+      v[a] = lo;
+      v[b] = hi;
+    };
+    exchange(1, 2), exchange(4, 5), exchange(7, 8), exchange(0, 1), exchange(3, 4);
+    exchange(6, 7), exchange(1, 2), exchange(4, 5), exchange(7, 8), exchange(0, 3);
+    exchange(5, 8), exchange(4, 7), exchange(3, 6), exchange(1, 4), exchange(2, 5);
+    exchange(4, 7), exchange(2, 4), exchange(4, 6), exchange(2, 4);
+    return v[4];
   }
-  std::nth_element(v, v + k / 2, v + k);
+  for (int i = 1; i < k; ++i) {
+    const double x = v[i];
+    int j = i - 1;
+    for (; j >= 0 && v[j] > x; --j) v[j + 1] = v[j];
+    v[j + 1] = x;
+  }
   return v[k / 2];
 }
 
@@ -49,26 +55,15 @@ ErrorEstimate estimate_error(const Film& film, const TileRect& rect_in) {
                                                    : rect_in;
   ErrorEstimate e;
   e.known = true;
-  long double rel = 0, mse = 0;
-  for (uint32_t y = rect.y0; y < rect.y1; ++y) {
+  e.pixels = rect.pixel_count();
+  const uint32_t w = rect.width();
+  const std::vector<uint32_t>& spp = film.spp();
+  const auto film_index = [&](uint32_t x, uint32_t y) { return size_t{y} * film.width() + x; };
+  for (uint32_t y = rect.y0; y < rect.y1 && e.known; ++y) {
     for (uint32_t x = rect.x0; x < rect.x1; ++x) {
-      const size_t p = size_t{y} * film.width() + x;
-      const uint32_t n = film.spp()[p];
-      ++e.pixels;
-      if (n < 2) {
+      if (spp[film_index(x, y)] < 2) {
         e.known = false;
-        continue;
-      }
-      for (int c = 0; c < 3; ++c) {
-        const double var = variance_of_mean(film.sum()[p * 3 + c], film.sum_sq()[p * 3 + c], n);
-        // The value the pixel converges to: the larger of its neighbourhood's median and a
-        // lower bound of its own mean, two standard errors down. A firefly's mean is no larger
-        // than two of its standard errors, so its neighbours judge it; a pixel that is simply
-        // brighter than its neighbours (the edge of a light) keeps its own value.
-        const double own = from_fixed(film.sum()[p * 3 + c]) / n - 2.0 * std::sqrt(var);
-        const double value = std::max(median_mean(film, x, y, c, rect), own);
-        rel += var / (value * value + kRelMseEpsilon);
-        mse += var;
+        break;
       }
     }
   }
@@ -76,10 +71,92 @@ ErrorEstimate estimate_error(const Film& film, const TileRect& rect_in) {
     e.rel_mse = e.mse = std::numeric_limits<double>::infinity();
     return e;
   }
+  // Every pixel's mean, converted once (the medians read each up to nine times).
+  std::vector<double> mean(size_t{e.pixels} * 3);
+  for (uint32_t y = rect.y0; y < rect.y1; ++y) {
+    for (uint32_t x = rect.x0; x < rect.x1; ++x) {
+      const size_t p = film_index(x, y), q = (size_t{y - rect.y0} * w + (x - rect.x0)) * 3;
+      for (int c = 0; c < 3; ++c) mean[q + c] = from_fixed(film.sum()[p * 3 + c]) / spp[p];
+    }
+  }
+  long double rel = 0, mse = 0;
+  for (uint32_t y = rect.y0; y < rect.y1; ++y) {
+    // The 3x3 neighbourhood within `rect`: a tile's estimate is a function of the tile's own
+    // samples (convergence.h relies on it). A firefly is one pixel: it cannot move the median.
+    const uint32_t ny0 = y > rect.y0 ? y - 1 : y, ny1 = std::min(y + 1, rect.y1 - 1);
+    for (uint32_t x = rect.x0; x < rect.x1; ++x) {
+      const uint32_t nx0 = x > rect.x0 ? x - 1 : x, nx1 = std::min(x + 1, rect.x1 - 1);
+      const size_t p = film_index(x, y), q = (size_t{y - rect.y0} * w + (x - rect.x0)) * 3;
+      const uint32_t n = spp[p];
+      for (int c = 0; c < 3; ++c) {
+        const double var = variance_of_mean(film.sum()[p * 3 + c], film.sum_sq()[p * 3 + c], n);
+        double v[9];
+        int k = 0;
+        for (uint32_t yy = ny0; yy <= ny1; ++yy) {
+          for (uint32_t xx = nx0; xx <= nx1; ++xx) {
+            v[k++] = mean[(size_t{yy - rect.y0} * w + (xx - rect.x0)) * 3 + c];
+          }
+        }
+        // The value the pixel converges to: the larger of its neighbourhood's median and a
+        // lower bound of its own mean, two standard errors down. A firefly's mean is no larger
+        // than two of its standard errors, so its neighbours judge it; a pixel that is simply
+        // brighter than its neighbours (the edge of a light) keeps its own value.
+        const double own = mean[q + c] - 2.0 * std::sqrt(var);
+        const double value = std::max(median_of(v, k), own);
+        rel += var / (value * value + kRelMseEpsilon);
+        mse += var;
+      }
+    }
+  }
   const long double values = 3.0L * static_cast<long double>(e.pixels);
   e.rel_mse = static_cast<double>(rel / values);
   e.mse = static_cast<double>(mse / values);
   return e;
+}
+
+TiledErrorEstimate::TiledErrorEstimate(std::vector<TileRect> tiles)
+    : tiles_(std::move(tiles)), estimates_(tiles_.size()) {
+  for (size_t t = 0; t < tiles_.size(); ++t) {
+    estimates_[t].pixels = tiles_[t].pixel_count();
+    estimates_[t].rel_mse = estimates_[t].mse = std::numeric_limits<double>::infinity();
+  }
+}
+
+void TiledErrorEstimate::update(const Film& film, uint32_t tile) {
+  estimates_[tile] = estimate_error(film, tiles_[tile]);
+}
+
+void TiledErrorEstimate::update_all(const Film& film) {
+  for (uint32_t t = 0; t < tiles_.size(); ++t) update(film, t);
+}
+
+ErrorEstimate TiledErrorEstimate::whole() const {
+  ErrorEstimate e;
+  e.known = !estimates_.empty();
+  long double rel = 0, mse = 0;
+  for (const ErrorEstimate& t : estimates_) {
+    e.pixels += t.pixels;
+    e.known = e.known && t.known;
+    rel += static_cast<long double>(t.rel_mse) * t.pixels;
+    mse += static_cast<long double>(t.mse) * t.pixels;
+  }
+  if (!e.known || e.pixels == 0) {
+    e.known = false;
+    e.rel_mse = e.mse = std::numeric_limits<double>::infinity();
+    return e;
+  }
+  e.rel_mse = static_cast<double>(rel / e.pixels);
+  e.mse = static_cast<double>(mse / e.pixels);
+  return e;
+}
+
+int TiledErrorEstimate::worst_tile() const {
+  int worst = -1;
+  for (size_t t = 0; t < estimates_.size(); ++t) {
+    if (estimates_[t].known && (worst < 0 || estimates_[t].rel_mse > estimates_[worst].rel_mse))
+      worst = static_cast<int>(t);
+  }
+  return worst;
 }
 
 std::vector<float> variance_rgb(const Film& film) {

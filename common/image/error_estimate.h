@@ -40,6 +40,28 @@ struct ErrorEstimate {
 /// samples inside `rect` only.
 ErrorEstimate estimate_error(const Film& film, const TileRect& rect = {});
 
+/// The estimate of a film cut into tiles, kept tile by tile: a tile's figure is recomputed when
+/// the tile changes (update, O(tile)), and the whole image's is the pixel-weighted mean of the
+/// tiles' (O(tiles)). Medians stay within tiles, as in estimate_error(film, tile). The master
+/// updates a tile as each result merges, so that the figures it logs after a pass cost nothing
+/// in proportion to the image; `rayfarm render` updates all tiles at each report.
+class TiledErrorEstimate {
+ public:
+  explicit TiledErrorEstimate(std::vector<TileRect> tiles);
+  void update(const Film& film, uint32_t tile);
+  void update_all(const Film& film);
+  const std::vector<TileRect>& tiles() const { return tiles_; }
+  const ErrorEstimate& tile(uint32_t t) const { return estimates_[t]; }
+  /// The whole image: unknown while some tile is.
+  ErrorEstimate whole() const;
+  /// The known tile with the largest relative MSE; -1 when no tile is known.
+  int worst_tile() const;
+
+ private:
+  std::vector<TileRect> tiles_;
+  std::vector<ErrorEstimate> estimates_;
+};
+
 /// Per-pixel variance of the mean, interleaved RGB like Film::mean_rgb(); +inf where a pixel has
 /// fewer than 2 samples. Written beside the image as the EXR layer "variance".
 std::vector<float> variance_rgb(const Film& film);

@@ -21,16 +21,17 @@ Image load_reference(const std::filesystem::path& path, FilmSize film) {
   return reference;
 }
 
-const ErrorRow& ErrorTracker::record(const Film& film, double seconds) {
+const ErrorRow& ErrorTracker::record(const Film& film, double seconds, bool tiles_current) {
+  if (!tiles_current) estimate_.update_all(film);
   ErrorRow row;
   const uint64_t samples = std::accumulate(film.spp().begin(), film.spp().end(), uint64_t{0});
   const double pixels = double(film.width()) * film.height();
   row.time_s = seconds;
   row.spp = pixels > 0 ? static_cast<double>(samples) / pixels : 0.0;
   row.samples_per_s = seconds > 0 ? static_cast<double>(samples) / seconds : 0.0;
-  last_ = estimate_error(film);
-  row.est_rel_mse = last_.rel_mse;
-  row.est_rmse = last_.rmse();
+  const ErrorEstimate whole = estimate_.whole();
+  row.est_rel_mse = whole.rel_mse;
+  row.est_rmse = whole.rmse();
   if (reference_) {
     Image image;
     image.width = film.width();

@@ -21,20 +21,26 @@ void check_reference(const Image& reference, FilmSize film, const std::string& s
 
 class ErrorTracker {
  public:
-  explicit ErrorTracker(std::optional<Image> reference = std::nullopt)
-      : reference_(std::move(reference)) {}
+  /// `tiles` cut the film for the estimate (TiledErrorEstimate): the render's tiles.
+  explicit ErrorTracker(std::vector<TileRect> tiles, std::optional<Image> reference = std::nullopt)
+      : estimate_(std::move(tiles)), reference_(std::move(reference)) {}
 
-  /// Appends the row for `film` `seconds` after the render started, and returns it.
-  const ErrorRow& record(const Film& film, double seconds);
+  /// Tile `tile` of `film` changed: its estimate is recomputed now (O(tile)).
+  void update_tile(const Film& film, uint32_t tile) { estimate_.update(film, tile); }
+  /// Every tile of `film` changed (a film restored from a checkpoint).
+  void estimate_all(const Film& film) { estimate_.update_all(film); }
+  /// Appends the row for `film` `seconds` after the render started, and returns it. Every tile's
+  /// estimate is recomputed first unless `tiles_current` says update_tile saw every change.
+  const ErrorRow& record(const Film& film, double seconds, bool tiles_current = false);
   const std::vector<ErrorRow>& rows() const { return rows_; }
   bool has_reference() const { return reference_.has_value(); }
-  /// The estimate behind the last row.
-  const ErrorEstimate& last_estimate() const { return last_; }
+  /// The estimates behind the last row, tile by tile.
+  const TiledErrorEstimate& estimate() const { return estimate_; }
 
  private:
+  TiledErrorEstimate estimate_;
   std::optional<Image> reference_;
   std::vector<ErrorRow> rows_;
-  ErrorEstimate last_;
 };
 
 }  // namespace rayfarm

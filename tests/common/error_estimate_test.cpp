@@ -139,6 +139,102 @@ TEST(ErrorEstimate, UnknownWhileAPixelHasFewerThanTwoSamples) {
   EXPECT_EQ(variance_rgb(film)[3], INFINITY);
 }
 
+/// The estimate as its definition reads, pixel by pixel with nth_element: what the fast one in
+/// error_estimate.cpp (means converted once, a median network) must reproduce.
+double plain_rel_mse(const Film& film, const TileRect& rect) {
+  const auto mean = [&](uint32_t x, uint32_t y, int c) {
+    const size_t p = size_t{y} * film.width() + x;
+    return from_fixed(film.sum()[p * 3 + c]) / film.spp()[p];
+  };
+  long double rel = 0;
+  for (uint32_t y = rect.y0; y < rect.y1; ++y) {
+    for (uint32_t x = rect.x0; x < rect.x1; ++x) {
+      const size_t p = size_t{y} * film.width() + x;
+      for (int c = 0; c < 3; ++c) {
+        std::vector<double> v;
+        for (uint32_t yy = y > rect.y0 ? y - 1 : y; yy <= std::min(y + 1, rect.y1 - 1); ++yy)
+          for (uint32_t xx = x > rect.x0 ? x - 1 : x; xx <= std::min(x + 1, rect.x1 - 1); ++xx)
+            v.push_back(mean(xx, yy, c));
+        std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+        const double var =
+            variance_of_mean(film.sum()[p * 3 + c], film.sum_sq()[p * 3 + c], film.spp()[p]);
+        const double value = std::max(v[v.size() / 2], mean(x, y, c) - 2.0 * std::sqrt(var));
+        rel += var / (value * value + kRelMseEpsilon);
+      }
+    }
+  }
+  return static_cast<double>(rel / (3.0L * rect.pixel_count()));
+}
+
+TEST(ErrorEstimate, EqualsItsDefinitionBitForBitOnRandomFilms) {
+  std::mt19937_64 rng(11);
+  std::uniform_int_distribution<int> level(0, 5);  // few levels: ties in the medians
+  std::exponential_distribution<double> heavy(1.0);
+  for (int trial = 0; trial < 20; ++trial) {
+    const uint32_t w = 1 + trial % 7, h = 1 + (trial * 3) % 5;
+    TileResult r({0, 0, w, h}, {0, 8});
+    for (size_t i = 0; i < r.sum.size(); ++i) {
+      for (int s = 0; s < 8; ++s) {
+        const double x = trial % 2 ? level(rng) * 0.25 : heavy(rng);
+        r.sum[i] += to_fixed(x);
+        r.sum_sq[i] += to_fixed(x * x);
+      }
+    }
+    Film film(w, h);
+    film.add(r);
+    for (const TileRect& rect : {TileRect{0, 0, w, h}, TileRect{0, 0, (w + 1) / 2, h},
+                                 TileRect{w / 2, h / 2, w, h}}) {
+      EXPECT_EQ(estimate_error(film, rect).rel_mse, plain_rel_mse(film, rect))
+          << "film " << w << "x" << h << ", trial " << trial;
+    }
+  }
+}
+
+TEST(TiledErrorEstimate, TheWholeIsThePixelWeightedMeanOfTheTilesAndFollowsUpdates) {
+  std::mt19937_64 rng(5);
+  std::exponential_distribution<double> heavy(1.0);
+  const auto noisy = [&](TileRect rect, uint32_t first, uint32_t count, double scale) {
+    TileResult r(rect, {first, first + count});
+    for (size_t i = 0; i < r.sum.size(); ++i) {
+      for (uint32_t s = 0; s < count; ++s) {
+        const double x = scale * heavy(rng);
+        r.sum[i] += to_fixed(x);
+        r.sum_sq[i] += to_fixed(x * x);
+      }
+    }
+    return r;
+  };
+  const FilmSize size{10, 7};
+  Film film(size.width, size.height);
+  TiledErrorEstimate tiled(split_tiles(size, 4));  // 3 x 2 tiles of 4x4, 2x4, 4x3, 2x3 pixels
+  ASSERT_EQ(tiled.tiles().size(), 6u);
+  EXPECT_FALSE(tiled.whole().known);
+  EXPECT_EQ(tiled.worst_tile(), -1);
+
+  for (const TileRect& rect : tiled.tiles()) film.add(noisy(rect, 0, 8, 1.0));
+  tiled.update_all(film);
+  long double rel = 0;
+  for (uint32_t t = 0; t < tiled.tiles().size(); ++t) {
+    const ErrorEstimate e = estimate_error(film, tiled.tiles()[t]);
+    EXPECT_EQ(tiled.tile(t).rel_mse, e.rel_mse);
+    rel += static_cast<long double>(e.rel_mse) * e.pixels;
+  }
+  const ErrorEstimate whole = tiled.whole();
+  EXPECT_TRUE(whole.known);
+  EXPECT_EQ(whole.pixels, 70u);
+  EXPECT_DOUBLE_EQ(whole.rel_mse, static_cast<double>(rel / 70));
+  // One tile much noisier: the worst once it is updated, and not before.
+  film.add(noisy(tiled.tiles()[4], 8, 8, 50.0));
+  const int before = tiled.worst_tile();
+  tiled.update(film, 4);
+  EXPECT_EQ(tiled.worst_tile(), 4) << "was " << before;
+  EXPECT_GT(tiled.whole().rel_mse, whole.rel_mse);
+  // One tile covering the film: the same figure as estimate_error of the film.
+  TiledErrorEstimate one(split_tiles(size, 16));
+  one.update_all(film);
+  EXPECT_EQ(one.whole().rel_mse, estimate_error(film).rel_mse);
+}
+
 // ---------------------------------------------------------------------------------------------
 // The planner
 
