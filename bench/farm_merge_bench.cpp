@@ -143,7 +143,11 @@ void bench_broker(int workers, uint32_t size, uint32_t tile, uint32_t spp, uint3
   client.send(protocol::encode(submit));
   auto reply = client.receive(milliseconds{10000});
   const std::string job = reply ? protocol::decode(*reply).as<wire::SubmitReply>()->job_id() : "";
-  if (job.empty()) throw std::runtime_error("the job was not accepted");
+  if (job.empty()) {
+    stop_master = true;
+    master.join();
+    throw std::runtime_error("the job was not accepted");
+  }
 
   std::atomic<uint64_t> sent{0};
   const auto start = Clock::now();
@@ -152,22 +156,33 @@ void bench_broker(int workers, uint32_t size, uint32_t tile, uint32_t spp, uint3
     threads.emplace_back(fake_worker, broker.worker_endpoint(), i, std::ref(stop_workers),
                          std::ref(sent));
   }
+  // The threads stop on every way out, also when the master stops answering.
+  const auto stop_all = [&] {
+    stop_workers = true;
+    for (auto& t : threads) t.join();
+    threads.clear();
+    stop_master = true;
+    if (master.joinable()) master.join();
+  };
   wire::JobStatus status;
-  while (true) {
+  std::string error;
+  while (error.empty()) {
     wire::StatusRequest request;
     request.set_job_id(job);
     client.send(protocol::encode(request));
-    auto frames = client.receive(milliseconds{10000});
-    if (!frames) throw std::runtime_error("no status from the master");
+    auto frames = client.receive(milliseconds{30000});
+    if (!frames) {
+      error = "no status from the master within 30 s";
+      break;
+    }
     status = *protocol::decode(*frames).as<wire::JobStatus>();
-    if (status.state() == wire::JOB_DONE || seconds_since(start) > 300) break;
+    if (status.state() == wire::JOB_DONE) break;
+    if (seconds_since(start) > 600) error = "the job did not finish within 600 s";
     std::this_thread::sleep_for(milliseconds{20});
   }
+  stop_all();
+  if (!error.empty()) throw std::runtime_error(error);
   const double s = status.elapsed_seconds();
-  stop_workers = true;
-  for (auto& t : threads) t.join();
-  stop_master = true;
-  master.join();
   const double unit_kb = static_cast<double>(tile) * tile * 3 * 32 / 1e3;
   std::cout << fmt::format(
       "through the broker ({} fake workers on loopback): {} units of {}x{} px ({:.1f} KB each) in "

@@ -171,6 +171,7 @@ void Broker::run(const std::atomic<bool>& stop) {
         std::chrono::duration_cast<milliseconds>(next_heartbeat_ - Clock::now());
     const auto wait = std::clamp(until_heartbeat, milliseconds{0}, milliseconds{100});
     const auto readable = net::poll(sockets, wait);
+    const auto busy_from = Clock::now();
     if (readable[0]) {
       for (int i = 0; i < kBatch; ++i) {
         auto delivery = workers_socket_.receive(milliseconds{0});
@@ -184,6 +185,12 @@ void Broker::run(const std::atomic<bool>& stop) {
         if (!delivery) break;
         handle_client(*delivery);
       }
+    }
+    // Messages that arrived while the master was busy (a pass of a large image ends) are still
+    // unread: the time it was not listening does not count as the workers' silence.
+    const auto busy = Clock::now() - busy_from;
+    if (busy > options_.heartbeat.interval) {
+      for (auto& [peer, w] : workers_) w.expires += busy;
     }
     on_timers();
   }
