@@ -24,6 +24,7 @@
 
 #include "common/math/vec3.h"
 #include "common/scene/scene.h"
+#include "tests/support/normal_quantile.h"
 #include "worker/bsdfs/bsdf.h"
 #include "worker/samplers/rng.h"
 
@@ -36,15 +37,7 @@ constexpr double kDegree = 3.141592653589793 / 180.0;
 // ----------------------------------------------------------------------------------------------
 // Statistics
 
-/// z such that P(|Z| > z) = alpha for a standard normal Z.
-double two_sided_z(double alpha) {
-  double lo = 0.0, hi = 40.0;
-  for (int i = 0; i < 200; ++i) {
-    const double mid = 0.5 * (lo + hi);
-    (std::erfc(mid / std::sqrt(2.0)) > alpha ? lo : hi) = mid;
-  }
-  return hi;
-}
+using testing::two_sided_z;
 
 /// Regularised upper incomplete gamma function Q(a, x): a series below a + 1, a continued
 /// fraction (modified Lentz) above.

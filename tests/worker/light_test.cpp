@@ -19,6 +19,7 @@
 
 #include "common/math/vec3.h"
 #include "common/scene/scene.h"
+#include "tests/support/normal_quantile.h"
 #include "worker/lights/light_set.h"
 #include "worker/samplers/rng.h"
 #include "worker/scene_data.h"
@@ -28,15 +29,7 @@ namespace {
 
 constexpr double kPiD = 3.141592653589793;
 
-/// z such that P(|Z| > z) = alpha for a standard normal Z.
-double two_sided_z(double alpha) {
-  double lo = 0.0, hi = 40.0;
-  for (int i = 0; i < 200; ++i) {
-    const double mid = 0.5 * (lo + hi);
-    (std::erfc(mid / std::sqrt(2.0)) > alpha ? lo : hi) = mid;
-  }
-  return hi;
-}
+using testing::two_sided_z;
 
 // The hypothesis tests of this file: selection frequencies of 4 lights in 2 scenes, the dark
 // fraction of a one-sided sphere, and 5 irradiance estimates of 3 channels each.

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "tests/support/normal_quantile.h"
 #include "worker/renderer.h"
 
 namespace rayfarm::testing {
@@ -93,16 +94,9 @@ inline BlockStats render_blocks(const Scene& scene, IntegratorType integrator, u
 }
 
 /// Two-sided z quantile for a family of `comparisons` tests at overall false-alarm rate
-/// `alpha` (Bonferroni): per test p = alpha / comparisons. Inverts the normal tail by bisection
-/// on erfc, so that no table is needed.
+/// `alpha` (Bonferroni): per test p = alpha / comparisons.
 inline double bonferroni_z(size_t comparisons, double alpha = 1e-3) {
-  const double p = alpha / double(comparisons);
-  double lo = 0.0, hi = 40.0;
-  for (int i = 0; i < 200; ++i) {
-    const double mid = 0.5 * (lo + hi);
-    (std::erfc(mid / std::sqrt(2.0)) > p ? lo : hi) = mid;
-  }
-  return hi;
+  return two_sided_z(alpha / double(comparisons));
 }
 
 /// Expects every block of `a` to equal the same block of `b` within the z bound of all the

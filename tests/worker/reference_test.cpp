@@ -27,6 +27,7 @@
 #include "common/image/exr.h"
 #include "common/image/film.h"
 #include "common/scene/parser.h"
+#include "tests/support/normal_quantile.h"
 #include "worker/renderer.h"
 
 namespace rayfarm {
@@ -97,15 +98,7 @@ Blocks reference_blocks() {
                 std::vector<double>(var.rgb.begin(), var.rgb.end()), ref.width, ref.height);
 }
 
-// |z| above which a two-sided normal test rejects at level `alpha`: solves erfc(z / sqrt 2) = alpha.
-double two_sided_z(double alpha) {
-  double lo = 0.0, hi = 40.0;
-  for (int i = 0; i < 200; ++i) {
-    const double mid = 0.5 * (lo + hi);
-    (std::erfc(mid / std::sqrt(2.0)) > alpha ? lo : hi) = mid;
-  }
-  return hi;
-}
+using testing::two_sided_z;
 
 TEST(CyclesReference, FilesMatchTheSceneAndTheirSettings) {
   const Scene scene = load_scene(kScene);
