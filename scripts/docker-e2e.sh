@@ -193,7 +193,7 @@ log "master log for the job:"
 master_log="$(compose logs --no-color master 2>/dev/null | grep -F "job $JOB " || true)"
 echo "$master_log" | tail -n 15 >&2
 # The processes' own clocks, without the cost of starting a container for each CLI call.
-farm_s="$(echo "$master_log" | sed -n 's/.* done: .* in \([0-9.]*\) s .*/\1/p' | tail -n 1)"
+farm_s="$(echo "$master_log" | sed -n 's/.* done[^:]*: .* in \([0-9.]*\) s .*/\1/p' | tail -n 1)"
 local_s="$(echo "$render_out" | sed -n 's/^time \([0-9.]*\) s.*/\1/p' | tail -n 1)"
 
 cat <<EOF
