@@ -171,7 +171,7 @@ void Broker::run(const std::atomic<bool>& stop) {
         std::chrono::duration_cast<milliseconds>(next_heartbeat_ - Clock::now());
     const auto wait = std::clamp(until_heartbeat, milliseconds{0}, milliseconds{100});
     const auto readable = net::poll(sockets, wait);
-    const auto busy_from = Clock::now();
+    listened_ = Clock::now();
     if (readable[0]) {
       for (int i = 0; i < kBatch; ++i) {
         auto delivery = workers_socket_.receive(milliseconds{0});
@@ -185,12 +185,6 @@ void Broker::run(const std::atomic<bool>& stop) {
         if (!delivery) break;
         handle_client(*delivery);
       }
-    }
-    // Messages that arrived while the master was busy (a pass of a large image ends) are still
-    // unread: the time it was not listening does not count as the workers' silence.
-    const auto busy = Clock::now() - busy_from;
-    if (busy > options_.heartbeat.interval) {
-      for (auto& [peer, w] : workers_) w.expires += busy;
     }
     on_timers();
   }
@@ -206,17 +200,34 @@ void Broker::on_timers() {
     for (const auto& [peer, w] : workers_) workers_socket_.send(peer, beat);
     next_heartbeat_ = now + options_.heartbeat.interval;
   }
+  // Messages that arrived while the master was busy since it last polled (the end of a pass of a
+  // large image) are still unread: that time does not count as the workers' silence, up to one
+  // more liveness window per worker, so that a worker that truly went silent is still found.
+  const auto deaf = now - listened_;
+  if (deaf > options_.heartbeat.interval) {
+    for (auto& [peer, w] : workers_) {
+      const auto credit = std::min<Clock::duration>(deaf, options_.heartbeat.expiry() - w.forgiven);
+      if (credit <= Clock::duration::zero()) continue;
+      w.expires += credit;
+      w.forgiven += credit;
+    }
+  }
   std::vector<net::PeerId> expired;
   for (const auto& [peer, w] : workers_) {
     if (now > w.expires) expired.push_back(peer);
   }
   for (const auto& peer : expired) {
-    remove_worker(peer,
-                  fmt::format("lost: silent for {:.1f} s",
-                              std::chrono::duration<double>(options_.heartbeat.expiry()).count()));
+    const double silent = std::chrono::duration<double>(now - workers_[peer].heard).count();
+    remove_worker(peer, fmt::format("lost: silent for {:.1f} s", silent));
   }
   jobs_.tick();
   if (jobs_.has_pending()) dispatch();  // stragglers become due with time alone
+}
+
+void Broker::heard_from(Worker& w) {
+  w.heard = Clock::now();
+  w.expires = w.heard + options_.heartbeat.expiry();
+  w.forgiven = Clock::duration::zero();
 }
 
 void Broker::send_worker(const net::PeerId& peer, const net::Frames& frames) {
@@ -245,7 +256,7 @@ void Broker::register_worker(const net::PeerId& peer, const wire::Hello& hello,
   Worker& w = workers_[peer];
   w.name = hello.name().empty() ? "unnamed" : protocol::printable(hello.name());
   w.threads = hello.threads();
-  w.expires = Clock::now() + options_.heartbeat.expiry();
+  heard_from(w);
   w.wants = 0;
   log()->info("{} joined{}: {} threads, {}; {} worker{} connected", worker_label(peer),
               key_name.empty() ? "" : " with key '" + protocol::printable(key_name) + "'",
@@ -316,7 +327,7 @@ void Broker::handle_worker(const net::Delivery& delivery) {
       return;
     }
     auto it = workers_.find(peer);
-    if (it != workers_.end()) it->second.expires = Clock::now() + options_.heartbeat.expiry();
+    if (it != workers_.end()) heard_from(it->second);
 
     if (const auto* result = msg.as<wire::UnitResult>()) {
       // Merged even from an unknown peer (a worker declared lost): the bits do not depend on who

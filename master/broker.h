@@ -72,7 +72,9 @@ class Broker {
   struct Worker {
     std::string name;
     uint32_t threads = 0;
+    Clock::time_point heard;    // its last message
     Clock::time_point expires;  // declared lost when silent until then
+    Clock::duration forgiven{};  // time the master was busy, added to expires since `heard`
     uint32_t wants = 0;         // WorkRequests not answered yet
     uint64_t units_sent = 0;
   };
@@ -87,6 +89,7 @@ class Broker {
   net::Router clients_socket_;
   std::map<net::PeerId, Worker> workers_;
   Clock::time_point next_heartbeat_;
+  Clock::time_point listened_;  // when the sockets were last polled
 
   static std::unique_ptr<Gate> open_gate(const MasterOptions& options);
   void handle_worker(const net::Delivery& delivery);
@@ -98,6 +101,7 @@ class Broker {
   void send_worker(const net::PeerId& peer, const net::Frames& frames);
   void reply(const net::PeerId& peer, const net::Frames& frames);
   void on_timers();
+  void heard_from(Worker& w);
   std::string worker_label(const net::PeerId& peer) const;
 };
 
