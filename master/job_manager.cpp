@@ -328,7 +328,8 @@ size_t JobManager::shutdown() {
 }
 
 void JobManager::record_row(Job& job) {
-  // Every merge updated its tile's estimate (on_result), so the row costs O(tiles).
+  // Every merge updated its tile's estimate (on_result): the image's estimate is a sum over
+  // tiles here (the row still counts samples, and compares with the reference when there is one).
   job.rows.push_back(job.tracker->record(job.merger->film(), elapsed(job), /*tiles_current=*/true));
   job.samples_recorded = job.merger->samples_merged();
 }

@@ -103,7 +103,10 @@ void PassPlanner::on_merged(uint64_t unit, const Film& film) {
   for (const TileState& other : state_) {
     if (other.merged < other.released) return;
   }
-  const double error = estimate_error(film).rel_mse;
+  // The image's figure as the render reports it: the pixel-weighted mean of the tiles'.
+  TiledErrorEstimate image(tiles_);
+  image.update_all(film);
+  const double error = image.whole().rel_mse;
   for (uint32_t t = 0; t < tile_count(); ++t) {
     state_[t].error = error;
     if (error <= rules_.target_error) {

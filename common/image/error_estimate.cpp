@@ -153,8 +153,8 @@ ErrorEstimate TiledErrorEstimate::whole() const {
 int TiledErrorEstimate::worst_tile() const {
   int worst = -1;
   for (size_t t = 0; t < estimates_.size(); ++t) {
-    if (estimates_[t].known && (worst < 0 || estimates_[t].rel_mse > estimates_[worst].rel_mse))
-      worst = static_cast<int>(t);
+    if (!estimates_[t].known) return static_cast<int>(t);  // its error is unbounded
+    if (worst < 0 || estimates_[t].rel_mse > estimates_[worst].rel_mse) worst = static_cast<int>(t);
   }
   return worst;
 }

@@ -54,7 +54,8 @@ class TiledErrorEstimate {
   const ErrorEstimate& tile(uint32_t t) const { return estimates_[t]; }
   /// The whole image: unknown while some tile is.
   ErrorEstimate whole() const;
-  /// The known tile with the largest relative MSE; -1 when no tile is known.
+  /// The tile with the largest relative MSE: the first one not known yet (its error is +inf),
+  /// else the largest; -1 when there are no tiles.
   int worst_tile() const;
 
  private:

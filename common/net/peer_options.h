@@ -35,7 +35,7 @@ inline void add_peer_key_options(CLI::App& app, PeerKeyOptions& options, const s
 
 /// The CURVE settings of a Dealer towards the master: none with --insecure (the caller checks the
 /// endpoint is on loopback), else this peer's key pair and the master's public key. Throws naming
-/// what is missing or unreadable; `who` starts the message ("the worker", "the farm commands").
+/// what is missing or unreadable; `who` starts the message ("the worker", "this client").
 inline Curve peer_curve(const PeerKeyOptions& options, const std::string& who) {
   if (options.insecure) return {};
   if (options.key.empty() || options.master_key.empty()) {

@@ -209,7 +209,9 @@ TEST(TiledErrorEstimate, TheWholeIsThePixelWeightedMeanOfTheTilesAndFollowsUpdat
   TiledErrorEstimate tiled(split_tiles(size, 4));  // 3 x 2 tiles of 4x4, 2x4, 4x3, 2x3 pixels
   ASSERT_EQ(tiled.tiles().size(), 6u);
   EXPECT_FALSE(tiled.whole().known);
-  EXPECT_EQ(tiled.worst_tile(), -1);
+  EXPECT_EQ(tiled.worst_tile(), 0) << "a tile not known yet is the worst: its error is unbounded";
+  EXPECT_EQ(TiledErrorEstimate({}).worst_tile(), -1);
+  EXPECT_FALSE(TiledErrorEstimate({}).whole().known);
 
   for (const TileRect& rect : tiled.tiles()) film.add(noisy(rect, 0, 8, 1.0));
   tiled.update_all(film);
