@@ -99,13 +99,14 @@ inline double bonferroni_z(size_t comparisons, double alpha = 1e-3) {
   return two_sided_z(alpha / double(comparisons));
 }
 
-/// Expects every block of `a` to equal the same block of `b` within the z bound of all the
-/// comparisons made (Bonferroni at 1e-3 overall). Blocks where both have zero variance must be
+/// Expects every block of `a` to equal the same block of `b` within the z bound of `family`
+/// comparisons (Bonferroni at 1e-3 overall; by default the comparisons of this call, more when
+/// the caller makes several calls as one family). Blocks where both have zero variance must be
 /// equal exactly. Returns the number of comparisons made.
 inline size_t expect_same_within_noise(const BlockStats& a, const BlockStats& b,
-                                       const std::string& what) {
+                                       const std::string& what, size_t family = 0) {
   EXPECT_EQ(a.mean.size(), b.mean.size()) << what;
-  const double z_max = bonferroni_z(a.mean.size());
+  const double z_max = bonferroni_z(family > 0 ? family : a.mean.size());
   size_t compared = 0;
   for (size_t i = 0; i < a.mean.size() && i < b.mean.size(); ++i) {
     const double se = std::sqrt(a.variance_of_mean[i] + b.variance_of_mean[i]);
