@@ -81,9 +81,12 @@ TEST(Bundle, RepeatedOrBadPathsAreRejected) {
   EXPECT_THROW(make_bundle({{"../a", "1"}}), BundleError);
 }
 
-TEST(Bundle, PacksASceneWithEveryFileItReferences) {
+TEST(Bundle, PacksASceneWithEveryFileItReferencesAndNothingElse) {
   TempDir dir;
   const fs::path scene = cornell_with_mesh_folder(dir.path() / "box");
+  // Files beside the scene that it does not reference stay home.
+  write_file(dir.path() / "box" / "meshes" / "unused.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  write_file(dir.path() / "box" / "renders" / "old.exr", std::string(1 << 20, 'x'));
   const PackedScene packed = pack_scene(scene);
   EXPECT_EQ(packed.scene_path, "scene.json");
   std::vector<std::string> paths;
