@@ -660,7 +660,7 @@ void JobManager::finish(Job& job, wire::JobState state, const std::string& error
     if (state == wire::JOB_DONE || job.dirty) write_image(job, /*wait=*/true);
     JobRecord& r = job.record;
     r.units_done = job.merger->merged_count();
-    r.spp_min = job.merger->film().min_spp();
+    r.spp_min = job.merger->min_spp();
     r.spp_mean = static_cast<double>(job.merger->samples_merged()) /
                  (double(s.film.width) * s.film.height);
     r.tiles_converged = job.planner->tiles_converged();
@@ -807,7 +807,7 @@ wire::JobStatus JobManager::make_status(const Job& job, uint32_t workers_total) 
     }
     st.set_units_done(m.merged_count());
     st.set_units_leased(counts.leased);
-    st.set_spp_done(m.film().min_spp());
+    st.set_spp_done(m.min_spp());
     st.set_workers_busy(counts.workers);
     const double seconds = elapsed(job);
     if (seconds > 0 && m.samples_merged() > 0) {
@@ -857,7 +857,7 @@ wire::ImageData JobManager::image(const std::string& id) const {
   if (auto csv = store_.read_file(id, "error.csv")) out.set_error_csv(std::move(*csv));
   if (auto plot = store_.read_file(id, "error.png")) out.set_error_png(std::move(*plot));
   const Job& job = it->second;
-  out.set_spp_done(job.merger ? job.merger->film().min_spp() : job.record.spp_min);
+  out.set_spp_done(job.merger ? job.merger->min_spp() : job.record.spp_min);
   out.set_state(job.record.state);
   return out;
 }

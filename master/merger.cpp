@@ -1,5 +1,6 @@
 #include "master/merger.h"
 
+#include <algorithm>
 #include <stdexcept>
 
 namespace rayfarm::master {
@@ -17,7 +18,8 @@ Merger::Merger(UnitGrid grid)
     : grid_(std::move(grid)),
       film_(grid_.film().width, grid_.film().height),
       merged_(grid_.size(), false),
-      merged_per_pass_(grid_.pass_count(), 0) {}
+      merged_per_pass_(grid_.pass_count(), 0),
+      tile_spp_(grid_.tile_count(), 0) {}
 
 MergeOutcome Merger::add(uint64_t unit, const TileResult& result, std::string* why) {
   auto reject = [&](const std::string& reason) {
@@ -45,6 +47,7 @@ MergeOutcome Merger::add(uint64_t unit, const TileResult& result, std::string* w
   merged_[unit] = true;
   ++merged_count_;
   ++merged_per_pass_[expected.pass];
+  tile_spp_[grid_.tile_of(unit)] += expected.samples.count();
   samples_merged_ += uint64_t{expected.rect.pixel_count()} * expected.samples.count();
   return MergeOutcome::kMerged;
 }
@@ -114,8 +117,13 @@ void Merger::restore(const std::vector<uint8_t>& merged, const std::vector<Fixed
   film_ = std::move(film);
   merged_.assign(merged.begin(), merged.end());
   merged_per_pass_ = std::move(per_pass);
+  tile_spp_ = std::move(tile_spp);
   merged_count_ = count;
   samples_merged_ = samples;
+}
+
+uint32_t Merger::min_spp() const {
+  return tile_spp_.empty() ? 0 : *std::min_element(tile_spp_.begin(), tile_spp_.end());
 }
 
 uint32_t Merger::passes_complete() const {

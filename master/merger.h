@@ -32,6 +32,9 @@ class Merger {
   uint32_t passes_complete() const;
   /// Pixel samples merged so far.
   uint64_t samples_merged() const { return samples_merged_; }
+  /// Fewest samples of any pixel: the film's min_spp(), from the tiles (O(tiles), not O(pixels);
+  /// every pixel of a tile has the tile's samples).
+  uint32_t min_spp() const;
   const Film& film() const { return film_; }
   const UnitGrid& grid() const { return grid_; }
   /// One byte per unit, 1 when merged (for a checkpoint).
@@ -50,6 +53,7 @@ class Merger {
   Film film_;
   std::vector<bool> merged_;
   std::vector<uint32_t> merged_per_pass_;
+  std::vector<uint32_t> tile_spp_;  // samples per pixel merged in each tile
   uint64_t merged_count_ = 0;
   uint64_t samples_merged_ = 0;
 };

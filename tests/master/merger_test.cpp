@@ -97,5 +97,25 @@ TEST(Merger, CountsPassesCompleteFromPassZero) {
   EXPECT_FALSE(m.complete());
 }
 
+TEST(Merger, FewestSamplesOfAnyPixelComeFromTheTilesAndSurviveARestore) {
+  Merger m(kGrid);
+  EXPECT_EQ(m.min_spp(), 0u);
+  std::mt19937 rng(9);
+  for (int step = 0; step < 12; ++step) {
+    const uint64_t unit = rng() % kGrid.size();
+    m.add(unit, fake_result(kGrid, unit));
+    EXPECT_EQ(m.min_spp(), m.film().min_spp()) << "after unit " << unit;
+  }
+  for (uint64_t u = 0; u < kGrid.size(); ++u) m.add(u, fake_result(kGrid, u));
+  EXPECT_EQ(m.min_spp(), 24u);
+  Merger partial(kGrid);
+  for (uint64_t u : {0, 1, 2, 3, 4, 5, 7}) partial.add(u, fake_result(kGrid, u));
+  Merger restored(kGrid);
+  const Film& f = partial.film();
+  restored.restore(partial.merged_map(), f.sum(), f.sum_sq(), f.spp(), f.nonfinite(), f.rays());
+  EXPECT_EQ(restored.min_spp(), 8u);
+  EXPECT_EQ(restored.min_spp(), f.min_spp());
+}
+
 }  // namespace
 }  // namespace rayfarm::master
