@@ -3,7 +3,6 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
-#include <atomic>
 #include <mutex>
 #include <set>
 
@@ -129,9 +128,9 @@ FilmSize Renderer::film() const { return impl_->data.scene().film; }
 TileResult Renderer::render(const TileRect& rect, const SampleRange& samples,
                             RenderStats* stats) const {
   TileResult result(rect, samples);
-  std::atomic<uint64_t> nonfinite{0};
-  std::mutex paths_mutex;
-  PathStats paths;  // guarded by paths_mutex
+  std::mutex totals_mutex;
+  uint64_t nonfinite = 0;  // guarded by totals_mutex, as is `paths`
+  PathStats paths;
   tbb::parallel_for(tbb::blocked_range<uint32_t>(rect.y0, rect.y1),
                     [&](const tbb::blocked_range<uint32_t>& rows) {
                       uint64_t local_nonfinite = 0;
@@ -143,13 +142,11 @@ TileResult Renderer::render(const TileRect& rect, const SampleRange& samples,
                                               local_nonfinite, local);
                         }
                       }
+                      std::lock_guard lock(totals_mutex);
                       nonfinite += local_nonfinite;
-                      std::lock_guard lock(paths_mutex);
-                      paths.rays += local.rays;
-                      paths.truncated += local.truncated;
-                      paths.truncated_throughput += local.truncated_throughput;
+                      paths += local;
                     });
-  result.nonfinite = nonfinite.load();
+  result.nonfinite = nonfinite;
   result.rays = paths.rays;
   RenderStats unit;
   unit.samples = uint64_t{rect.pixel_count()} * samples.count();

@@ -30,6 +30,13 @@ struct PathStats {
   /// Sum over those paths of their throughput (largest RGB component) when stopped; per sample,
   /// about the fraction of the light beyond the cap that the image lacks.
   double truncated_throughput = 0.0;
+
+  PathStats& operator+=(const PathStats& other) {
+    rays += other.rays;
+    truncated += other.truncated;
+    truncated_throughput += other.truncated_throughput;
+    return *this;
+  }
 };
 
 class PathIntegrator {
