@@ -85,6 +85,7 @@ int run_render(const RenderArgs& args) {
   options.tile_size = args.tile.value_or(64);
   options.pass_spp = args.pass_spp.value_or(0);
   options.stop = args.stop.rules();
+  check_stop_rules(options.stop);
   if (options.tile_size == 0) throw std::invalid_argument("--tile must be at least 1");
 
   std::optional<Image> reference;

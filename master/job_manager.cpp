@@ -405,16 +405,15 @@ std::string JobManager::submit(const wire::SubmitJob& request) {
   spec.pass_spp = o.pass_spp() == 0 ? default_pass_spp(spec.tile_size, spec.settings.spp)
                                     : std::min(o.pass_spp(), spec.settings.spp);
   if (spec.film.width == 0 || spec.film.height == 0) throw JobRejected("the scene's film is empty");
-  if (!std::isfinite(o.target_error()) || o.target_error() < 0 || o.target_error() >= 1e6) {
-    throw JobRejected(fmt::format("target error must be in [0, 1e6), got {}", o.target_error()));
-  }
-  if (!std::isfinite(o.time_limit_s()) || o.time_limit_s() < 0 || o.time_limit_s() > 1e9) {
-    throw JobRejected(fmt::format("time limit must be in [0, 1e9] s, got {}", o.time_limit_s()));
-  }
   spec.stop.target_error = o.target_error();
   spec.stop.time_limit_s = o.time_limit_s();
   spec.stop.adaptive = !o.no_adaptive();
   spec.stop.min_passes = o.min_passes();
+  try {
+    check_stop_rules(spec.stop);
+  } catch (const std::invalid_argument& e) {
+    throw JobRejected(e.what());
+  }
   spec.has_reference = !request.reference_exr().empty();
   if (spec.has_reference) check_reference_bytes(request.reference_exr(), spec.film);
   const UnitGrid grid(spec.film, spec.tile_size, spec.settings.spp, spec.pass_spp);

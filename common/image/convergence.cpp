@@ -3,12 +3,26 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <sstream>
+#include <stdexcept>
 #include <string>
 
 #include "common/image/error_estimate.h"
 #include "common/util/check.h"
 
 namespace rayfarm {
+
+void check_stop_rules(const StopRules& rules) {
+  const auto fail = [](const char* what, double value) {
+    std::ostringstream out;
+    out << what << value;
+    throw std::invalid_argument(out.str());
+  };
+  if (!(rules.target_error >= 0 && rules.target_error < 1e6))
+    fail("target error must be in [0, 1e6), got ", rules.target_error);
+  if (!(rules.time_limit_s >= 0 && rules.time_limit_s <= 1e9))
+    fail("time limit must be in [0, 1e9] s, got ", rules.time_limit_s);
+}
 
 uint32_t default_min_passes(uint32_t pass_spp) {
   const uint32_t enough = pass_spp == 0 ? 256 : (256 + pass_spp - 1) / pass_spp;

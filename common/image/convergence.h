@@ -30,6 +30,10 @@ struct StopRules {
   uint32_t min_passes = 0;    ///< passes before a tile may stop; 0 = default_min_passes()
 };
 
+/// Throws std::invalid_argument naming the rule and its range when `rules` cannot be followed:
+/// a target error outside [0, 1e6) or a time limit outside [0, 1e9] s (or not a number).
+void check_stop_rules(const StopRules& rules);
+
 /// Passes a tile gets before its variance estimate is trusted: at least 2, and at least 256
 /// samples per pixel. Fewer let the rare paths of caustics go unseen when the error budgets are
 /// set (bench/adaptive.sh: with 64 samples, adaptive passes spent more than whole passes).

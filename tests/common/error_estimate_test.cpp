@@ -382,5 +382,24 @@ TEST(StopReason, Names) {
   EXPECT_STREQ(stop_reason_name(StopReason::kSpp), "spp");
 }
 
+TEST(StopRules, OutOfRangeRulesAreRefusedByName) {
+  const auto message = [](StopRules rules) -> std::string {
+    try {
+      check_stop_rules(rules);
+    } catch (const std::invalid_argument& e) {
+      return e.what();
+    }
+    return "";
+  };
+  EXPECT_EQ(message({}), "");
+  EXPECT_EQ(message({1e-3, 1e9}), "");
+  EXPECT_EQ(message({1e6, 0}), "target error must be in [0, 1e6), got 1e+06");
+  EXPECT_EQ(message({-1, 0}), "target error must be in [0, 1e6), got -1");
+  EXPECT_EQ(message({NAN, 0}), "target error must be in [0, 1e6), got nan");
+  // Beyond 1e9 s the deadline would overflow the clock's nanoseconds.
+  EXPECT_EQ(message({0, 1e12}), "time limit must be in [0, 1e9] s, got 1e+12");
+  EXPECT_EQ(message({0, INFINITY}), "time limit must be in [0, 1e9] s, got inf");
+}
+
 }  // namespace
 }  // namespace rayfarm
