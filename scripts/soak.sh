@@ -236,5 +236,5 @@ printf '  duplicates dropped    %d\n' "$(count 'duplicate result')"
 printf '  units requeued        %d\n' "$requeued"
 printf '  stragglers            %d\n' "$(count 'is a straggler')"
 printf '  lost                  %d\n' "$lost"
-printf '  wall time             %.1f s\n' "$(echo "$end - $start" | bc)"
+printf '  wall time             %.1f s\n' "$(awk -v a="$start" -v b="$end" 'BEGIN { print b - a }')"
 [ "$lost" = 0 ]

@@ -38,7 +38,7 @@ std::shared_ptr<spdlog::logger> log() { return get_logger("worker"); }
 constexpr milliseconds kFinalLinger{2000};
 /// How long a stopping worker waits for the units in hand; past it, it says goodbye without them
 /// and the master requeues them at once.
-constexpr milliseconds kStopGrace{30000};
+constexpr milliseconds kStopGrace{8000};  // within the 10 s that compose, k8s and local-cluster wait
 
 double seconds_since(Clock::time_point t) {
   return std::chrono::duration<double>(Clock::now() - t).count();

@@ -64,7 +64,6 @@ LightSet::LightSet(SceneData& data) : data_(&data) {
     const double share = std::max(l.power, 1e-30);
     running += share;
     cdf_.push_back(static_cast<float>(running / total));
-    probability_.push_back(static_cast<float>(share / total));
     if (l.kind != Kind::kPoint) data.set_light_index(l.geom, l.prim, static_cast<int32_t>(i));
   }
   if (!cdf_.empty()) cdf_.back() = 1.f;

@@ -51,7 +51,6 @@ class LightSet {
   const SceneData* data_;
   std::vector<Light> lights_;
   std::vector<float> cdf_;  // cumulative power, normalised; cdf_.back() == 1
-  std::vector<float> probability_;  // each light's share of the power
   size_t point_count_ = 0;
 };
 
