@@ -43,6 +43,28 @@ net::Frames refusal_frames(uint32_t peer_version, const char* peer_kind) {
   return encode(std::move(r));
 }
 
+/// A job another key may not see: said as if it were unknown, so that it does not leak.
+std::string not_visible(const std::string& id) {
+  return "unknown job '" + protocol::printable(id) +
+         "' (this master keeps jobs private to the key that submitted them)";
+}
+
+std::string not_owner(const std::string& id, const std::string& owner, const char* action) {
+  return fmt::format(
+      "job {} belongs to key '{}': only that key or an admin key (rayfarm-master "
+      "--admin-clients) may {} it",
+      protocol::printable(id), protocol::printable(owner), action);
+}
+
+/// What one connection can make the master queue (docs/reliability.md): messages per peer in each
+/// direction on each socket. A client sends one request and reads its reply; a worker has at most
+/// kMaxWants units, a few results and heartbeats in flight.
+constexpr net::QueueBounds kWorkerQueues{/*send=*/64, /*receive=*/16};
+constexpr net::QueueBounds kClientQueues{/*send=*/8, /*receive=*/4};
+/// A worker connection gets one bundle at most once per window, and bundles of at most twice the
+/// bundle limit in all per window.
+constexpr auto kBundleWindow = std::chrono::seconds{60};
+
 /// Repeated refusals of the same key from the same address are logged at most this often.
 constexpr auto kRefusalLogInterval = std::chrono::seconds{10};
 
@@ -143,9 +165,9 @@ Broker::Broker(MasterOptions options)
       }()),
       gate_(open_gate(options_)),
       workers_socket_(options_.worker_endpoint, options_.limits.max_message_bytes,
-                      curve_for(options_, kWorkerDomain)),
+                      curve_for(options_, kWorkerDomain), kWorkerQueues),
       clients_socket_(options_.client_endpoint, options_.limits.max_message_bytes,
-                      curve_for(options_, kClientDomain)),
+                      curve_for(options_, kClientDomain), kClientQueues),
       next_heartbeat_(Clock::now()) {
   const size_t restarted = jobs_.recover();
   log()->info("master listening: workers on {}, clients on {}; data dir {}{}", worker_endpoint(),
@@ -256,6 +278,7 @@ void Broker::register_worker(const net::PeerId& peer, const wire::Hello& hello,
   Worker& w = workers_[peer];
   w.name = hello.name().empty() ? "unnamed" : protocol::printable(hello.name());
   w.threads = hello.threads();
+  w.key = key_name;
   heard_from(w);
   w.wants = 0;
   log()->info("{} joined{}: {} threads, {}; {} worker{} connected", worker_label(peer),
@@ -290,7 +313,7 @@ void Broker::dispatch() {
     sent = false;
     for (auto& [peer, w] : workers_) {
       if (w.wants == 0) continue;
-      auto unit = jobs_.next_unit(peer);
+      auto unit = jobs_.next_unit(peer, w.key);
       if (!unit) continue;  // e.g. blocked from the jobs that have units
       if (!workers_socket_.send(peer, encode(std::move(*unit)))) {
         unreachable.push_back(peer);
@@ -311,7 +334,8 @@ void Broker::handle_worker(const net::Delivery& delivery) {
   try {
     msg = protocol::decode(delivery.frames);
   } catch (const protocol::DecodeError& e) {
-    log()->warn("worker socket: ignored a bad message from {}: {}", worker_label(peer), e.what());
+    complain("worker", delivery.user,
+             fmt::format("ignored a bad message from {}: {}", worker_label(peer), e.what()));
     return;
   }
   if (!msg.version_ok()) {
@@ -330,9 +354,16 @@ void Broker::handle_worker(const net::Delivery& delivery) {
     if (it != workers_.end()) heard_from(it->second);
 
     if (const auto* result = msg.as<wire::UnitResult>()) {
-      // Merged even from an unknown peer (a worker declared lost): the bits do not depend on who
-      // rendered the unit, and the merger takes each unit once.
-      jobs_.on_result(peer, *result);
+      // Merged only when this connection was leased the unit; it may have been declared lost
+      // since (its late result still counts: the bits do not depend on who rendered the unit,
+      // and the merger takes each unit once).
+      if (jobs_.on_result(peer, *result, delivery.user) == MergeOutcome::kUnleased) {
+        complain("worker", delivery.user,
+                 fmt::format("dropped a result for job {} unit {} from {}: no such job, or the "
+                             "unit was never leased to it",
+                             protocol::printable(result->job_id()), result->unit_id(),
+                             worker_label(peer)));
+      }
       if (it == workers_.end()) {
         send_worker(peer, error_frames("unknown worker: send Hello first"));
       }
@@ -352,30 +383,98 @@ void Broker::handle_worker(const net::Delivery& delivery) {
       w.wants = std::min(w.wants + 1, kMaxWants);
       dispatch();
     } else if (const auto* failed = msg.as<wire::UnitFailed>()) {
-      jobs_.on_unit_failed(peer, *failed);
+      if (!jobs_.on_unit_failed(peer, *failed, delivery.user)) {
+        complain("worker", delivery.user,
+                 fmt::format("ignored a failure report for job {} unit {} from {}: the unit is "
+                             "not leased to it, or its job is over",
+                             protocol::printable(failed->job_id()), failed->unit_id(),
+                             worker_label(peer)));
+      }
       dispatch();
     } else if (const auto* request = msg.as<wire::BundleRequest>()) {
-      wire::BundleReply reply_msg;
-      reply_msg.set_hash(request->hash());
-      if (auto bundle = jobs_.bundle(request->hash())) {
-        *reply_msg.mutable_bundle() = std::move(*bundle);
-        log()->debug("bundle {} sent to {}", request->hash().substr(0, 12), worker_label(peer));
-      } else {
-        reply_msg.set_error("the master has no bundle " + request->hash());
-      }
-      send_worker(peer, encode(std::move(reply_msg)));
+      send_bundle(peer, w, request->hash());
     } else if (const auto* bye = msg.as<wire::Goodbye>()) {
       remove_worker(
           peer, "left" + (bye->reason().empty() ? std::string()
                                                 : " (" + protocol::printable(bye->reason()) + ")"));
     } else {
-      log()->warn("worker socket: unexpected {} from {}; ignored", msg.type, worker_label(peer));
+      complain("worker", delivery.user,
+               fmt::format("unexpected {} from {}; ignored", msg.type, worker_label(peer)));
       send_worker(peer, error_frames("unexpected message " + msg.type + " on the worker endpoint"));
     }
   } catch (const std::exception& e) {
     log()->error("worker socket: failed to handle {} from {}: {}", msg.type, worker_label(peer),
                  e.what());
   }
+}
+
+bool Broker::may_manage(const std::string& owner, const std::string& user) const {
+  return owner == user || options_.security.admin_clients.count(user) != 0;
+}
+
+bool Broker::may_see(const std::string& owner, const std::string& user) const {
+  return !options_.security.private_jobs || may_manage(owner, user);
+}
+
+bool Broker::Complaints::should_log(const std::string& who, uint64_t& unlogged) {
+  if (seen.size() > 4096) seen.clear();
+  Seen& s = seen[who];
+  const auto now = Clock::now();
+  if (s.logged.time_since_epoch().count() != 0 && now - s.logged < kRefusalLogInterval) {
+    ++s.unlogged;
+    return false;
+  }
+  unlogged = s.unlogged;
+  s = Seen{now, 0};
+  return true;
+}
+
+void Broker::complain(const std::string& socket, const std::string& key, const std::string& text) {
+  uint64_t unlogged = 0;
+  if (!complaints_.should_log(socket + '\0' + key, unlogged)) return;
+  log()->warn("{} socket: {}{}", socket, text,
+              unlogged ? fmt::format(" ({} more such messages with this key since the last line)",
+                                     unlogged)
+                       : "");
+}
+
+void Broker::send_bundle(const net::PeerId& peer, Worker& w, const std::string& hash) {
+  wire::BundleReply reply_msg;
+  reply_msg.set_hash(protocol::printable(hash, 80));
+  const auto now = Clock::now();
+  if (now - w.bundle_window >= kBundleWindow) {
+    w.bundle_window = now;
+    w.bundle_bytes = 0;
+    w.bundles_sent.clear();
+  }
+  auto bundle = jobs_.bundle(hash);
+  if (!bundle) {
+    reply_msg.set_error("the master has no bundle " + protocol::printable(hash, 80));
+    send_worker(peer, encode(std::move(reply_msg)));
+    return;
+  }
+  // A worker keeps the bundles it fetched: asking again at once, or for more than the window
+  // allows, is refused rather than queued (the replies would sit in the master's memory for as
+  // long as the peer does not read them).
+  const uint64_t bytes = bundle->ByteSizeLong();
+  const char* refusal = nullptr;
+  if (w.bundles_sent.count(hash)) {
+    refusal = "it was sent to this connection less than a minute ago";
+  } else if (w.bundle_bytes + bytes > 2 * options_.limits.max_bundle_bytes) {
+    refusal = "this connection was sent more bundle bytes in the last minute than the master allows";
+  }
+  if (refusal) {
+    log()->warn("bundle {} not sent to {}: {}", hash.substr(0, 12), worker_label(peer), refusal);
+    reply_msg.set_error(std::string("the master will not send bundle ") + hash.substr(0, 12) +
+                        " now: " + refusal + "; ask again later");
+    send_worker(peer, encode(std::move(reply_msg)));
+    return;
+  }
+  w.bundles_sent.emplace(hash, now);
+  w.bundle_bytes += bytes;
+  *reply_msg.mutable_bundle() = std::move(*bundle);
+  log()->debug("bundle {} sent to {}", hash.substr(0, 12), worker_label(peer));
+  send_worker(peer, encode(std::move(reply_msg)));
 }
 
 void Broker::handle_client(const net::Delivery& delivery) {
@@ -387,7 +486,8 @@ void Broker::handle_client(const net::Delivery& delivery) {
   try {
     msg = protocol::decode(delivery.frames);
   } catch (const protocol::DecodeError& e) {
-    log()->warn("client socket: ignored a bad message from {}: {}", label, e.what());
+    complain("client", delivery.user,
+             fmt::format("ignored a bad message from {}: {}", label, e.what()));
     reply(peer, error_frames(std::string("cannot decode the request: ") + e.what()));
     return;
   }
@@ -418,49 +518,68 @@ void Broker::handle_client(const net::Delivery& delivery) {
         out.set_error(*refusal);
       } else {
         try {
-          out.set_job_id(jobs_.submit(*submit));
+          out.set_job_id(jobs_.submit(*submit, delivery.user));
         } catch (const JobRejected& e) {
-          log()->warn("job rejected ({}): {}", submit->scene_path(), e.what());
-          out.set_error(e.what());
+          log()->warn("job rejected ({}): {}", protocol::printable(submit->scene_path(), 200),
+                      e.what());
+          out.set_error(jobs_.for_clients(e.what()));
         }
       }
       reply(peer, encode(std::move(out)));
       dispatch();
     } else if (const auto* request = msg.as<wire::StatusRequest>()) {
-      if (auto st = jobs_.status(request->job_id(), worker_count)) {
+      const std::string* owner = jobs_.owner_of(request->job_id());
+      if (owner && !may_see(*owner, delivery.user)) {
+        reply(peer, error_frames(not_visible(request->job_id()), request->job_id()));
+      } else if (auto st = jobs_.status(request->job_id(), worker_count)) {
         reply(peer, encode(std::move(*st)));
       } else {
-        reply(peer, error_frames("unknown job '" + request->job_id() + "'", request->job_id()));
+        reply(peer, error_frames("unknown job '" + protocol::printable(request->job_id()) + "'", request->job_id()));
       }
     } else if (msg.as<wire::ListJobs>()) {
       wire::JobList list;
       for (auto& st : jobs_.list(worker_count)) {
+        if (!may_see(st.owner(), delivery.user)) continue;
         st.set_protocol_version(protocol::kProtocolVersion);
         *list.add_jobs() = std::move(st);
       }
       reply(peer, encode(std::move(list)));
     } else if (const auto* cancel = msg.as<wire::CancelJob>()) {
-      if (auto state = jobs_.cancel(cancel->job_id())) {
+      const std::string* owner = jobs_.owner_of(cancel->job_id());
+      if (owner && !may_see(*owner, delivery.user)) {
+        reply(peer, error_frames(not_visible(cancel->job_id()), cancel->job_id()));
+      } else if (owner && !may_manage(*owner, delivery.user)) {
+        log()->warn("{} may not cancel job {} of key '{}'; refused", label, cancel->job_id(),
+                    protocol::printable(*owner));
+        reply(peer, error_frames(not_owner(cancel->job_id(), *owner, "cancel"), cancel->job_id()));
+      } else if (auto state = jobs_.cancel(cancel->job_id())) {
         wire::CancelReply out;
         out.set_job_id(cancel->job_id());
         out.set_state(*state);
         reply(peer, encode(std::move(out)));
       } else {
-        reply(peer, error_frames("unknown job '" + cancel->job_id() + "'", cancel->job_id()));
+        reply(peer, error_frames("unknown job '" + protocol::printable(cancel->job_id()) + "'", cancel->job_id()));
       }
     } else if (const auto* fetch = msg.as<wire::FetchImage>()) {
+      const std::string* owner = jobs_.owner_of(fetch->job_id());
+      if (owner && !may_see(*owner, delivery.user)) {
+        reply(peer, error_frames(not_visible(fetch->job_id()), fetch->job_id()));
+        return;
+      }
       try {
         reply(peer, encode(jobs_.image(fetch->job_id())));
       } catch (const JobRejected& e) {
-        reply(peer, error_frames(e.what(), fetch->job_id()));
+        reply(peer, error_frames(jobs_.for_clients(e.what()), fetch->job_id()));
       }
     } else {
-      log()->warn("client socket: unexpected {} from {}; ignored", msg.type, label);
+      complain("client", delivery.user,
+               fmt::format("unexpected {} from {}; ignored", msg.type, label));
       reply(peer, error_frames("unexpected message " + msg.type + " on the client endpoint"));
     }
   } catch (const std::exception& e) {
     log()->error("client socket: failed to handle {} from {}: {}", msg.type, label, e.what());
-    reply(peer, error_frames(std::string("the master failed to handle the request: ") + e.what()));
+    reply(peer, error_frames(jobs_.for_clients(
+                    std::string("the master failed to handle the request: ") + e.what())));
   }
 }
 

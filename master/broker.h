@@ -13,6 +13,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 
 #include "common/net/keys.h"
@@ -31,6 +32,11 @@ struct MasterSecurity {
   std::optional<net::KeyPair> key;
   std::filesystem::path worker_keys;  ///< allow-list of worker public keys (file or folder)
   std::filesystem::path client_keys;  ///< allow-list of client public keys (file or folder)
+  /// Names of client keys (as in the clients' allow-list) that may cancel any job; every other
+  /// key may cancel only the jobs it submitted.
+  std::set<std::string> admin_clients;
+  /// Keys that are neither the owner nor an admin cannot see a job either (status, list, fetch).
+  bool private_jobs = false;
 };
 
 /// ZAP domains of the two sockets: a key admitted in one is not admitted in the other.
@@ -71,15 +77,33 @@ class Broker {
   using Clock = std::chrono::steady_clock;
   struct Worker {
     std::string name;
+    std::string key;  // the name of the key it connected with ("" without CURVE)
     uint32_t threads = 0;
     Clock::time_point heard;    // its last message
     Clock::time_point expires;  // declared lost when silent until then
     Clock::duration forgiven{};  // time the master was busy, added to expires since `heard`
     uint32_t wants = 0;         // WorkRequests not answered yet
     uint64_t units_sent = 0;
+    // Bundles sent to it in the current window (kBundleWindow): when, and the bytes in all.
+    std::map<std::string, Clock::time_point> bundles_sent;
+    Clock::time_point bundle_window;
+    uint64_t bundle_bytes = 0;
   };
 
   struct Gate;  // the ZAP handler and its allow-lists
+
+  /// Complaints about one peer's messages (garbage, unexpected types), logged at most once per
+  /// interval per socket and key, with the count of those left out.
+  struct Complaints {
+    struct Seen {
+      Clock::time_point logged;
+      uint64_t unlogged = 0;
+    };
+    std::map<std::string, Seen> seen;
+    /// Whether to log now; `unlogged` is then how many were left out since the last line.
+    bool should_log(const std::string& who, uint64_t& unlogged);
+  };
+  Complaints complaints_;
 
   MasterOptions options_;
   JobStore store_;
@@ -94,6 +118,9 @@ class Broker {
   static std::unique_ptr<Gate> open_gate(const MasterOptions& options);
   void handle_worker(const net::Delivery& delivery);
   void handle_client(const net::Delivery& delivery);
+  void send_bundle(const net::PeerId& peer, Worker& w, const std::string& hash);
+  /// Logs a complaint about a peer's message, rate-limited per socket and key (Complaints).
+  void complain(const std::string& socket, const std::string& key, const std::string& text);
   void register_worker(const net::PeerId& peer, const wire::Hello& hello,
                        const std::string& key_name);
   void remove_worker(const net::PeerId& peer, const std::string& why);
@@ -103,6 +130,9 @@ class Broker {
   void on_timers();
   void heard_from(Worker& w);
   std::string worker_label(const net::PeerId& peer) const;
+  /// Whether client key `user` may cancel (may_manage) or see (may_see) a job of `owner`.
+  bool may_manage(const std::string& owner, const std::string& user) const;
+  bool may_see(const std::string& owner, const std::string& user) const;
 };
 
 }  // namespace rayfarm::master

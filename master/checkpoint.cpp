@@ -1,5 +1,7 @@
 #include "master/checkpoint.h"
 
+#include "common/util/atomic_file.h"
+
 #include <fcntl.h>
 #include <openssl/evp.h>
 #include <unistd.h>
@@ -284,12 +286,7 @@ fs::path checkpoint_path(const fs::path& job_dir, int slot) {
 void write_durably(const fs::path& path, const std::string& bytes) {
   const fs::path temporary = path.parent_path() / (path.filename().string() + ".tmp");
   try {
-    {
-      std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
-      out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-      out.close();
-      if (!out) throw std::runtime_error("short write to " + temporary.string());
-    }
+    write_bytes(temporary, bytes);
     sync_path(temporary, O_RDONLY);
     fs::rename(temporary, path);
     sync_path(path.parent_path(), O_RDONLY | O_DIRECTORY);
@@ -374,6 +371,12 @@ void CheckpointWriter::forget(const std::string& job_id, const fs::path& job_dir
   tasks_.submit(std::move(task), [](const Task&) { return false; });
 }
 
+std::string CheckpointWriter::failure(const std::string& job_id) const {
+  std::lock_guard lock(mutex_);
+  auto it = failures_.find(job_id);
+  return it == failures_.end() ? std::string() : it->second;
+}
+
 CheckpointWriter::Stats CheckpointWriter::stats() const {
   std::lock_guard lock(mutex_);
   return stats_;
@@ -398,12 +401,14 @@ void CheckpointWriter::write(Task& task) {
   const auto start = std::chrono::steady_clock::now();
   bool ok = false;
   size_t bytes = 0;
+  std::string failure;
   try {
     const std::string encoded = encode_checkpoint(task.checkpoint);
     bytes = encoded.size();
     write_durably(checkpoint_path(task.job_dir, slot), encoded);
     ok = true;
   } catch (const std::exception& e) {
+    failure = e.what();
     log_jobs()->error("job {}: checkpoint {} not written: {}", id, task.checkpoint.sequence,
                       e.what());
   }
@@ -415,6 +420,11 @@ void CheckpointWriter::write(Task& task) {
                       bytes / 1e6, seconds);
   }
   std::lock_guard lock(mutex_);
+  if (ok) {
+    failures_.erase(id);
+  } else {
+    failures_[id] = failure;
+  }
   if (ok) {
     newest_slot_[id] = slot;
     ++stats_.written;

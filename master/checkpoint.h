@@ -109,6 +109,8 @@ class CheckpointWriter {
   /// of the job being written, if any), without waiting.
   void forget(const std::string& job_id, const std::filesystem::path& job_dir);
   Stats stats() const;
+  /// Why the job's latest checkpoint could not be written; "" when it was (or none was tried).
+  std::string failure(const std::string& job_id) const;
 
  private:
   struct Task {
@@ -118,6 +120,7 @@ class CheckpointWriter {
   };
   mutable std::mutex mutex_;  // guards newest_slot_ and stats_
   std::map<std::string, int> newest_slot_;
+  std::map<std::string, std::string> failures_;  // job id -> why its latest checkpoint failed
   Stats stats_;
   BackgroundWriter<Task> tasks_{[this](Task& task) { write(task); }};  // last: uses the above
 

@@ -22,7 +22,18 @@ void ImageWriter::write(Task& task) {
     }
   } catch (const std::exception& e) {
     get_logger("jobs")->error("cannot write {}: {}", task.exr.string(), e.what());
+    std::lock_guard lock(mutex_);
+    failures_[task.exr] = e.what();
+    return;
   }
+  std::lock_guard lock(mutex_);
+  failures_.erase(task.exr);
+}
+
+std::string ImageWriter::failure(const std::filesystem::path& exr) const {
+  std::lock_guard lock(mutex_);
+  auto it = failures_.find(exr);
+  return it == failures_.end() ? std::string() : it->second;
 }
 
 }  // namespace rayfarm::master

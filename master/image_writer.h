@@ -3,6 +3,8 @@
 // serving heartbeats and results while a large image is compressed. Only the newest image of each
 // file matters: one queued for a file that already has an unwritten one replaces it.
 #include <filesystem>
+#include <map>
+#include <mutex>
 #include <string>
 
 #include "common/image/exr.h"
@@ -24,6 +26,9 @@ class ImageWriter {
   void submit(const std::filesystem::path& exr, Image image, ErrorRecord record = {});
   /// Returns when everything queued before the call is written (or failed, which is logged).
   void flush() { tasks_.flush(); }
+  /// Why the latest write of `exr` (or its preview or error record) failed; "" when it succeeded
+  /// or none was tried.
+  std::string failure(const std::filesystem::path& exr) const;
 
  private:
   struct Task {
@@ -31,8 +36,10 @@ class ImageWriter {
     Image image;
     ErrorRecord record;
   };
-  static void write(Task& task);
-  BackgroundWriter<Task> tasks_{&ImageWriter::write};  // writes what is queued when destroyed
+  void write(Task& task);
+  mutable std::mutex mutex_;                                 // guards failures_
+  std::map<std::filesystem::path, std::string> failures_;  // image -> why its latest write failed
+  BackgroundWriter<Task> tasks_{[this](Task& task) { write(task); }};  // last: uses the above
 };
 
 }  // namespace rayfarm::master

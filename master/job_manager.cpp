@@ -1,6 +1,8 @@
 #include "master/job_manager.h"
 
 #include <algorithm>
+#include <cctype>
+#include <cerrno>
 #include <cmath>
 #include <set>
 #include <system_error>
@@ -84,14 +86,41 @@ double estimate_eta(const JobSpec& s, double remaining_samples, double rate, dou
   return eta;
 }
 
+/// What a client is told when the master cannot store its job (the cause, without the master's
+/// paths); the master's log has the whole message.
+std::string storage_refusal(const std::exception& e, const fs::path& root) {
+  log_jobs()->error("cannot store a submitted job in {}: {}", root.string(), e.what());
+  std::string cause = "an I/O error";
+  if (const auto* system = dynamic_cast<const std::system_error*>(&e)) {
+    cause = system->code().message();
+  } else {
+    for (const int code : {ENOSPC, EDQUOT, EROFS, EIO, EACCES}) {
+      const std::string text = std::generic_category().message(code);
+      if (std::string(e.what()).find(text) != std::string::npos) cause = text;
+    }
+  }
+  if (!cause.empty()) cause[0] = static_cast<char>(std::tolower(static_cast<unsigned char>(cause[0])));
+  return "the master cannot store the job: " + cause + " (the master's data dir)";
+}
+
 }  // namespace
 
 void JobManager::check_reference_bytes(const std::string& exr, FilmSize film) {
-  const fs::path scratch = store_.make_scratch_dir();
+  fs::path scratch;
+  try {
+    scratch = store_.make_scratch_dir();
+    write_file_atomically(scratch / "reference.exr", exr);
+  } catch (const std::exception& e) {
+    std::error_code ec;
+    if (!scratch.empty()) fs::remove_all(scratch, ec);
+    throw JobRejected(storage_refusal(e, store_.root()));
+  }
   std::error_code ec;
   try {
-    write_file_atomically(scratch / "reference.exr", exr);
-    const Image reference = read_exr(scratch / "reference.exr");
+    // The header's size is checked against the film before any pixel is allocated, so a
+    // reference costs at most the film's size, whatever its header claims.
+    const Image reference =
+        read_exr(scratch / "reference.exr", ExrExpect{film.width, film.height, true});
     check_reference(reference, film, "reference image");
   } catch (const std::exception& e) {
     fs::remove_all(scratch, ec);
@@ -130,6 +159,7 @@ void JobManager::activate(Job& job) {
   job.rows.clear();
   job.unit_failures.clear();
   job.worker_failures.clear();
+  job.lease_history.clear();
   job.checkpoint_due = false;
   job.last_checkpoint = Clock::now();
   job.rounds_recorded = 0;
@@ -334,7 +364,12 @@ void JobManager::record_row(Job& job) {
   job.samples_recorded = job.merger->samples_merged();
 }
 
-std::string JobManager::submit(const wire::SubmitJob& request) {
+const std::string* JobManager::owner_of(const std::string& id) const {
+  auto it = jobs_.find(id);
+  return it == jobs_.end() ? nullptr : &it->second.record.spec.owner;
+}
+
+std::string JobManager::submit(const wire::SubmitJob& request, const std::string& owner) {
   // The bundle and the scene path.
   Bundle bundle;
   try {
@@ -351,7 +386,12 @@ std::string JobManager::submit(const wire::SubmitJob& request) {
 
   // The scene must load here before the job is accepted.
   Scene scene;
-  const fs::path scratch = store_.make_scratch_dir();
+  fs::path scratch;
+  try {
+    scratch = store_.make_scratch_dir();
+  } catch (const std::exception& e) {
+    throw JobRejected(storage_refusal(e, store_.root()));
+  }
   try {
     const fs::path dir = unpack_bundle(bundle, scratch, hash);
     try {
@@ -362,7 +402,13 @@ std::string JobManager::submit(const wire::SubmitJob& request) {
   } catch (const BundleError& e) {
     std::error_code ec;
     fs::remove_all(scratch, ec);
+    if (is_storage_error(e)) throw JobRejected(storage_refusal(e, store_.root()));
     throw JobRejected(std::string("bad bundle: ") + e.what());
+  } catch (const std::exception& e) {
+    std::error_code ec;
+    fs::remove_all(scratch, ec);
+    if (is_storage_error(e)) throw JobRejected(storage_refusal(e, store_.root()));
+    throw;
   } catch (...) {
     std::error_code ec;
     fs::remove_all(scratch, ec);
@@ -423,6 +469,7 @@ std::string JobManager::submit(const wire::SubmitJob& request) {
                     grid.size(), kMaxUnits));
   }
   spec.submitted_unix_ms = unix_ms_now();
+  spec.owner = owner;
 
   // Store it, then schedule it.
   spec.id = store_.allocate_id();
@@ -437,7 +484,7 @@ std::string JobManager::submit(const wire::SubmitJob& request) {
     store_.sync_job_dir(spec.id);
   } catch (const std::exception& e) {
     fs::remove_all(store_.job_dir(spec.id), ec);
-    throw JobRejected(std::string("the master cannot store the job: ") + e.what());
+    throw JobRejected(storage_refusal(e, store_.root()));
   }
   bundle_owner_.emplace(hash, spec.id);
   activate(job);
@@ -455,10 +502,12 @@ std::string JobManager::submit(const wire::SubmitJob& request) {
   return spec.id;
 }
 
-std::optional<wire::WorkUnit> JobManager::next_unit(const WorkerId& worker) {
-  auto ref = scheduler_.lease(worker);
+std::optional<wire::WorkUnit> JobManager::next_unit(const WorkerId& worker,
+                                                     const std::string& key) {
+  const auto now = Clock::now();
+  auto ref = scheduler_.lease(worker, now, key);
   if (!ref) {
-    const auto straggler = scheduler_.lease_straggler(worker, options_.stragglers);
+    const auto straggler = scheduler_.lease_straggler(worker, options_.stragglers, now, key);
     if (!straggler) return std::nullopt;
     ref = straggler->unit;
     log_scheduler()->info(
@@ -469,6 +518,16 @@ std::optional<wire::WorkUnit> JobManager::next_unit(const WorkerId& worker) {
   }
   Job& job = jobs_.at(ref->job);
   const JobSpec& s = job.record.spec;
+  {
+    // The unit's past holders: kept until it merges, the latest few (a unit handed out again and
+    // again to reconnecting workers must not grow without bound).
+    constexpr size_t kHoldersKept = 8;
+    auto& holders = job.lease_history[ref->unit];
+    if (std::find(holders.begin(), holders.end(), worker) == holders.end()) {
+      if (holders.size() >= kHoldersKept) holders.erase(holders.begin());
+      holders.push_back(worker);
+    }
+  }
   if (!job.started) {
     job.started = true;
     job.start_time = Clock::now();
@@ -493,12 +552,14 @@ std::optional<wire::WorkUnit> JobManager::next_unit(const WorkerId& worker) {
   return out;
 }
 
-MergeOutcome JobManager::on_result(const WorkerId& worker, const wire::UnitResult& result) {
+MergeOutcome JobManager::on_result(const WorkerId& worker, const wire::UnitResult& result,
+                                   const std::string& key) {
   const std::string& id = result.job_id();
   auto it = jobs_.find(id);
   if (it == jobs_.end()) {
-    log_merger()->warn("result for unknown job '{}' from {} dropped", id, name_of(worker));
-    return MergeOutcome::kRejected;
+    log_merger()->debug("result for unknown job '{}' from {} dropped", protocol::printable(id),
+                        name_of(worker));
+    return MergeOutcome::kUnleased;  // no job, so nothing was leased
   }
   Job& job = it->second;
   const UnitRef ref{id, result.unit_id()};
@@ -513,17 +574,32 @@ MergeOutcome JobManager::on_result(const WorkerId& worker, const wire::UnitResul
                        protocol::job_state_name(job.record.state));
     return MergeOutcome::kRejected;
   }
+  if (job.finishing) {
+    log_merger()->info("job {} unit {}: result from {} dropped (the job's work is done)", id,
+                       result.unit_id(), name_of(worker));
+    return MergeOutcome::kDuplicate;
+  }
   auto reject = [&](const std::string& why) {
     log_merger()->warn("job {} unit {}: result from {} rejected: {}", id, result.unit_id(),
                        name_of(worker), why);
     scheduler_.requeue(ref, worker);
-    note_failure(job, worker, result.unit_id(), "result rejected: " + why);
+    note_failure(job, worker, key, result.unit_id(), "result rejected: " + why);
     return MergeOutcome::kRejected;
   };
   if (job.merger->merged(result.unit_id())) {
     log_merger()->info("job {} unit {}: duplicate result from {} dropped (merged before)", id,
                        result.unit_id(), name_of(worker));
     return MergeOutcome::kDuplicate;
+  }
+  // Only the connection that was leased the unit may return it: another peer's result, even with
+  // a valid worker key, is dropped and counts against nobody (it cannot fail the job either).
+  const auto history = job.lease_history.find(result.unit_id());
+  if (history == job.lease_history.end() ||
+      std::find(history->second.begin(), history->second.end(), worker) ==
+          history->second.end()) {
+    log_merger()->debug("job {} unit {}: result from {} dropped: the unit was never leased to it",
+                        id, result.unit_id(), name_of(worker));
+    return MergeOutcome::kUnleased;
   }
   if (!job.planner->is_released(result.unit_id())) {
     return reject("the unit was never handed out (the job's stopping rules have not released it)");
@@ -540,6 +616,7 @@ MergeOutcome JobManager::on_result(const WorkerId& worker, const wire::UnitResul
   if (outcome == MergeOutcome::kDuplicate) return outcome;  // checked above; kept for clarity
 
   scheduler_.complete(ref, worker);
+  job.lease_history.erase(result.unit_id());
   job.dirty = true;
   job.checkpoint_due = true;
   job.contributors[worker] = Clock::now();
@@ -585,39 +662,53 @@ void JobManager::on_round_done(Job& job) {
   checkpoint(job);
 }
 
-void JobManager::on_unit_failed(const WorkerId& worker, const wire::UnitFailed& failed) {
+bool JobManager::on_unit_failed(const WorkerId& worker, const wire::UnitFailed& failed,
+                                const std::string& key) {
   auto it = jobs_.find(failed.job_id());
-  if (it == jobs_.end() || !it->second.merger) return;
+  if (it == jobs_.end() || !it->second.merger) return false;
   Job& job = it->second;
   const UnitRef ref{failed.job_id(), failed.unit_id()};
   const std::string reason = protocol::printable(failed.reason(), 500);
+  if (!scheduler_.holds(ref, worker)) {
+    log_jobs()->debug("job {} unit {}: failure report from {} ignored: it does not hold the unit",
+                      ref.job, ref.unit, name_of(worker));
+    return false;
+  }
   log_jobs()->warn("job {} unit {} failed on {}: {}", ref.job, ref.unit, name_of(worker), reason);
   scheduler_.requeue(ref, worker);
-  note_failure(job, worker, ref.unit, reason);
+  note_failure(job, worker, key, ref.unit, reason);
+  return true;
 }
 
-void JobManager::note_failure(Job& job, const WorkerId& worker, uint64_t unit,
-                              const std::string& why) {
+void JobManager::note_failure(Job& job, const WorkerId& worker, const std::string& key,
+                              uint64_t unit, const std::string& why) {
   const std::string& id = job.record.spec.id;
   if (!job.merger) return;
-  const int worker_count = ++job.worker_failures[worker];
+  // Failures count per key: every connection made with one key is one worker here, so that one
+  // key can block only itself and never fail a job alone.
+  const std::string& who = key.empty() ? worker : key;
+  const std::string label =
+      key.empty() ? name_of(worker)
+                  : fmt::format("key '{}' ({})", protocol::printable(key), name_of(worker));
+  const int worker_count = ++job.worker_failures[who];
   auto& on_unit = job.unit_failures[unit];
-  on_unit[worker] = why;
+  if (!on_unit.count(who) && on_unit.size() >= 64) return;  // enough to decide; bounded memory
+  on_unit[who] = label + ": " + why;
   if (static_cast<int>(on_unit.size()) >= options_.max_unit_failures) {
     std::string messages;
     for (const auto& [w, message] : on_unit) {
-      messages += fmt::format("{}{}: {}", messages.empty() ? "" : "; ", name_of(w), message);
+      messages += fmt::format("{}{}", messages.empty() ? "" : "; ", message);
     }
     finish(job, wire::JOB_FAILED,
            fmt::format("unit {} failed on {} different workers: {}", unit, on_unit.size(),
                        messages));
     return;
   }
-  if (worker_count >= options_.max_worker_failures && !scheduler_.is_blocked(id, worker)) {
-    scheduler_.block(id, worker);
+  if (worker_count >= options_.max_worker_failures && !scheduler_.is_blocked(id, who)) {
+    scheduler_.block(id, who);
     log_jobs()->warn("job {}: {} blocked from the job after {} failures (last: {}); it gets "
                      "other jobs' units",
-                     id, name_of(worker), worker_count, why);
+                     id, label, worker_count, why);
   }
 }
 
@@ -648,16 +739,21 @@ void JobManager::finish(Job& job, wire::JobState state, const std::string& error
              : state == wire::JOB_FAILED  ? StopReason::kFailed
                                           : StopReason::kSpp;
   }
-  job.record.stop_reason = stop_reason_name(reason);
+  // The record as it will be once the job has ended.
+  JobRecord final_record = job.record;
+  final_record.stop_reason = stop_reason_name(reason);
+  final_record.elapsed_seconds = job.finishing ? job.finishing->elapsed : elapsed(job);
+  final_record.state = state;
+  final_record.error = error;
+  bool write_final_image = false;
   if (job.merger) {
     // The last row of the error record describes the final image.
     if (job.merger->samples_merged() > job.samples_recorded) {
       record_row(job);
       job.dirty = true;
     }
-    // The final image is on disk before the job is reported finished.
-    if (state == wire::JOB_DONE || job.dirty) write_image(job, /*wait=*/true);
-    JobRecord& r = job.record;
+    write_final_image = state == wire::JOB_DONE || job.dirty || job.finishing.has_value();
+    JobRecord& r = final_record;
     r.units_done = job.merger->merged_count();
     r.spp_min = job.merger->min_spp();
     r.spp_mean = static_cast<double>(job.merger->samples_merged()) /
@@ -668,10 +764,22 @@ void JobManager::finish(Job& job, wire::JobState state, const std::string& error
       if (job.rows.back().ref_rel_mse) r.ref_rel_mse = *job.rows.back().ref_rel_mse;
     }
   }
-  job.record.elapsed_seconds = elapsed(job);
-  job.record.state = state;
-  job.record.error = error;
-  scheduler_.remove_job(s.id);
+  scheduler_.remove_job(s.id);  // no more units either way
+  if (job.merger && state == wire::JOB_DONE) {
+    // Done means on disk: the final image and the record. Until both are, the job stays running
+    // with its checkpoints, and tick() tries again.
+    const std::string problem = store_final(job, final_record, write_final_image);
+    if (!problem.empty()) {
+      if (!job.finishing) {
+        job.finishing = Job::Finishing{state, error, reason, final_record.elapsed_seconds};
+        checkpoint(job);  // the merged state, in case the master stops before the disk recovers
+      }
+      storage_failed(job, problem);
+      return;
+    }
+  } else if (job.merger && write_final_image) {
+    write_image(job, /*wait=*/true);  // a cancelled or failed job keeps what it rendered
+  }
   const uint64_t samples = job.merger ? job.merger->samples_merged() : 0;
   const std::string error_summary =
       job.merger && !job.rows.empty()
@@ -680,13 +788,21 @@ void JobManager::finish(Job& job, wire::JobState state, const std::string& error
                             ? fmt::format(", measured {:.3g}", *job.rows.back().ref_rel_mse)
                             : "")
           : "";
+  const bool record_saved = state == wire::JOB_DONE && job.merger != nullptr;
+  job.record = std::move(final_record);
   job.merger.reset();
   job.planner.reset();
   job.tracker.reset();
   job.rows.clear();
-  save(job);
-  // The record says how the job ended; its checkpoints are of no use any more.
-  checkpoints_.forget(s.id, store_.job_dir(s.id));
+  job.lease_history.clear();
+  job.unit_failures.clear();
+  job.finishing.reset();
+  // The record says how the job ended; its checkpoints are of no use any more once it is on
+  // disk (until then they are what a restarted master resumes from).
+  if (record_saved || save(job)) {
+    job.storage_error.clear();
+    checkpoints_.forget(s.id, store_.job_dir(s.id));
+  }
   const double seconds = job.record.elapsed_seconds;
   if (state == wire::JOB_DONE) {
     log_jobs()->info("job {} done ({}): '{}' {}x{}, {:.1f} spp mean in {:.2f} s ({}){}; image {}",
@@ -699,6 +815,35 @@ void JobManager::finish(Job& job, wire::JobState state, const std::string& error
   } else {
     log_jobs()->error("job {} failed after {:.2f} s: {}", s.id, seconds, error);
   }
+}
+
+std::string JobManager::store_final(Job& job, const JobRecord& final_record, bool image) {
+  const std::string& id = job.record.spec.id;
+  if (image) {
+    write_image(job, /*wait=*/true);
+    const std::string failure = writer_.failure(store_.image_path(id));
+    if (!failure.empty()) return "cannot write the final image: " + failure;
+  }
+  try {
+    store_.save_record(final_record);
+  } catch (const std::exception& e) {
+    return std::string("cannot save the job's record: ") + e.what();
+  }
+  return "";
+}
+
+void JobManager::storage_failed(Job& job, const std::string& what) {
+  using std::chrono::milliseconds;
+  const bool first = job.storage_error.empty();
+  job.storage_backoff =
+      first ? milliseconds{1000} : std::min(job.storage_backoff * 2, milliseconds{30000});
+  job.storage_retry = Clock::now() + job.storage_backoff;
+  job.storage_error = what;
+  log_jobs()->error("job {}: {}{}; trying again in {:.0f} s", job.record.spec.id, what,
+                    job.finishing ? " (its work is done: it stays running, with its checkpoints, "
+                                    "until its final image and record are on disk)"
+                                  : "",
+                    job.storage_backoff.count() / 1000.0);
 }
 
 void JobManager::write_image(Job& job, bool wait) {
@@ -725,6 +870,36 @@ void JobManager::write_image(Job& job, bool wait) {
 void JobManager::tick() {
   const auto now = Clock::now();
   for (auto& [id, job] : jobs_) {
+    if (!job.storage_error.empty() && now >= job.storage_retry) {
+      if (job.finishing) {
+        const Job::Finishing f = *job.finishing;
+        finish(job, f.state, f.error, f.reason);
+      } else if (job.record_unsaved) {
+        if (save(job)) {
+          job.storage_error.clear();
+          if (!job.merger) checkpoints_.forget(id, store_.job_dir(id));
+          log_jobs()->info("job {}: its record is on disk again", id);
+        }
+      } else {
+        // An image or checkpoint failure: cleared once a later write succeeds.
+        std::string failure = writer_.failure(store_.image_path(id));
+        if (failure.empty()) failure = checkpoints_.failure(id);
+        if (failure.empty() || !job.merger) {
+          job.storage_error.clear();
+        } else {
+          storage_failed(job, failure);
+        }
+      }
+      if (job.storage_error.empty()) job.storage_backoff = std::chrono::milliseconds{0};
+      continue;
+    }
+    if (job.finishing) continue;
+    if (job.merger) {
+      // Failures of the writer threads show in the job's status until a later write succeeds.
+      std::string failure = writer_.failure(store_.image_path(id));
+      if (failure.empty()) failure = checkpoints_.failure(id);
+      if (!failure.empty() && job.storage_error.empty()) storage_failed(job, failure);
+    }
     const double limit = job.record.spec.stop.time_limit_s;
     if (job.merger && job.started && limit > 0 && elapsed(job) >= limit) {
       log_jobs()->info("job {}: time limit of {:g} s reached", id, limit);
@@ -745,12 +920,24 @@ size_t JobManager::active_jobs() const {
       jobs_.begin(), jobs_.end(), [](const auto& kv) { return kv.second.merger != nullptr; }));
 }
 
-void JobManager::save(const Job& job) {
+bool JobManager::save(Job& job) {
   try {
     store_.save_record(job.record);
   } catch (const std::exception& e) {
-    log_jobs()->error("job {}: cannot save its record: {}", job.record.spec.id, e.what());
+    job.record_unsaved = true;
+    storage_failed(job, std::string("cannot save the job's record: ") + e.what());
+    return false;
   }
+  job.record_unsaved = false;
+  return true;
+}
+
+std::string JobManager::for_clients(const std::string& text) const {
+  std::string out = text;
+  std::error_code ec;
+  const fs::path absolute = fs::absolute(store_.root(), ec);
+  if (!ec && !absolute.empty()) out = replace_all(out, absolute.string(), "<data dir>");
+  return replace_all(out, store_.root().string(), "<data dir>");
 }
 
 double JobManager::elapsed(const Job& job) const {
@@ -773,6 +960,7 @@ wire::JobStatus JobManager::make_status(const Job& job, uint32_t workers_total) 
   wire::JobStatus st;
   st.set_job_id(s.id);
   st.set_name(s.name);
+  st.set_owner(s.owner);
   st.set_state(job.record.state);
   st.set_width(s.film.width);
   st.set_height(s.film.height);
@@ -792,6 +980,8 @@ wire::JobStatus JobManager::make_status(const Job& job, uint32_t workers_total) 
   st.set_ref_rel_mse(job.record.ref_rel_mse);
   st.set_spp_mean(job.record.spp_mean);
   st.set_tiles_converged(job.record.tiles_converged);
+  st.set_storage_error(for_clients(job.storage_error));
+  st.set_error(for_clients(job.record.error));
   if (job.merger) {
     const Merger& m = *job.merger;
     const auto counts = scheduler_.counts(s.id);

@@ -11,6 +11,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "common/image/convergence.h"
@@ -64,24 +65,35 @@ class JobManager {
   /// Returns once every checkpoint queued so far is on disk (tests, benchmarks).
   void wait_for_checkpoints() { checkpoints_.flush(); }
 
-  /// Validates and accepts a job; returns its id. Throws JobRejected naming the cause.
-  std::string submit(const wire::SubmitJob& request);
+  /// Validates and accepts a job for `owner` (the submitting client key's name); returns its id.
+  /// Throws JobRejected naming the cause.
+  std::string submit(const wire::SubmitJob& request, const std::string& owner = {});
+  /// The owner of a job; nullptr when the job is unknown.
+  const std::string* owner_of(const std::string& id) const;
 
   /// The next unit for `worker`, leased to it; nullopt when no job has pending units.
   /// When nothing is pending, a straggler (a unit leased for much longer than its job's median)
-  /// is leased to `worker` a second time.
-  std::optional<wire::WorkUnit> next_unit(const WorkerId& worker);
+  /// is leased to `worker` a second time. `key` is the name of the key the worker connected with
+  /// (empty without CURVE): failures are counted, and blocks applied, per key, so that one key
+  /// cannot pose as several workers by opening several connections.
+  std::optional<wire::WorkUnit> next_unit(const WorkerId& worker, const std::string& key = {});
   /// Some unit could be handed out: pending, or a straggler to lease again.
   bool has_pending() const {
     return scheduler_.has_pending() || scheduler_.has_straggler(options_.stragglers);
   }
 
-  /// Merges a result from `worker` (who need not hold the unit: a late result from a worker that
-  /// was declared lost still counts when the unit is not merged yet).
-  MergeOutcome on_result(const WorkerId& worker, const wire::UnitResult& result);
-  /// A worker could not render a unit: requeue it; block the worker from the job after
-  /// max_worker_failures, fail the job when the unit failed on max_unit_failures workers.
-  void on_unit_failed(const WorkerId& worker, const wire::UnitFailed& failed);
+  /// Merges a result from `worker`, which must hold the unit's lease or have held it (a late
+  /// result from a worker that was declared lost still counts when the unit is not merged yet).
+  /// A result for a unit never leased to `worker` is kUnleased: dropped, and counted against
+  /// nobody. A leased result whose sums are malformed or implausible is kRejected and counts as
+  /// a failure of `key`.
+  MergeOutcome on_result(const WorkerId& worker, const wire::UnitResult& result,
+                         const std::string& key = {});
+  /// A worker could not render a unit it holds: requeue it; block the worker's key from the job
+  /// after max_worker_failures, fail the job when the unit failed under max_unit_failures
+  /// different keys. A failure of a unit `worker` does not hold is ignored (false).
+  bool on_unit_failed(const WorkerId& worker, const wire::UnitFailed& failed,
+                      const std::string& key = {});
   /// Takes back the leases of a worker that is lost or gone; returns how many were requeued.
   size_t release_worker(const WorkerId& worker);
 
@@ -101,6 +113,8 @@ class JobManager {
   void tick();
   /// Jobs queued or running.
   size_t active_jobs() const;
+  /// A message for clients: the data dir's path replaced by "<data dir>".
+  std::string for_clients(const std::string& text) const;
   /// Figures of the checkpoint writer (how many, how long the last took).
   CheckpointWriter::Stats checkpoint_stats() const { return checkpoints_.stats(); }
 
@@ -117,14 +131,32 @@ class JobManager {
     Clock::time_point start_time;
     Clock::time_point last_write;
     bool dirty = false;  // merged since the last image write
-    // Failures: per unit, the workers it failed on and their messages; per worker, how many.
-    std::map<uint64_t, std::map<WorkerId, std::string>> unit_failures;
-    std::map<WorkerId, int> worker_failures;
+    // Failures: per unit, the keys (or workers, without keys) it failed under and their
+    // messages; per key, how many.
+    std::map<uint64_t, std::map<std::string, std::string>> unit_failures;
+    std::map<std::string, int> worker_failures;
+    // Who was leased each unit not merged yet (a lost worker's late result is still its own).
+    std::unordered_map<uint64_t, std::vector<WorkerId>> lease_history;
     // Checkpoints.
     uint64_t checkpoint_sequence = 0;
     bool checkpoint_due = false;  // merged since the last checkpoint
     Clock::time_point last_checkpoint;
     std::map<WorkerId, Clock::time_point> contributors;  // last result from each worker
+    // Storage. A job whose work is over is reported finished only once its final image and
+    // record are on disk; until then `finishing` says how it will end, it stays running, keeps
+    // its checkpoints and retries with back-off. `storage_error` says why the job's image,
+    // checkpoint or record cannot be written now ("" when all is well).
+    struct Finishing {
+      wire::JobState state = wire::JOB_DONE;
+      std::string error;
+      StopReason reason = StopReason::kSpp;
+      double elapsed = 0.0;
+    };
+    std::optional<Finishing> finishing;
+    bool record_unsaved = false;  // the job's record could not be saved: retried
+    std::string storage_error;
+    Clock::time_point storage_retry;
+    std::chrono::milliseconds storage_backoff{0};
   };
 
   JobStore& store_;
@@ -142,7 +174,8 @@ class JobManager {
   /// Queues a checkpoint of the job's merged state.
   void checkpoint(Job& job);
   /// Counts a failure of `worker` on `unit`; blocks the worker or fails the job past the limits.
-  void note_failure(Job& job, const WorkerId& worker, uint64_t unit, const std::string& why);
+  void note_failure(Job& job, const WorkerId& worker, const std::string& key, uint64_t unit,
+                    const std::string& why);
   void record_row(Job& job);
   /// Throws JobRejected unless `exr` is a readable EXR of the film's size.
   void check_reference_bytes(const std::string& exr, FilmSize film);
@@ -151,7 +184,14 @@ class JobManager {
   void on_round_done(Job& job);
   void finish(Job& job, wire::JobState state, const std::string& error,
               StopReason reason = StopReason::kRunning);
-  void save(const Job& job);
+  /// Saves the job's record; on failure notes it (storage_error, retried by tick) and returns
+  /// false.
+  bool save(Job& job);
+  /// Notes a storage failure of the job and when to try again (back-off up to 30 s).
+  void storage_failed(Job& job, const std::string& what);
+  /// The final image and record of a job whose work is over; "" when both are on disk, else why.
+  std::string store_final(Job& job, const JobRecord& final_record, bool image);
+
   double elapsed(const Job& job) const;
   wire::JobStatus make_status(const Job& job, uint32_t workers_total) const;
   uint32_t workers_active(const Job& job) const;

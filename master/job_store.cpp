@@ -53,6 +53,7 @@ json to_json(const JobRecord& r) {
               {"min_passes", s.stop.min_passes},
               {"has_reference", s.has_reference},
               {"submitted_unix_ms", s.submitted_unix_ms},
+              {"owner", s.owner},
               {"state", protocol::job_state_name(r.state)},
               {"error", r.error},
               {"elapsed_seconds", r.elapsed_seconds},
@@ -88,6 +89,7 @@ JobRecord from_json(const json& j) {
   s.stop.min_passes = j.value("min_passes", 0u);
   s.has_reference = j.value("has_reference", false);
   s.submitted_unix_ms = j.at("submitted_unix_ms").get<int64_t>();
+  s.owner = j.value("owner", "");
   r.state = state_from_key(j.at("state").get<std::string>());
   r.error = j.value("error", "");
   r.elapsed_seconds = j.value("elapsed_seconds", 0.0);

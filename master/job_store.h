@@ -37,6 +37,9 @@ struct JobSpec {
   StopRules stop;              ///< target error and time limit, besides settings.spp
   bool has_reference = false;  ///< reference.exr is in the job's folder
   int64_t submitted_unix_ms = 0;
+  /// The name of the client key that submitted the job ("" on a master without keys): only it,
+  /// or an admin key, may cancel the job.
+  std::string owner;
 };
 
 /// A job as stored: its spec and where it stands.

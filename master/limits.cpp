@@ -58,6 +58,7 @@ SubmissionFigures figures_of(const wire::SubmitJob& request) {
   const std::string* scene_text = nullptr;
   for (const auto& file : request.bundle().files()) {
     f.bundle_bytes += file.data().size();
+    ++f.bundle_files;
     if (file.path() == request.scene_path()) scene_text = &file.data();
   }
   const wire::JobOverrides& o = request.overrides();
@@ -96,6 +97,11 @@ std::optional<std::string> check_figures(const SubmissionFigures& f, const Limit
     return fmt::format(
         "the scene bundle is {} ({} bytes), over the master's limit of {} (--max-bundle-mb)",
         mib(f.bundle_bytes), f.bundle_bytes, mib(limits.max_bundle_bytes));
+  }
+  if (f.bundle_files > limits.max_bundle_files) {
+    return fmt::format(
+        "the scene bundle has {} files, over the master's limit of {} files (--max-bundle-files)",
+        f.bundle_files, limits.max_bundle_files);
   }
   if (f.width && f.height) {
     const double pixels = static_cast<double>(*f.width) * static_cast<double>(*f.height);

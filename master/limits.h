@@ -18,6 +18,9 @@ struct Limits {
   int64_t max_message_bytes = int64_t{1} << 30;
   /// Largest scene bundle (the sum of its files' sizes). --max-bundle-mb
   uint64_t max_bundle_bytes = uint64_t{256} << 20;
+  /// Most files in a scene bundle (each is a file the master writes when it checks the scene).
+  /// --max-bundle-files
+  uint64_t max_bundle_files = 4096;
   /// Most pixels of a job's image (width x height). --max-image-pixels
   uint64_t max_image_pixels = uint64_t{1} << 25;  // 33.5 Mpx: 8K UHD (7680x4320) fits
   /// Most samples per pixel of a job. --max-spp
@@ -29,6 +32,7 @@ struct Limits {
 /// What a submission asks of the master, as far as the limits care.
 struct SubmissionFigures {
   uint64_t bundle_bytes = 0;
+  uint64_t bundle_files = 0;
   /// From the scene file's "film" and "render" blocks, with the job's overrides; unset when the
   /// scene does not say (the master's scene parser then rejects it with its own message).
   std::optional<uint64_t> width, height;

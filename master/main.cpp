@@ -85,6 +85,14 @@ int main(int argc, char** argv) {
                  "allow-list of client public keys: a folder of NAME.key files or a file of keys "
                  "[env RAYFARM_CLIENT_KEYS]")
       ->envname("RAYFARM_CLIENT_KEYS");
+  std::vector<std::string> admin_clients;
+  app.add_option("--admin-clients", admin_clients,
+                 "names of client keys (as in --client-keys) that may cancel any job; every other "
+                 "key may cancel only its own jobs [env RAYFARM_ADMIN_CLIENTS, comma-separated]")
+      ->delimiter(',')
+      ->envname("RAYFARM_ADMIN_CLIENTS");
+  app.add_flag("--private-jobs", options.security.private_jobs,
+               "a client key sees (status, list, fetch) only its own jobs, unless it is an admin");
   app.add_flag("--insecure", insecure,
                "plain sockets, no authentication or encryption: only on loopback endpoints");
 
@@ -98,6 +106,10 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--max-bundle-mb", max_bundle_mb, "largest scene bundle a job may bring, in MiB")
       ->check(CLI::Range(uint64_t{1}, uint64_t{4096}))
+      ->capture_default_str();
+  app.add_option("--max-bundle-files", limits.max_bundle_files,
+                 "most files a scene bundle may hold")
+      ->check(CLI::Range(uint64_t{1}, uint64_t{1} << 20))
       ->capture_default_str();
   app.add_option("--max-image-pixels", limits.max_image_pixels,
                  "most pixels (width x height) of a job's image")
@@ -134,6 +146,7 @@ int main(int argc, char** argv) {
       options.security.key = rayfarm::net::key_pair_from(key_file, "--key");
       options.security.worker_keys = worker_keys;
       options.security.client_keys = client_keys;
+      options.security.admin_clients.insert(admin_clients.begin(), admin_clients.end());
     }
     rayfarm::master::Broker broker(options);
     broker.run(g_stop);

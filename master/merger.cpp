@@ -43,6 +43,9 @@ MergeOutcome Merger::add(uint64_t unit, const TileResult& result, std::string* w
                   std::to_string(result.sum_sq.size()) + " values for " +
                   std::to_string(result.rect.pixel_count()) + " pixels)");
   }
+  if (const std::string problem = implausible(result); !problem.empty()) {
+    return reject("unit " + std::to_string(unit) + ": impossible sums: " + problem);
+  }
   film_.add(result);
   merged_[unit] = true;
   ++merged_count_;

@@ -15,7 +15,8 @@ namespace rayfarm::master {
 enum class MergeOutcome {
   kMerged,     ///< added to the film
   kDuplicate,  ///< the unit was merged before; the result is dropped
-  kRejected,   ///< the result does not match its unit; nothing is added
+  kRejected,   ///< the result does not match its unit, or its sums are impossible; nothing is added
+  kUnleased,   ///< the sender was never leased the unit; dropped, counted against nobody
 };
 
 class Merger {

@@ -46,10 +46,12 @@ void Scheduler::remove_job(const std::string& job) {
   order_.erase(std::remove(order_.begin(), order_.end(), job), order_.end());
 }
 
-std::optional<UnitRef> Scheduler::lease(const WorkerId& worker, Clock::time_point now) {
+std::optional<UnitRef> Scheduler::lease(const WorkerId& worker, Clock::time_point now,
+                                        const std::string& key) {
+  const std::string& who = key.empty() ? worker : key;
   for (const auto& name : order_) {
     Job& j = jobs_.at(name);
-    if (j.blocked.count(worker)) continue;
+    if (j.blocked.count(who)) continue;
     std::optional<uint64_t> unit;
     if (!j.requeued.empty()) {
       unit = *j.requeued.begin();
@@ -89,10 +91,12 @@ std::optional<double> Scheduler::straggler_threshold(const Job& j, const Straggl
 
 std::optional<Scheduler::StragglerLease> Scheduler::lease_straggler(const WorkerId& worker,
                                                                     const StragglerPolicy& policy,
-                                                                    Clock::time_point now) {
+                                                                    Clock::time_point now,
+                                                                    const std::string& key) {
+  const std::string& who = key.empty() ? worker : key;
   for (const auto& name : order_) {
     Job& j = jobs_.at(name);
-    if (j.blocked.count(worker)) continue;
+    if (j.blocked.count(who)) continue;
     const auto threshold = straggler_threshold(j, policy);
     if (!threshold) continue;
     // The slowest single lease past the threshold that `worker` does not hold.
@@ -214,14 +218,19 @@ std::vector<UnitRef> Scheduler::release_worker(const WorkerId& worker) {
   return requeued;
 }
 
-void Scheduler::block(const std::string& job, const WorkerId& worker) {
+void Scheduler::block(const std::string& job, const std::string& who) {
   auto it = jobs_.find(job);
-  if (it != jobs_.end()) it->second.blocked.insert(worker);
+  if (it != jobs_.end()) it->second.blocked.insert(who);
 }
 
-bool Scheduler::is_blocked(const std::string& job, const WorkerId& worker) const {
+bool Scheduler::is_blocked(const std::string& job, const std::string& who) const {
   auto it = jobs_.find(job);
-  return it != jobs_.end() && it->second.blocked.count(worker) != 0;
+  return it != jobs_.end() && it->second.blocked.count(who) != 0;
+}
+
+bool Scheduler::holds(const UnitRef& unit, const WorkerId& worker) const {
+  auto w = by_worker_.find(worker);
+  return w != by_worker_.end() && w->second.count(unit) != 0;
 }
 
 double Scheduler::median_seconds(const std::string& job) const {

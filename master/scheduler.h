@@ -68,12 +68,16 @@ class Scheduler {
   bool has_job(const std::string& job) const { return jobs_.count(job) != 0; }
 
   /// Leases the next pending unit of a job `worker` is not blocked from; nullopt when none.
-  std::optional<UnitRef> lease(const WorkerId& worker, Clock::time_point now = Clock::now());
+  /// `key` names the identity blocks apply to (the worker's key, shared by every connection made
+  /// with it); empty: the worker itself.
+  std::optional<UnitRef> lease(const WorkerId& worker, Clock::time_point now = Clock::now(),
+                               const std::string& key = {});
   /// Leases to `worker` a second copy of the slowest straggler (policy) it does not hold, of a
   /// job it is not blocked from; nullopt when there is none.
   std::optional<StragglerLease> lease_straggler(const WorkerId& worker,
                                                 const StragglerPolicy& policy,
-                                                Clock::time_point now = Clock::now());
+                                                Clock::time_point now = Clock::now(),
+                                                const std::string& key = {});
   /// Some leased unit is a straggler that no second worker holds yet.
   bool has_straggler(const StragglerPolicy& policy, Clock::time_point now = Clock::now()) const;
   /// Marks a unit done, whoever held it and even when it was back in the queue; every lease of
@@ -90,9 +94,12 @@ class Scheduler {
   /// again (a unit another worker also holds stays leased to that worker).
   std::vector<UnitRef> release_worker(const WorkerId& worker);
 
-  /// `worker` gets no more units of `job` (it keeps failing there); its current leases stand.
-  void block(const std::string& job, const WorkerId& worker);
-  bool is_blocked(const std::string& job, const WorkerId& worker) const;
+  /// `who` (a worker, or the key of lease()) gets no more units of `job` (it keeps failing
+  /// there); current leases stand.
+  void block(const std::string& job, const std::string& who);
+  bool is_blocked(const std::string& job, const std::string& who) const;
+  /// Whether `worker` holds a lease of `unit` now.
+  bool holds(const UnitRef& unit, const WorkerId& worker) const;
   /// The job's median unit duration so far (lease to result), in seconds; 0 when none is done.
   double median_seconds(const std::string& job) const;
 
@@ -122,7 +129,7 @@ class Scheduler {
     };
     std::map<uint64_t, std::vector<Holder>> leased;  // one holder, two for a straggler
     std::vector<bool> done;
-    std::set<WorkerId> blocked;
+    std::set<std::string> blocked;  // workers or keys
     std::deque<double> durations;  // seconds of the latest units done
   };
   std::map<std::string, Job> jobs_;

@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include "common/scene/parser.h"
+#include "common/util/atomic_file.h"
 
 namespace rayfarm {
 namespace fs = std::filesystem;
@@ -28,10 +29,9 @@ std::string read_file(const fs::path& path) {
 }
 
 void write_file(const fs::path& path, const std::string& data) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out.write(data.data(), static_cast<std::streamsize>(data.size()));
-  out.close();
-  if (!out) throw BundleError(path.string() + ": cannot write file while unpacking a bundle");
+  // A failure here is the unpacking side's storage (a full disk), not the bundle's fault: the
+  // system error says which, and is_storage_error() recognises it.
+  write_bytes(path, data);
 }
 
 /// Deepest folder containing both `a` and `b` (both absolute and lexically normal).

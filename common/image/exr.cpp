@@ -9,6 +9,8 @@
 #include <cerrno>
 #include <cstring>
 #include <exception>
+#include <fstream>
+#include <optional>
 #include <system_error>
 
 #include <ImfChannelList.h>
@@ -82,8 +84,63 @@ void write_exr_file(const fs::path& file, const Image& image) {
   out.writePixels(height);
 }
 
+/// The data window's size from the header of the EXR at `path`, read without OpenEXR (which
+/// reads a table sized by the header when it opens a file); nullopt when the first 64 KiB hold
+/// no well-formed header with a data window (OpenEXR then says what is wrong).
+std::optional<std::pair<int64_t, int64_t>> peek_data_window(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string head(65536, '\0');
+  in.read(head.data(), static_cast<std::streamsize>(head.size()));
+  head.resize(static_cast<size_t>(in.gcount()));
+  auto read_i32 = [&](size_t at) {
+    uint32_t v = 0;
+    for (int b = 3; b >= 0; --b) v = (v << 8) | static_cast<unsigned char>(head[at + b]);
+    return static_cast<int32_t>(v);
+  };
+  if (head.size() < 8 || read_i32(0) != 20000630) return std::nullopt;  // the EXR magic number
+  size_t at = 8;
+  auto read_name = [&](std::string& out) {
+    const size_t end = head.find('\0', at);
+    if (end == std::string::npos || end - at > 255) return false;
+    out = head.substr(at, end - at);
+    at = end + 1;
+    return true;
+  };
+  for (;;) {
+    std::string name, type;
+    if (!read_name(name)) return std::nullopt;
+    if (name.empty()) return std::nullopt;  // end of the header without a data window
+    if (!read_name(type) || at + 4 > head.size()) return std::nullopt;
+    const int32_t size = read_i32(at);
+    at += 4;
+    if (size < 0 || at + static_cast<size_t>(size) > head.size()) return std::nullopt;
+    if (name == "dataWindow" && type == "box2i" && size == 16) {
+      const int64_t x0 = read_i32(at), y0 = read_i32(at + 4), x1 = read_i32(at + 8),
+                    y1 = read_i32(at + 12);
+      return std::pair{x1 - x0 + 1, y1 - y0 + 1};
+    }
+    at += static_cast<size_t>(size);
+  }
+}
+
 /// Reads the whole EXR at `path`; OpenEXR (Iex) errors propagate.
-Image read_exr_file(const fs::path& path) {
+Image read_exr_file(const fs::path& path, const ExrExpect& expect) {
+  // A header may claim any size: compare it with what is expected before OpenEXR allocates for
+  // it (its offset table) and before the pixels are allocated below.
+  auto size_mismatch = [&](int64_t width, int64_t height) {
+    return expect.width != 0 && (width != expect.width || height != expect.height);
+  };
+  auto refuse_size = [&](int64_t width, int64_t height) {
+    fail_read(path, "its header says " + std::to_string(width) + "x" + std::to_string(height) +
+                        ", the image is " + std::to_string(expect.width) + "x" +
+                        std::to_string(expect.height));
+  };
+  if (expect.width != 0) {
+    if (const auto peeked = peek_data_window(path);
+        peeked && size_mismatch(peeked->first, peeked->second)) {
+      refuse_size(peeked->first, peeked->second);
+    }
+  }
   Imf::InputFile in(path.c_str());
   const Imf::Header& header = in.header();
   const Imath::Box2i data = header.dataWindow();
@@ -98,6 +155,7 @@ Image read_exr_file(const fs::path& path) {
   if (width <= 0 || height <= 0 || width > UINT32_MAX || height > UINT32_MAX) {
     fail_read(path, "invalid data window");
   }
+  if (size_mismatch(width, height)) refuse_size(width, height);
 
   Image image;
   image.width = static_cast<uint32_t>(width);
@@ -127,6 +185,7 @@ Image read_exr_file(const fs::path& path) {
   for (auto it = channels.begin(); it != channels.end(); ++it) {
     const std::string name = it.name();
     if (name == "R" || name == "G" || name == "B") continue;
+    if (expect.rgb_only) continue;
     std::vector<float>& values = image.extra[name];
     values.assign(pixels, 0.f);
     frame.insert(name, Imf::Slice::Make(Imf::FLOAT, values.data(), data, sizeof(float),
@@ -159,12 +218,12 @@ void write_exr(const fs::path& path, const Image& image) {
   }
 }
 
-Image read_exr(const fs::path& path) {
+Image read_exr(const fs::path& path, const ExrExpect& expect) {
   std::error_code ec;
   if (!fs::exists(path, ec)) fail_read(path, "no such file");
   if (fs::is_directory(path, ec)) fail_read(path, "is a directory");
   try {
-    return read_exr_file(path);
+    return read_exr_file(path, expect);
   } catch (const ImageError&) {
     throw;
   } catch (const std::exception& e) {

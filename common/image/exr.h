@@ -27,7 +27,13 @@ struct Image {
 
 /// Writes a float32 EXR (ZIP compression) to a temporary file beside `path`, then renames it.
 void write_exr(const std::filesystem::path& path, const Image& image);
+/// What a reader expects of an EXR, checked from its header before any pixel is allocated.
+struct ExrExpect {
+  uint32_t width = 0, height = 0;  ///< the image's size; 0 x 0 = any size
+  bool rgb_only = false;           ///< other channels are not read (nor allocated)
+};
+
 /// Reads an EXR's R, G, B channels (and any others into `extra`) as float32. Throws ImageError.
-Image read_exr(const std::filesystem::path& path);
+Image read_exr(const std::filesystem::path& path, const ExrExpect& expect = {});
 
 }  // namespace rayfarm

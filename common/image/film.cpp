@@ -1,6 +1,7 @@
 #include "common/image/film.h"
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 
 #include "common/util/check.h"
@@ -15,6 +16,50 @@ bool TileResult::well_formed() const {
   const size_t n = size_t{rect.pixel_count()} * 3;
   return rect.x1 > rect.x0 && rect.y1 > rect.y0 && samples.end > samples.begin &&
          sum.size() == n && sum_sq.size() == n;
+}
+
+std::string implausible(const TileResult& r) {
+  const uint64_t n = r.samples.count();
+  const uint64_t pixels = r.rect.pixel_count();
+  if (r.nonfinite > n * pixels) {
+    return "it counts " + std::to_string(r.nonfinite) + " non-finite samples of the " +
+           std::to_string(n * pixels) + " it covers";
+  }
+  if (r.rays / kMaxRaysPerSample > n * pixels) {
+    return "it counts " + std::to_string(r.rays) + " rays for " + std::to_string(n * pixels) +
+           " samples";
+  }
+  // In fixed-point units (2^-40): a sample v adds trunc(v 2^40) to the sum and trunc(v^2 2^40)
+  // to the sum of squares, each off by less than one unit; |v| <= kMaxSampleValue = 2^32.
+  const long double scale = 1099511627776.0L;  // 2^40
+  const long double nn = static_cast<long double>(n);
+  const long double max_sum = nn * kMaxSampleValue * scale + nn;
+  const long double max_sum_sq = nn * kMaxSampleValue * kMaxSampleValue * scale + nn;
+  for (size_t i = 0; i < r.sum.size(); ++i) {
+    const long double s = static_cast<long double>(r.sum[i]);
+    const long double q = static_cast<long double>(r.sum_sq[i]);
+    const char* problem = nullptr;
+    if (r.sum_sq[i] < 0) {
+      problem = "a negative sum of squares";
+    } else if (q > max_sum_sq) {
+      problem = "a sum of squares larger than its samples can reach";
+    } else if (std::fabs(s) > max_sum) {
+      problem = "a sum larger than its samples can reach";
+    } else {
+      // (|S| - n)^2 <= n (Q + n) 2^40, with a relative margin for long double's rounding.
+      const long double lhs = std::max(0.0L, std::fabs(s) - nn);
+      if (lhs * lhs > nn * (q + nn) * scale * (1.0L + 1e-12L)) {
+        problem = "sum^2 > n * sum of squares (no set of samples has these sums)";
+      }
+    }
+    if (problem) {
+      const size_t pixel = i / 3;
+      return "pixel (" + std::to_string(r.rect.x0 + pixel % r.rect.width()) + ", " +
+             std::to_string(r.rect.y0 + pixel / r.rect.width()) + ") channel " +
+             std::to_string(i % 3) + " has " + problem;
+    }
+  }
+  return "";
 }
 
 std::vector<TileRect> split_tiles(FilmSize film, uint32_t tile_size) {

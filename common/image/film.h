@@ -41,6 +41,18 @@ struct TileResult {
   bool well_formed() const;
 };
 
+/// Most rays one sample can trace: a camera or bounce ray and a shadow ray per vertex, up to the
+/// largest path depth a job may ask for (1024), with room to spare.
+inline constexpr uint64_t kMaxRaysPerSample = 4096;
+
+/// Why the sums of a well-formed result cannot come from its samples, or "" when they can. Every
+/// check is exact for what the renderer produces (film.cpp says how): the non-finite count is at
+/// most the samples taken; per pixel and channel the sum of squares is not negative and at most
+/// n times the largest square a sample may add, the sum at most n times the largest sample
+/// (kMaxSampleValue), and sum^2 <= n * sum_sq (Cauchy-Schwarz) within the fixed-point rounding
+/// of n truncations; the rays at most kMaxRaysPerSample per sample.
+std::string implausible(const TileResult& result);
+
 /// Splits the image into tiles of at most tile_size x tile_size, row by row.
 std::vector<TileRect> split_tiles(FilmSize film, uint32_t tile_size);
 /// Splits [0, spp) into passes of pass_spp samples (the last may be shorter).

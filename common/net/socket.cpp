@@ -236,11 +236,14 @@ void Socket::set_linger(std::chrono::milliseconds linger) {
   impl_->socket.set(zmq::sockopt::linger, static_cast<int>(linger.count()));
 }
 
-Router::Router(const std::string& endpoint, int64_t max_message_bytes, const Curve& curve)
+Router::Router(const std::string& endpoint, int64_t max_message_bytes, const Curve& curve,
+               QueueBounds queues)
     : Socket(std::make_unique<Impl>()) {
   try {
     impl_->socket = zmq::socket_t(context(), zmq::socket_type::router);
     configure(impl_->socket, max_message_bytes);
+    impl_->socket.set(zmq::sockopt::sndhwm, queues.send);
+    impl_->socket.set(zmq::sockopt::rcvhwm, queues.receive);
     configure_curve_server(impl_->socket, curve);
     impl_->socket.set(zmq::sockopt::router_mandatory, 1);
     impl_->socket.bind(endpoint);

@@ -36,6 +36,15 @@ struct Curve {
   bool enabled() const { return !secret_key.empty(); }
 };
 
+/// How many messages a Router queues per peer in each direction (ZeroMQ's high-water marks,
+/// ZMQ_SNDHWM and ZMQ_RCVHWM, which apply to each connection separately). A send past the bound
+/// fails (Router::send returns false) instead of growing the queue; a peer sending past it is
+/// held back by TCP until the master has read what it sent.
+struct QueueBounds {
+  int send = 1000;
+  int receive = 1000;
+};
+
 /// One message received on a Router: who sent it and its frames (the routing frame removed).
 struct Delivery {
   PeerId peer;
@@ -87,7 +96,7 @@ class Router : public Socket {
   /// Binds `endpoint` (e.g. "tcp://*:5555", "tcp://127.0.0.1:0") as a CURVE server when `curve`
   /// has keys: bind a ZapHandler (zap.h) first, or libzmq admits every key. Throws NetError.
   explicit Router(const std::string& endpoint, int64_t max_message_bytes = kDefaultMaxMessageBytes,
-                  const Curve& curve = {});
+                  const Curve& curve = {}, QueueBounds queues = {});
 
   /// Sends `frames` to `peer` without blocking; false when the peer is gone or its queue is full.
   bool send(const PeerId& peer, const Frames& frames);

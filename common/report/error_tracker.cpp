@@ -15,7 +15,7 @@ void check_reference(const Image& reference, FilmSize film, const std::string& s
 }
 
 Image load_reference(const std::filesystem::path& path, FilmSize film) {
-  Image reference = read_exr(path);
+  Image reference = read_exr(path, ExrExpect{film.width, film.height, /*rgb_only=*/true});
   check_reference(reference, film, path.string());
   reference.extra.clear();
   return reference;

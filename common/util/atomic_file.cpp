@@ -6,6 +6,7 @@
 #include <atomic>
 #include <cerrno>
 #include <fstream>
+#include <mutex>
 #include <system_error>
 
 namespace rayfarm {
@@ -30,12 +31,61 @@ void sync_file(const fs::path& path) {
   if (result != 0) throw std::system_error(sync_errno, std::generic_category(), "fsync failed");
 }
 
+std::mutex g_fault_mutex;
+std::function<int(const fs::path&)> g_fault;
+
+void check_fault(const fs::path& path) {
+  std::lock_guard lock(g_fault_mutex);
+  if (!g_fault) return;
+  if (const int error = g_fault(path)) {
+    throw std::system_error(error, std::generic_category(), "cannot write " + path.string());
+  }
+}
+
 }  // namespace
+
+void set_write_fault_for_testing(std::function<int(const fs::path&)> fault) {
+  std::lock_guard lock(g_fault_mutex);
+  g_fault = std::move(fault);
+}
+
+bool is_storage_error(const std::exception& e) {
+  if (const auto* system = dynamic_cast<const std::system_error*>(&e)) {
+    const int code = system->code().value();
+    if (code == ENOSPC || code == EDQUOT || code == EROFS) return true;
+  }
+  const std::string what = e.what();
+  for (const int code : {ENOSPC, EDQUOT, EROFS}) {
+    if (what.find(std::generic_category().message(code)) != std::string::npos) return true;
+  }
+  return false;
+}
+
+void write_bytes(const fs::path& path, std::string_view bytes) {
+  check_fault(path);
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) throw std::system_error(errno, std::generic_category(), "cannot create " + path.string());
+  size_t done = 0;
+  while (done < bytes.size()) {
+    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const int error = n < 0 ? errno : EIO;
+      ::close(fd);
+      throw std::system_error(error, std::generic_category(), "cannot write " + path.string());
+    }
+    done += static_cast<size_t>(n);
+  }
+  if (::close(fd) != 0) {
+    throw std::system_error(errno, std::generic_category(), "cannot write " + path.string());
+  }
+}
 
 void write_atomically(const fs::path& path,
                       const std::function<void(const fs::path& temporary)>& write) {
   const fs::path temporary = temporary_path(path);
   try {
+    check_fault(path);
     write(temporary);
     sync_file(temporary);
     fs::rename(temporary, path);
@@ -47,12 +97,7 @@ void write_atomically(const fs::path& path,
 }
 
 void write_file_atomically(const fs::path& path, const std::string& bytes) {
-  write_atomically(path, [&](const fs::path& temporary) {
-    std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
-    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-    out.close();
-    if (!out) throw std::runtime_error("short write to " + temporary.string());
-  });
+  write_atomically(path, [&](const fs::path& temporary) { write_bytes(temporary, bytes); });
 }
 
 }  // namespace rayfarm

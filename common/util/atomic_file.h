@@ -4,6 +4,7 @@
 #include <functional>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 
 namespace rayfarm {
 
@@ -15,5 +16,18 @@ void write_atomically(const std::filesystem::path& path,
 
 /// Writes `bytes` to `path` atomically (see write_atomically).
 void write_file_atomically(const std::filesystem::path& path, const std::string& bytes);
+
+/// Creates or truncates `path` and writes `bytes` to it, all of them or a std::system_error with
+/// the cause the system gave (e.g. "No space left on device"). Not atomic by itself.
+void write_bytes(const std::filesystem::path& path, std::string_view bytes);
+
+/// For tests of storage faults (a full or read-only disk): while set, every write_bytes and
+/// write_atomically first calls `fault` with the path; a non-zero errno it returns fails that write
+/// with that cause. An empty function removes the hook. Not for production use.
+void set_write_fault_for_testing(std::function<int(const std::filesystem::path&)> fault);
+
+/// Whether `e`, or the system error inside its message, says the storage is full or read-only
+/// (ENOSPC, EDQUOT, EROFS), as opposed to bad data.
+bool is_storage_error(const std::exception& e);
 
 }  // namespace rayfarm

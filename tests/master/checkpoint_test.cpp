@@ -202,7 +202,7 @@ TEST(Checkpoint, AMergerRestoresExactlyAndRefusesInconsistentState) {
     TileResult r(u.rect, u.samples);
     for (size_t i = 0; i < r.sum.size(); ++i) {
       r.sum[i] = to_fixed(0.1 * double(i + unit));
-      r.sum_sq[i] = to_fixed(0.01 * double(i * unit));
+      r.sum_sq[i] = to_fixed(0.01 * (double(i + unit) * double(i + unit) + double(i * unit)));
     }
     r.rays = 10 + unit;
     r.nonfinite = unit;

@@ -18,6 +18,7 @@
 #include "common/image/exr.h"
 #include "common/protocol/convert.h"
 #include "master/job_manager.h"
+#include "tests/master/job_requests.h"
 #include "tests/support/temp_dir.h"
 
 namespace rayfarm::master {
@@ -27,36 +28,14 @@ namespace protocol = rayfarm::protocol;
 
 using testing::read_file;
 using testing::TempDir;
-
-/// A submit request for the bundled furnace (32x32) with these overrides.
-wire::SubmitJob furnace_job(uint32_t spp, uint32_t tile, uint32_t pass_spp) {
-  const PackedScene packed =
-      pack_scene(fs::path(RAYFARM_SOURCE_DIR) / "scenes" / "furnace" / "scene.json");
-  wire::SubmitJob request;
-  protocol::bundle_to_wire(packed.bundle, request.mutable_bundle());
-  request.set_scene_path(packed.scene_path);
-  request.set_name("furnace");
-  request.mutable_overrides()->set_spp(spp);
-  request.mutable_overrides()->set_tile_size(tile);
-  request.mutable_overrides()->set_pass_spp(pass_spp);
-  return request;
-}
+using test_jobs::furnace_job;
+using test_jobs::result_for;
 
 wire::SubmitJob job_with_scene_text(const std::string& text) {
   wire::SubmitJob request;
   protocol::bundle_to_wire(make_bundle({{"scene.json", text}}), request.mutable_bundle());
   request.set_scene_path("scene.json");
   return request;
-}
-
-/// A result of the right shape for `unit`, every sample worth `value`.
-wire::UnitResult result_for(const wire::WorkUnit& unit, double value = 0.5) {
-  const TileRect rect = protocol::rect_from_wire(unit.tile());
-  TileResult r(rect, {unit.sample_begin(), unit.sample_end()});
-  const double n = unit.sample_end() - unit.sample_begin();
-  for (auto& s : r.sum) s = to_fixed(value * n);
-  for (auto& s : r.sum_sq) s = to_fixed(value * value * n);
-  return protocol::result_to_wire(unit.job_id(), unit.unit_id(), r, 0.01);
 }
 
 class JobManagerTest : public ::testing::Test {
@@ -170,7 +149,7 @@ TEST_F(JobManagerTest, InconsistentResultsAreRejectedAndTheUnitRequeued) {
   EXPECT_EQ(again->unit_id(), unit->unit_id());
   wire::UnitResult unknown = result_for(*unit);
   unknown.set_job_id("j9999");
-  EXPECT_EQ(jobs.on_result("w1", unknown), MergeOutcome::kRejected);
+  EXPECT_EQ(jobs.on_result("w1", unknown), MergeOutcome::kUnleased);
 }
 
 TEST_F(JobManagerTest, AUnitThatFailsOnThreeWorkersFailsTheJobWithTheirMessages) {
@@ -286,12 +265,13 @@ TEST_F(JobManagerTest, ATargetErrorStopsConvergedTilesAndSaysWhy) {
   ASSERT_EQ(units.size(), 8u);
   EXPECT_EQ(units.back().pass(), 1u);
 
-  // A result for a unit the rules never released is refused, and changes nothing.
+  // A result for a unit the rules never released (so never leased) is dropped, and changes
+  // nothing.
   wire::WorkUnit never = units.back();
   never.set_unit_id(12);  // pass 3
   never.set_sample_begin(12);
   never.set_sample_end(16);
-  EXPECT_EQ(jobs.on_result("w1", result_for(never)), MergeOutcome::kRejected);
+  EXPECT_EQ(jobs.on_result("w1", result_for(never)), MergeOutcome::kUnleased);
 
   // Constant samples have no variance: every tile meets the target after its minimum.
   for (const auto& unit : units) EXPECT_EQ(jobs.on_result("w1", result_for(unit)), MergeOutcome::kMerged);
@@ -395,7 +375,7 @@ wire::UnitResult noisy_result_for(const wire::WorkUnit& unit) {
   const double spread = 1.0 + (rect.x0 / 8 + rect.y0 / 8) % 4;
   for (size_t i = 0; i < r.sum.size(); ++i) {
     r.sum[i] = to_fixed(v * n + 1e-3 * double(i % 7) + 1e-4 * unit.unit_id());
-    r.sum_sq[i] = to_fixed(spread * v * v * n);
+    r.sum_sq[i] = to_fixed((spread * v * v + 0.1) * n);  // sums that samples can have
   }
   r.rays = 100 + unit.unit_id();
   return protocol::result_to_wire(unit.job_id(), unit.unit_id(), r, 0.01);

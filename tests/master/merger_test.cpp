@@ -16,9 +16,13 @@ TileResult fake_result(const UnitGrid& grid, uint64_t id) {
   const UnitGrid::Unit u = grid.unit(id);
   TileResult r(u.rect, u.samples);
   std::mt19937_64 rng(id * 7919 + 1);
+  const double n = u.samples.count();
   for (size_t i = 0; i < r.sum.size(); ++i) {
-    r.sum[i] = to_fixed(static_cast<double>(rng() % 100000) / 4096.0 * u.samples.count());
-    r.sum_sq[i] = to_fixed(static_cast<double>(rng() % 100000) / 1024.0);
+    // Sums that samples of this mean and spread could have (Merger refuses impossible ones).
+    const double mean = static_cast<double>(rng() % 100000) / 4096.0;
+    const double spread = static_cast<double>(rng() % 100000) / 1024.0;
+    r.sum[i] = to_fixed(mean * n);
+    r.sum_sq[i] = to_fixed((mean * mean + spread) * n);
   }
   r.rays = u.rect.pixel_count();
   return r;

@@ -1,0 +1,580 @@
+// What a peer holding a valid key can make the master do, and what a failing disk does to a job.
+// Results merge only from the connection that was leased the unit, and only when their sums could
+// come from its samples; failures count per key and only for units held, so that one key can
+// block only itself; jobs belong to the key that submitted them; a reference's header is checked
+// before its pixels are allocated; per-connection queues are bounded; complaints about garbage are
+// rate-limited; a job is done only once its final image and record are on disk.
+#include <gtest/gtest.h>
+
+#include <spdlog/sinks/ostream_sink.h>
+
+#include <atomic>
+#include <cerrno>
+#include <cstring>
+#include <sstream>
+#include <thread>
+
+#include <zmq.hpp>
+
+#include "common/image/exr.h"
+#include "common/net/zap.h"
+#include "common/protocol/codec.h"
+#include "common/util/atomic_file.h"
+#include "common/util/log.h"
+#include "master/broker.h"
+#include "master/job_manager.h"
+#include "tests/master/job_requests.h"
+#include "tests/support/temp_dir.h"
+
+namespace rayfarm::master {
+namespace {
+namespace fs = std::filesystem;
+using std::chrono::milliseconds;
+using test_jobs::furnace_job;
+using test_jobs::result_for;
+using testing::TempDir;
+
+wire::UnitFailed failure_of(const wire::WorkUnit& unit, const std::string& why) {
+  wire::UnitFailed f;
+  f.set_job_id(unit.job_id());
+  f.set_unit_id(unit.unit_id());
+  f.set_reason(why);
+  return f;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Results and failures, without sockets
+
+class PeerTrustTest : public ::testing::Test {
+ protected:
+  TempDir dir;
+  JobStore store{dir.path() / "data"};
+  JobManager jobs{store};
+};
+
+TEST_F(PeerTrustTest, AResultCountsOnlyFromTheConnectionThatWasLeasedTheUnit) {
+  const std::string id = jobs.submit(furnace_job(4, 16, 4));  // 4 units
+  const auto unit = jobs.next_unit("w1", "k1");
+  ASSERT_TRUE(unit);
+  // Another connection, even with the same key, and a unit leased to nobody: dropped, and
+  // neither counts as a failure of anyone.
+  for (int i = 0; i < 5; ++i) {
+    EXPECT_EQ(jobs.on_result("forger", result_for(*unit, 9.0), "k1"), MergeOutcome::kUnleased);
+  }
+  wire::WorkUnit other = *unit;
+  other.set_unit_id(unit->unit_id() + 1);
+  other.mutable_tile()->set_x0(16);
+  other.mutable_tile()->set_x1(32);
+  EXPECT_EQ(jobs.on_result("w1", result_for(other), "k1"), MergeOutcome::kUnleased);
+  EXPECT_EQ(jobs.status(id, 1)->units_done(), 0u);
+  EXPECT_EQ(jobs.status(id, 1)->state(), wire::JOB_RUNNING);
+  // The holder's result merges; the forger's value never reached the film.
+  EXPECT_EQ(jobs.on_result("w1", result_for(*unit), "k1"), MergeOutcome::kMerged);
+  EXPECT_EQ(jobs.on_result("forger", result_for(*unit, 9.0), "k1"), MergeOutcome::kDuplicate);
+  while (auto u = jobs.next_unit("w1", "k1")) jobs.on_result("w1", result_for(*u), "k1");
+  ASSERT_EQ(jobs.status(id, 1)->state(), wire::JOB_DONE);
+  const Image image = read_exr(dir.path() / "data" / "jobs" / id / "image.exr");
+  for (float v : image.rgb) ASSERT_EQ(v, 0.5f);
+}
+
+TEST_F(PeerTrustTest, ImpossibleSumsAreRejectedAndCountAgainstTheSender) {
+  const std::string id = jobs.submit(furnace_job(4, 16, 4));
+  const auto unit = jobs.next_unit("w1", "k1");
+  ASSERT_TRUE(unit);
+  const uint32_t n = unit->sample_end() - unit->sample_begin();
+  auto tampered = [&](auto change) {
+    TileResult r = protocol::result_from_wire(result_for(*unit));
+    change(r);
+    return protocol::result_to_wire(unit->job_id(), unit->unit_id(), r, 0.01);
+  };
+  const std::vector<std::pair<const char*, wire::UnitResult>> bad{
+      {"negative sum of squares", tampered([](TileResult& r) { r.sum_sq[7] = -1; })},
+      {"sum larger than its samples can reach",
+       tampered([&](TileResult& r) { r.sum[0] = to_fixed(kMaxSampleValue) * (n + 1); })},
+      {"sum^2 > n * sum of squares", tampered([](TileResult& r) { r.sum_sq[3] = 0; })},
+      {"non-finite samples", tampered([&](TileResult& r) { r.nonfinite = uint64_t{n} * 256 + 1; })},
+  };
+  for (const auto& [what, result] : bad) {
+    // The unit goes back to the queue each time; w1 held it, so its next result is looked at.
+    EXPECT_EQ(jobs.on_result("w1", result, "k1"), MergeOutcome::kRejected) << what;
+  }
+  EXPECT_EQ(jobs.status(id, 1)->units_done(), 0u);
+  // Three rejections blocked key k1 from the job; the job itself goes on.
+  EXPECT_EQ(jobs.status(id, 1)->state(), wire::JOB_RUNNING);
+  EXPECT_FALSE(jobs.next_unit("w2", "k1")) << "another connection of a blocked key";
+  EXPECT_TRUE(jobs.next_unit("w3", "k2"));
+}
+
+TEST(ImplausibleTest, NamesThePixelAndAcceptsTheExtremesSamplesCanReach) {
+  // Samples at the largest magnitude a sample may have, and a mix of signs, are plausible.
+  TileResult r(TileRect{0, 0, 2, 2}, SampleRange{0, 4});
+  const double v = kMaxSampleValue;
+  for (size_t i = 0; i < r.sum.size(); ++i) {
+    r.sum[i] = to_fixed(v) * 3 + to_fixed(-v);  // samples v, v, v, -v
+    r.sum_sq[i] = to_fixed(v * v) * 4;
+  }
+  r.nonfinite = 16;
+  EXPECT_EQ(implausible(r), "");
+  r.sum[5] = to_fixed(v) * 5;  // more than four samples can add up to
+  EXPECT_NE(implausible(r).find("pixel (1, 0) channel 2 has a sum larger"), std::string::npos)
+      << implausible(r);
+  r.sum[5] = to_fixed(v) * 4;
+  r.sum_sq[5] = to_fixed(v * v) * 2;  // four samples of magnitude v cannot square to 2 v^2
+  EXPECT_NE(implausible(r).find("sum^2 > n * sum of squares"), std::string::npos)
+      << implausible(r);
+  r.sum_sq[5] = to_fixed(v * v) * 4;
+  r.nonfinite = 17;
+  EXPECT_NE(implausible(r).find("17 non-finite samples of the 16"), std::string::npos);
+}
+
+TEST_F(PeerTrustTest, FailuresCountPerKeyAndOnlyForUnitsTheConnectionHolds) {
+  const std::string id = jobs.submit(furnace_job(4, 16, 4));  // 4 units
+  const auto held = jobs.next_unit("w1", "k1");
+  ASSERT_TRUE(held);
+  // Reports of failures of a unit the sender does not hold change nothing.
+  for (const std::string conn : {"x1", "x2", "x3", "x4"}) {
+    EXPECT_FALSE(jobs.on_unit_failed(conn, failure_of(*held, "forged"), conn));
+  }
+  EXPECT_EQ(jobs.status(id, 0)->state(), wire::JOB_RUNNING);
+  // Three connections of one key each fail the unit they hold: one key is one worker, so the
+  // key is blocked and the job goes on.
+  EXPECT_TRUE(jobs.on_unit_failed("w1", failure_of(*held, "out of memory"), "k1"));
+  for (const std::string conn : {"w2", "w3"}) {
+    const auto unit = jobs.next_unit(conn, "k1");
+    ASSERT_TRUE(unit);
+    EXPECT_EQ(unit->unit_id(), held->unit_id());
+    EXPECT_TRUE(jobs.on_unit_failed(conn, failure_of(*unit, "out of memory"), "k1"));
+  }
+  EXPECT_EQ(jobs.status(id, 0)->state(), wire::JOB_RUNNING);
+  EXPECT_FALSE(jobs.next_unit("w9", "k1")) << "k1 is blocked from the job";
+  // The same unit failing under two more keys makes three different workers: the job fails.
+  for (const std::string key : {"k2", "k3"}) {
+    const auto unit = jobs.next_unit("c-" + key, key);
+    ASSERT_TRUE(unit);
+    EXPECT_EQ(unit->unit_id(), held->unit_id());
+    jobs.on_unit_failed("c-" + key, failure_of(*unit, "out of memory"), key);
+  }
+  const auto st = jobs.status(id, 0);
+  EXPECT_EQ(st->state(), wire::JOB_FAILED);
+  EXPECT_NE(st->error().find("failed on 3 different workers"), std::string::npos) << st->error();
+  EXPECT_NE(st->error().find("key 'k2'"), std::string::npos) << st->error();
+}
+
+/// `exr` with the data and display windows of its header rewritten to w x h.
+std::string claim_size(std::string exr, int32_t w, int32_t h) {
+  for (const char* name : {"dataWindow", "displayWindow"}) {
+    const std::string tag = std::string(name) + '\0' + "box2i" + '\0';
+    const size_t at = exr.find(tag);
+    if (at == std::string::npos) return {};
+    const int32_t box[4] = {0, 0, w - 1, h - 1};
+    std::memcpy(exr.data() + at + tag.size() + 4, box, sizeof box);
+  }
+  return exr;
+}
+
+TEST_F(PeerTrustTest, AReferenceHeaderIsCheckedBeforeItsPixelsAreAllocated) {
+  Image small;
+  small.width = small.height = 32;
+  small.rgb.assign(32 * 32 * 3, 0.5f);
+  write_exr(dir.path() / "ref.exr", small);
+  const std::string real = testing::read_file(dir.path() / "ref.exr");
+  // A header that claims 16384 x 16384 (three gigabytes of float pixels), in a file of a few
+  // kilobytes: refused from the header alone.
+  const std::string huge = claim_size(real, 16384, 16384);
+  ASSERT_FALSE(huge.empty());
+  wire::SubmitJob request = furnace_job(4, 16, 4);
+  request.set_reference_exr(huge);
+  try {
+    jobs.submit(request);
+    FAIL() << "accepted a reference whose header claims 16384x16384";
+  } catch (const JobRejected& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("its header says 16384x16384, the image is 32x32"), std::string::npos)
+        << what;
+    EXPECT_EQ(what.find(dir.path().string()), std::string::npos) << what;
+  }
+  request.set_reference_exr(real);
+  EXPECT_NO_THROW(jobs.submit(request));
+}
+
+// ---------------------------------------------------------------------------------------------
+// A full disk
+
+/// While alive, every write into `dir` fails with `error` (ENOSPC by default).
+class DiskFault {
+ public:
+  explicit DiskFault(const fs::path& dir, int error = ENOSPC) {
+    set_write_fault_for_testing([prefix = dir.string(), error](const fs::path& path) {
+      return path.string().rfind(prefix, 0) == 0 ? error : 0;
+    });
+  }
+  ~DiskFault() { set_write_fault_for_testing({}); }
+  DiskFault(const DiskFault&) = delete;
+  DiskFault& operator=(const DiskFault&) = delete;
+};
+
+/// Renders job `id` of `jobs` to the end with constant results, as one worker.
+void render_all(JobManager& jobs) {
+  while (auto unit = jobs.next_unit("w", "k")) {
+    ASSERT_EQ(jobs.on_result("w", result_for(*unit, 0.25 + 0.01 * unit->unit_id()), "k"),
+              MergeOutcome::kMerged);
+  }
+}
+
+/// The image of a job rendered with no fault, for comparison.
+Image undisturbed_image(const fs::path& dir) {
+  JobStore store(dir);
+  JobManager jobs(store);
+  const std::string id = jobs.submit(furnace_job(8, 16, 4));
+  render_all(jobs);
+  return read_exr(dir / "jobs" / id / "image.exr");
+}
+
+/// Leases and merges the units of the first round of passes (4 tiles), then waits for its
+/// checkpoint to be on disk.
+void render_first_round(JobManager& jobs) {
+  for (int i = 0; i < 4; ++i) {
+    const auto unit = jobs.next_unit("w", "k");
+    ASSERT_TRUE(unit);
+    ASSERT_EQ(unit->pass(), 0u);
+    jobs.on_result("w", result_for(*unit, 0.25 + 0.01 * unit->unit_id()), "k");
+  }
+  jobs.wait_for_checkpoints();
+}
+
+TEST_F(PeerTrustTest, AFullDiskKeepsAFinishedJobRunningUntilItsImageAndRecordAreStored) {
+  const std::string id = jobs.submit(furnace_job(8, 16, 4));  // 4 tiles x 2 passes
+  render_first_round(jobs);
+  const fs::path job_dir = dir.path() / "data" / "jobs" / id;
+  ASSERT_TRUE(fs::exists(job_dir / "checkpoint-0.bin"));
+  {
+    DiskFault full(dir.path() / "data");
+    render_all(jobs);  // the last units: the job's work is over
+    auto st = jobs.status(id, 1);
+    EXPECT_EQ(st->state(), wire::JOB_RUNNING) << "reported finished with its image not on disk";
+    EXPECT_NE(st->storage_error().find("No space left on device"), std::string::npos)
+        << st->storage_error();
+    EXPECT_EQ(st->storage_error().find(dir.path().string()), std::string::npos)
+        << "a client is shown the master's paths: " << st->storage_error();
+    EXPECT_TRUE(fs::exists(job_dir / "checkpoint-0.bin")) << "its checkpoint was given up";
+    EXPECT_EQ(jobs.image(id).state(), wire::JOB_RUNNING);
+    // A submission now is refused for what it is.
+    try {
+      jobs.submit(furnace_job(8, 16, 4));
+      FAIL() << "accepted a job it cannot store";
+    } catch (const JobRejected& e) {
+      EXPECT_EQ(std::string(e.what()),
+                "the master cannot store the job: no space left on device (the master's data "
+                "dir)");
+    }
+    jobs.tick();  // retrying while the disk is still full changes nothing
+    EXPECT_EQ(jobs.status(id, 1)->state(), wire::JOB_RUNNING);
+  }
+  // The disk has room again: within the back-off the job is done, and its image is the one an
+  // undisturbed render makes.
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds{20};
+  while (jobs.status(id, 1)->state() != wire::JOB_DONE &&
+         std::chrono::steady_clock::now() < deadline) {
+    jobs.tick();
+    std::this_thread::sleep_for(milliseconds{50});
+  }
+  const auto st = jobs.status(id, 1);
+  ASSERT_EQ(st->state(), wire::JOB_DONE);
+  EXPECT_EQ(st->storage_error(), "");
+  const Image image = read_exr(job_dir / "image.exr");
+  const Image expected = undisturbed_image(dir.path() / "clean");
+  EXPECT_EQ(image.rgb, expected.rgb);
+  EXPECT_EQ(image.extra, expected.extra);
+  EXPECT_EQ(image.attributes.at("rayfarm:spp"), "8");
+}
+
+TEST_F(PeerTrustTest, AMasterRestartedWhileTheDiskIsFullResumesFromItsLastCheckpoint) {
+  const fs::path data = dir.path() / "data2";
+  std::string id;
+  {
+    JobStore store2(data);
+    JobManager first(store2);
+    id = first.submit(furnace_job(8, 16, 4));
+    render_first_round(first);
+    DiskFault full(data);
+    render_all(first);
+    ASSERT_EQ(first.status(id, 1)->state(), wire::JOB_RUNNING);
+    first.wait_for_checkpoints();  // its last checkpoint failed too
+  }
+  // Restarted on the same data dir with room again: the units merged after the checkpoint are
+  // rendered again, nothing before it.
+  JobStore store2(data);
+  JobManager second(store2);
+  second.recover();
+  EXPECT_EQ(second.status(id, 1)->units_done(), 4u);
+  std::vector<uint32_t> passes;
+  while (auto unit = second.next_unit("w", "k")) {
+    passes.push_back(unit->pass());
+    second.on_result("w", result_for(*unit, 0.25 + 0.01 * unit->unit_id()), "k");
+  }
+  EXPECT_EQ(passes, (std::vector<uint32_t>{1, 1, 1, 1}));
+  ASSERT_EQ(second.status(id, 1)->state(), wire::JOB_DONE);
+  EXPECT_EQ(read_exr(data / "jobs" / id / "image.exr").rgb,
+            undisturbed_image(dir.path() / "clean").rgb);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Through the broker, with real sockets
+
+class BrokerTrustTest : public ::testing::Test {
+ protected:
+  TempDir dir;
+  net::KeyPair master_keys = net::generate_key_pair();
+  net::KeyPair worker_keys = net::generate_key_pair();
+  std::map<std::string, net::KeyPair> clients{{"alice", net::generate_key_pair()},
+                                              {"bob", net::generate_key_pair()},
+                                              {"boss", net::generate_key_pair()}};
+
+  MasterOptions options() {
+    net::write_key_pair(dir.path() / "workers", "w1", worker_keys);
+    for (const auto& [name, keys] : clients) net::write_key_pair(dir.path() / "clients", name, keys);
+    MasterOptions o;
+    o.worker_endpoint = "tcp://127.0.0.1:0";
+    o.client_endpoint = "tcp://127.0.0.1:0";
+    o.data_dir = dir.path() / "data";
+    o.security.key = master_keys;
+    o.security.worker_keys = dir.path() / "workers";
+    o.security.client_keys = dir.path() / "clients";
+    o.security.admin_clients = {"boss"};
+    return o;
+  }
+
+  net::Dealer connect(const std::string& endpoint, const net::KeyPair& keys) const {
+    return net::Dealer(endpoint, net::kDefaultMaxMessageBytes,
+                       {keys.public_key, keys.secret_key, master_keys.public_key, ""});
+  }
+};
+
+/// The first message within `timeout` that is not a heartbeat, decoded.
+std::optional<protocol::Decoded> next(net::Dealer& d, milliseconds timeout = milliseconds{5000}) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (std::chrono::steady_clock::now() < deadline) {
+    if (auto frames = d.receive(milliseconds{50})) {
+      protocol::Decoded m = protocol::decode(*frames);
+      if (!m.as<wire::Heartbeat>()) return m;
+    }
+  }
+  return std::nullopt;
+}
+
+/// Sends `request` and returns the reply, or fails the test.
+template <class Message>
+protocol::Decoded ask(net::Dealer& d, Message request) {
+  EXPECT_TRUE(d.send(protocol::encode(std::move(request))));
+  auto reply = next(d);
+  EXPECT_TRUE(reply) << "no reply";
+  return reply ? std::move(*reply) : protocol::Decoded{};
+}
+
+wire::Hello hello(wire::Role role) {
+  wire::Hello h;
+  h.set_role(role);
+  h.set_name("test");
+  return h;
+}
+
+/// A broker running on its own thread for the life of the object.
+struct Running {
+  Broker broker;
+  std::atomic<bool> stop{false};
+  std::thread reactor;
+  explicit Running(MasterOptions o) : broker(std::move(o)), reactor([this] { broker.run(stop); }) {}
+  ~Running() {
+    stop = true;
+    reactor.join();
+  }
+};
+
+std::string submit_as(net::Dealer& client) {
+  const auto reply = ask(client, furnace_job(8, 16, 4));
+  const auto* out = reply.as<wire::SubmitReply>();
+  EXPECT_TRUE(out && !out->job_id().empty()) << (out ? out->error() : reply.type);
+  return out ? out->job_id() : "";
+}
+
+TEST_F(BrokerTrustTest, OnlyTheOwnerOrAnAdminMayCancelAJob) {
+  Running master(options());
+  auto alice = connect(master.broker.client_endpoint(), clients["alice"]);
+  auto bob = connect(master.broker.client_endpoint(), clients["bob"]);
+  auto boss = connect(master.broker.client_endpoint(), clients["boss"]);
+  const std::string id = submit_as(alice);
+
+  // Bob sees it (jobs are not private by default), with its owner, but may not cancel it.
+  auto list = ask(bob, wire::ListJobs{});
+  ASSERT_TRUE(list.as<wire::JobList>());
+  ASSERT_EQ(list.as<wire::JobList>()->jobs_size(), 1);
+  EXPECT_EQ(list.as<wire::JobList>()->jobs(0).owner(), "alice");
+  wire::CancelJob cancel;
+  cancel.set_job_id(id);
+  auto refused = ask(bob, cancel);
+  ASSERT_TRUE(refused.as<wire::Error>()) << refused.type;
+  EXPECT_NE(refused.as<wire::Error>()->message().find("belongs to key 'alice'"), std::string::npos)
+      << refused.as<wire::Error>()->message();
+  wire::StatusRequest status;
+  status.set_job_id(id);
+  EXPECT_EQ(ask(bob, status).as<wire::JobStatus>()->state(), wire::JOB_QUEUED);
+  // An admin may.
+  auto done = ask(boss, cancel);
+  ASSERT_TRUE(done.as<wire::CancelReply>()) << done.type;
+  EXPECT_EQ(done.as<wire::CancelReply>()->state(), wire::JOB_CANCELLED);
+  // And so may the owner, of her next job.
+  const std::string second = submit_as(alice);
+  cancel.set_job_id(second);
+  EXPECT_TRUE(ask(alice, cancel).as<wire::CancelReply>());
+}
+
+TEST_F(BrokerTrustTest, PrivateJobsAreInvisibleToOtherKeys) {
+  MasterOptions o = options();
+  o.security.private_jobs = true;
+  Running master(std::move(o));
+  auto alice = connect(master.broker.client_endpoint(), clients["alice"]);
+  auto bob = connect(master.broker.client_endpoint(), clients["bob"]);
+  auto boss = connect(master.broker.client_endpoint(), clients["boss"]);
+  const std::string id = submit_as(alice);
+  EXPECT_EQ(ask(bob, wire::ListJobs{}).as<wire::JobList>()->jobs_size(), 0);
+  EXPECT_EQ(ask(alice, wire::ListJobs{}).as<wire::JobList>()->jobs_size(), 1);
+  EXPECT_EQ(ask(boss, wire::ListJobs{}).as<wire::JobList>()->jobs_size(), 1);
+  wire::StatusRequest status;
+  status.set_job_id(id);
+  auto hidden = ask(bob, status);
+  ASSERT_TRUE(hidden.as<wire::Error>()) << hidden.type;
+  EXPECT_NE(hidden.as<wire::Error>()->message().find("unknown job"), std::string::npos);
+  wire::FetchImage fetch;
+  fetch.set_job_id(id);
+  EXPECT_TRUE(ask(bob, fetch).as<wire::Error>());
+  wire::CancelJob cancel;
+  cancel.set_job_id(id);
+  EXPECT_TRUE(ask(bob, cancel).as<wire::Error>());
+  EXPECT_EQ(ask(alice, status).as<wire::JobStatus>()->state(), wire::JOB_QUEUED);
+}
+
+TEST_F(BrokerTrustTest, AnotherConnectionCannotReturnOrFailAUnitItWasNotLeased) {
+  Running master(options());
+  auto alice = connect(master.broker.client_endpoint(), clients["alice"]);
+  const std::string id = submit_as(alice);
+  auto worker = connect(master.broker.worker_endpoint(), worker_keys);
+  ASSERT_TRUE(ask(worker, hello(wire::ROLE_WORKER)).as<wire::Welcome>());
+  auto work = ask(worker, wire::WorkRequest{});
+  ASSERT_TRUE(work.as<wire::WorkUnit>()) << work.type;
+  const wire::WorkUnit unit = *work.as<wire::WorkUnit>();
+
+  // A second connection with the same valid key, which never said hello: its result for the
+  // leased unit and its failure reports are dropped, and the job neither changes nor fails.
+  auto forger = connect(master.broker.worker_endpoint(), worker_keys);
+  for (int i = 0; i < 3; ++i) {
+    forger.send(protocol::encode(result_for(unit, 1e6)));
+    forger.send(protocol::encode(failure_of(unit, "forged")));
+  }
+  for (int i = 0; i < 3; ++i) {
+    auto forger_i = connect(master.broker.worker_endpoint(), worker_keys);
+    forger_i.send(protocol::encode(failure_of(unit, "forged")));
+    next(forger_i, milliseconds{300});
+  }
+  next(forger, milliseconds{300});
+  wire::StatusRequest status;
+  status.set_job_id(id);
+  auto st = ask(alice, status);
+  ASSERT_TRUE(st.as<wire::JobStatus>());
+  EXPECT_EQ(st.as<wire::JobStatus>()->state(), wire::JOB_RUNNING);
+  EXPECT_EQ(st.as<wire::JobStatus>()->units_done(), 0u);
+  // The real holder's result is merged.
+  worker.send(protocol::encode(result_for(unit)));
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds{5};
+  uint64_t done = 0;
+  while (done == 0 && std::chrono::steady_clock::now() < deadline) {
+    done = ask(alice, status).as<wire::JobStatus>()->units_done();
+  }
+  EXPECT_EQ(done, 1u);
+}
+
+TEST_F(BrokerTrustTest, ABundleIsNotSentTwiceToOneConnectionWithinAMinute) {
+  Running master(options());
+  auto alice = connect(master.broker.client_endpoint(), clients["alice"]);
+  submit_as(alice);
+  auto worker = connect(master.broker.worker_endpoint(), worker_keys);
+  ASSERT_TRUE(ask(worker, hello(wire::ROLE_WORKER)).as<wire::Welcome>());
+  auto work = ask(worker, wire::WorkRequest{});
+  ASSERT_TRUE(work.as<wire::WorkUnit>());
+  wire::BundleRequest request;
+  request.set_hash(work.as<wire::WorkUnit>()->bundle_hash());
+  auto first = ask(worker, request);
+  ASSERT_TRUE(first.as<wire::BundleReply>());
+  EXPECT_EQ(first.as<wire::BundleReply>()->error(), "");
+  EXPECT_GT(first.as<wire::BundleReply>()->bundle().files_size(), 0);
+  for (int i = 0; i < 20; ++i) worker.send(protocol::encode(request));
+  int refused = 0;
+  while (auto again = next(worker, milliseconds{500})) {
+    const auto* reply = again->as<wire::BundleReply>();
+    ASSERT_TRUE(reply) << again->type;
+    EXPECT_EQ(reply->bundle().files_size(), 0) << "a bundle was queued again";
+    EXPECT_NE(reply->error().find("less than a minute ago"), std::string::npos) << reply->error();
+    ++refused;
+  }
+  EXPECT_EQ(refused, 20);
+}
+
+TEST_F(BrokerTrustTest, GarbageIsLoggedOncePerIntervalNotOncePerMessage) {
+  std::ostringstream captured;
+  auto sink = std::make_shared<spdlog::sinks::ostream_sink_mt>(captured);
+  auto logger = get_logger("master");
+  logger->sinks().push_back(sink);
+  {
+    Running master(options());
+    auto bob = connect(master.broker.client_endpoint(), clients["bob"]);
+    for (int i = 0; i < 500; ++i) bob.send(net::Frames{"garbage", "\x01\x02"});
+    // The master has read all of it once it answers a request sent after it (replies past the
+    // client's queue bound are dropped, so ask until one gets through).
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds{10};
+    bool listed = false;
+    while (!listed && std::chrono::steady_clock::now() < deadline) {
+      bob.send(protocol::encode(wire::ListJobs{}));
+      while (auto m = next(bob, milliseconds{200})) listed |= m->as<wire::JobList>() != nullptr;
+    }
+    EXPECT_TRUE(listed);
+  }
+  logger->sinks().pop_back();
+  const std::string log = captured.str();
+  size_t lines = 0;
+  for (size_t at = log.find("ignored a bad message"); at != std::string::npos;
+       at = log.find("ignored a bad message", at + 1)) {
+    ++lines;
+  }
+  EXPECT_GE(lines, 1u);
+  EXPECT_LE(lines, 2u) << log;
+}
+
+TEST(QueueBoundsTest, ARouterQueuesNoMoreThanItsBoundForAPeerThatDoesNotRead) {
+  // Replies of 4 MiB to a peer that never reads (its own queue holds one message, so TCP pushes
+  // back): past the bound, sends fail instead of queueing in the master's memory.
+  zmq::context_t context;
+  auto count_accepted = [&](net::QueueBounds bounds) {
+    net::Router router("tcp://127.0.0.1:0", net::kDefaultMaxMessageBytes, {}, bounds);
+    zmq::socket_t peer(context, zmq::socket_type::dealer);
+    peer.set(zmq::sockopt::rcvhwm, 1);
+    peer.set(zmq::sockopt::rcvbuf, 65536);
+    peer.set(zmq::sockopt::linger, 0);
+    peer.connect(router.endpoint());
+    peer.send(zmq::buffer(std::string("hello")), zmq::send_flags::none);
+    auto first = router.receive(milliseconds{5000});
+    if (!first) return -1;
+    const net::Frames big{std::string(4 << 20, 'x')};
+    int accepted = 0;
+    for (int i = 0; i < 40; ++i) {
+      if (router.send(first->peer, big)) ++accepted;
+      std::this_thread::sleep_for(milliseconds{5});
+    }
+    return accepted;
+  };
+  const int bounded = count_accepted(net::QueueBounds{2, 1});
+  EXPECT_GE(bounded, 1);
+  EXPECT_LE(bounded, 8) << "the send queue was not bounded";
+  EXPECT_GE(count_accepted(net::QueueBounds{}), 30) << "ZeroMQ's default queue takes them";
+}
+
+}  // namespace
+}  // namespace rayfarm::master
