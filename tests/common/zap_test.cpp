@@ -4,11 +4,14 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <memory>
+#include <sstream>
 #include <thread>
 
 #include "common/net/keys.h"
 #include "common/net/socket.h"
 #include "common/net/zap.h"
+#include "tests/e2e/process.h"
 #include "tests/support/handshake.h"
 #include "tests/support/temp_dir.h"
 
@@ -200,6 +203,69 @@ TEST_F(CurveTest, AWrongServerKeyOrAPlainSocketNeverGetsIn) {
     EXPECT_NE(st.detail.find("--insecure"), std::string::npos) << st.detail;
   }
   EXPECT_FALSE(router.receive(milliseconds{200}));
+}
+
+/// A server socket in another process (tests/common/net_test_peer.cpp): its endpoint and key.
+struct PeerProcess {
+  std::unique_ptr<test::Process> process;
+  std::string endpoint;
+  std::string public_key;
+};
+
+PeerProcess start_peer(const TempDir& dir, const std::string& mode) {
+  PeerProcess peer;
+  const std::filesystem::path log = dir.path() / (mode + "-peer.log");
+  peer.process = std::make_unique<test::Process>(
+      std::vector<std::string>{std::string(RAYFARM_BINARY_DIR) + "/tests/common/net_test_peer",
+                               mode},
+      log);
+  EXPECT_TRUE(test::wait_until([&] { return peer.process->log().find('\n') != std::string::npos; },
+                               milliseconds{10000}))
+      << peer.process->log();
+  std::istringstream line(peer.process->log());
+  line >> peer.endpoint >> peer.public_key;
+  return peer;
+}
+
+// A plain socket against a CURVE server in another process: the server reads the plain greeting
+// and hangs up, often before this side has read the greeting that names the server's mechanism.
+// A plain socket has no key that could be wrong, so it is told, every time, that the mechanisms
+// differ.
+TEST_F(CurveTest, APlainSocketIsToldTheServerUsesCurveEveryTime) {
+  const PeerProcess peer = start_peer(dir, "curve");
+  ASSERT_TRUE(is_key(peer.public_key)) << peer.process->log();
+  for (int run = 0; run < 10; ++run) {
+    Dealer plain(peer.endpoint);
+    plain.send({"hello"});
+    const HandshakeStatus st = settled(plain);
+    EXPECT_EQ(st.state, Handshake::kFailed) << "run " << run << ": " << st.detail;
+    EXPECT_NE(st.detail.find("the peer uses another security mechanism: it has CURVE keys and "
+                             "this side runs --insecure"),
+              std::string::npos)
+        << "run " << run << ": " << st.detail;
+    EXPECT_EQ(st.detail.find("public key"), std::string::npos) << "run " << run << ": " << st.detail;
+  }
+  // The same server admits a CURVE socket with its key: it was the mechanism, not the server.
+  Dealer keyed(peer.endpoint, kDefaultMaxMessageBytes, client_curve(worker, peer.public_key));
+  keyed.send({"hello"});
+  EXPECT_EQ(settled(keyed).state, Handshake::kSucceeded) << settled(keyed).detail;
+}
+
+// A CURVE socket against a plain server in another process: it hears that the peer may use
+// another security mechanism every time (when the server hung up before its greeting was read,
+// a wrong server key looks the same to this side, and the message names both).
+TEST_F(CurveTest, ACurveSocketIsToldThePlainServerMayUseAnotherMechanismEveryTime) {
+  const PeerProcess peer = start_peer(dir, "plain");
+  for (int run = 0; run < 10; ++run) {
+    Dealer keyed(peer.endpoint, kDefaultMaxMessageBytes,
+                 client_curve(worker, server.public_key));
+    keyed.send({"hello"});
+    const HandshakeStatus st = settled(keyed);
+    EXPECT_EQ(st.state, Handshake::kFailed) << "run " << run << ": " << st.detail;
+    EXPECT_NE(st.detail.find("the peer uses another security mechanism"), std::string::npos)
+        << "run " << run << ": " << st.detail;
+    EXPECT_NE(st.detail.find("--insecure"), std::string::npos) << "run " << run << ": " << st.detail;
+  }
 }
 
 TEST_F(CurveTest, OnlyOneZapHandlerCanBeBound) {
