@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "common/util/log.h"
+#include "common/util/log_throttle.h"
 
 namespace rayfarm {
 namespace {
@@ -59,6 +60,27 @@ TEST(LogTest, TextRecordsEscapeControlCharactersSoAPeerCannotForgeALine) {
   logger->flush();
   const std::string plain = ::testing::internal::GetCapturedStderr();
   EXPECT_NE(plain.find("[logtest-text] scène \"a.json\": C:\\path\n"), std::string::npos) << plain;
+}
+
+TEST(LogThrottleTest, FirstOccurrenceThenAtMostOneLinePerIntervalWithTheCount) {
+  using std::chrono::seconds;
+  LogThrottle throttle(seconds{10});
+  const LogThrottle::Clock::time_point t0{seconds{1000}};
+  const auto first = throttle.occur(t0);
+  EXPECT_TRUE(first.log);
+  EXPECT_EQ(first.unlogged, 0u);
+  EXPECT_EQ(LogThrottle::suffix(first), "");
+  for (int i = 1; i <= 9; ++i) EXPECT_FALSE(throttle.occur(t0 + seconds{i}).log) << i;
+  const auto summary = throttle.occur(t0 + seconds{10});
+  EXPECT_TRUE(summary.log);
+  EXPECT_EQ(summary.unlogged, 9u);
+  EXPECT_EQ(LogThrottle::suffix(summary), " (9 more since the last line)");
+  // The interval runs from the last line logged, not from the first occurrence.
+  EXPECT_FALSE(throttle.occur(t0 + seconds{19}).log);
+  const auto next = throttle.occur(t0 + seconds{20});
+  EXPECT_TRUE(next.log);
+  EXPECT_EQ(next.unlogged, 1u);
+  EXPECT_EQ(throttle.total(), 13u);
 }
 
 TEST(LogTest, UnknownLevelIsRejected) {
