@@ -148,8 +148,8 @@ struct Socket::Impl {
   zmq::socket_t monitor;
   bool in_handshake = false;  // connected, no handshake event yet
   HandshakeStatus handshake;
-  bool curve = false;            // this side has CURVE keys
-  bool mechanism_seen = false;   // a handshake failed on the mechanisms: the cause is known
+  bool curve = false;           // this side has CURVE keys
+  bool mechanism_seen = false;  // a handshake failed on the mechanisms: the cause is known
 
   /// The connection was closed by the peer during the handshake, before any failure said why.
   /// Without CURVE keys this side has no key that could be wrong: a peer that hangs up on a plain
@@ -157,14 +157,15 @@ struct Socket::Impl {
   /// often before this side has read the greeting that would name its mechanism). With CURVE
   /// keys, a wrong server key and a plain peer both look like this, unless an earlier attempt
   /// showed the mechanisms differ.
-  HandshakeStatus closed_in_handshake(const char* how) const {
+  HandshakeStatus closed_in_handshake() const {
     if (!curve || mechanism_seen) {
-      return {Handshake::kFailed, mechanism_mismatch(curve) + " (" + how + ")"};
+      return {Handshake::kFailed,
+              mechanism_mismatch(curve) + "; it closed the connection during the handshake"};
     }
     return {Handshake::kFailed,
-            std::string(how) +
-                ": the server's public key given to this side (--master-key) is probably wrong, "
-                "or the peer uses another security mechanism (it runs --insecure)"};
+            "the peer closed the connection during the CURVE handshake: the server's public key "
+            "given to this side (--master-key) is probably wrong, or the peer uses another "
+            "security mechanism (it runs --insecure)"};
   }
 
   ~Impl() {
@@ -225,9 +226,7 @@ struct Socket::Impl {
         case ZMQ_EVENT_HANDSHAKE_FAILED_NO_DETAIL:
           in_handshake = false;
           if (value == EPIPE || value == ECONNRESET) {
-            handshake = closed_in_handshake(
-                curve ? "the peer closed the connection during the CURVE handshake"
-                      : "the peer closed the connection during the handshake");
+            handshake = closed_in_handshake();
           } else {
             handshake = {Handshake::kFailed,
                          fmt::format("the security handshake failed ({})", zmq_strerror(value))};

@@ -243,7 +243,8 @@ TEST_F(CurveTest, APlainSocketIsToldTheServerUsesCurveEveryTime) {
                              "this side runs --insecure"),
               std::string::npos)
         << "run " << run << ": " << st.detail;
-    EXPECT_EQ(st.detail.find("public key"), std::string::npos) << "run " << run << ": " << st.detail;
+    EXPECT_EQ(st.detail.find("public key"), std::string::npos)
+        << "run " << run << ": " << st.detail;
   }
   // The same server admits a CURVE socket with its key: it was the mechanism, not the server.
   Dealer keyed(peer.endpoint, kDefaultMaxMessageBytes, client_curve(worker, peer.public_key));
@@ -257,14 +258,14 @@ TEST_F(CurveTest, APlainSocketIsToldTheServerUsesCurveEveryTime) {
 TEST_F(CurveTest, ACurveSocketIsToldThePlainServerMayUseAnotherMechanismEveryTime) {
   const PeerProcess peer = start_peer(dir, "plain");
   for (int run = 0; run < 10; ++run) {
-    Dealer keyed(peer.endpoint, kDefaultMaxMessageBytes,
-                 client_curve(worker, server.public_key));
+    Dealer keyed(peer.endpoint, kDefaultMaxMessageBytes, client_curve(worker, server.public_key));
     keyed.send({"hello"});
     const HandshakeStatus st = settled(keyed);
     EXPECT_EQ(st.state, Handshake::kFailed) << "run " << run << ": " << st.detail;
     EXPECT_NE(st.detail.find("the peer uses another security mechanism"), std::string::npos)
         << "run " << run << ": " << st.detail;
-    EXPECT_NE(st.detail.find("--insecure"), std::string::npos) << "run " << run << ": " << st.detail;
+    EXPECT_NE(st.detail.find("--insecure"), std::string::npos)
+        << "run " << run << ": " << st.detail;
   }
 }
 
