@@ -49,9 +49,12 @@ class JsonMessageFlag : public spdlog::custom_flag_formatter {
 // another record, nor send escape sequences to a terminal.
 class TextMessageFlag : public spdlog::custom_flag_formatter {
  public:
-  void format(const spdlog::details::log_msg& msg, const std::tm&, spdlog::memory_buf_t& dest) override {
+  void format(const spdlog::details::log_msg& msg, const std::tm&,
+              spdlog::memory_buf_t& dest) override {
     static constexpr char kHex[] = "0123456789abcdef";
-    auto put = [&dest](std::string_view text) { dest.append(text.data(), text.data() + text.size()); };
+    auto put = [&dest](std::string_view text) {
+      dest.append(text.data(), text.data() + text.size());
+    };
     for (const char c : msg.payload) {
       const auto byte = static_cast<unsigned char>(c);
       switch (c) {
