@@ -20,6 +20,7 @@
 #include "common/protocol/convert.h"
 #include "common/scene/parser.h"
 #include "common/util/log.h"
+#include "common/util/log_throttle.h"
 #include "worker/renderer.h"
 
 namespace rayfarm::worker {
@@ -39,6 +40,9 @@ constexpr milliseconds kFinalLinger{2000};
 /// How long a stopping worker waits for the units in hand; past it, it says goodbye without them
 /// and the master requeues them at once.
 constexpr milliseconds kStopGrace{8000};  // within the 10 s that compose, k8s and local-cluster wait
+/// How often at most a worker logs that messages to the master are dropped: a refused worker's
+/// heartbeats are dropped every interval for as long as it is refused.
+constexpr std::chrono::seconds kDroppedLogInterval{60};
 
 double seconds_since(Clock::time_point t) {
   return std::chrono::duration<double>(Clock::now() - t).count();
@@ -106,6 +110,8 @@ struct Agent::Impl {
   std::deque<net::Frames> outbox;  // results to send once welcomed again
   std::atomic<uint64_t> units_done{0};
   std::string reported_handshake;  // the handshake failure logged last
+  LogThrottle dropped_log{kDroppedLogInterval};  // messages the socket would not take
+  std::atomic<uint64_t> messages_dropped{0};
 
   // Shared with the render threads.
   std::mutex prepare_mutex;  // one job is prepared at a time
@@ -164,8 +170,19 @@ struct Agent::Impl {
   int threads() const { return arena.max_concurrency(); }
 
   void send(const net::Frames& frames) {
-    if (socket && !socket->send(frames)) {
-      log()->warn("send queue to the master is full; message dropped");
+    if (!socket || socket->send(frames)) return;
+    ++messages_dropped;
+    const LogThrottle::Verdict verdict = dropped_log.occur();
+    if (!verdict.log) return;
+    if (welcomed) {
+      log()->warn("send queue to the master is full; message dropped{}",
+                  LogThrottle::suffix(verdict));
+    } else {
+      // No connection takes messages: the master refused this worker's key or security (or a
+      // connection is being made again); check_handshake says which.
+      log()->warn("no connection to the master takes messages (it has not let this worker in); "
+                  "message dropped{}, logged at most every {} s",
+                  LogThrottle::suffix(verdict), kDroppedLogInterval.count());
     }
   }
 
@@ -565,5 +582,7 @@ Agent::~Agent() = default;
 int Agent::run(const std::atomic<bool>& stop) { return impl_->run(stop); }
 
 uint64_t Agent::units_rendered() const { return impl_->units_done.load(); }
+
+uint64_t Agent::messages_dropped() const { return impl_->messages_dropped.load(); }
 
 }  // namespace rayfarm::worker

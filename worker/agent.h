@@ -46,6 +46,9 @@ class Agent {
 
   /// Units rendered and returned so far.
   uint64_t units_rendered() const;
+  /// Messages to the master dropped so far because the socket would not take them (its send
+  /// queue is full, or no connection takes messages, as when the master refused this worker).
+  uint64_t messages_dropped() const;
 
  private:
   struct Impl;

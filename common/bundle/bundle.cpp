@@ -2,11 +2,15 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cerrno>
 #include <fstream>
 #include <iterator>
 #include <system_error>
+#include <utility>
 
+#include <fcntl.h>
 #include <openssl/evp.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "common/scene/parser.h"
@@ -20,11 +24,89 @@ void append_u64le(std::string& out, uint64_t v) {
   for (int i = 0; i < 8; ++i) out.push_back(static_cast<char>((v >> (8 * i)) & 0xff));
 }
 
-std::string read_file(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw BundleError(path.string() + ": cannot read file for the scene bundle");
-  std::string data{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-  if (in.bad()) throw BundleError(path.string() + ": read error while packing the scene bundle");
+/// Closes a file descriptor when it goes out of scope.
+struct Fd {
+  int fd = -1;
+  explicit Fd(int f) : fd(f) {}
+  ~Fd() {
+    if (fd >= 0) ::close(fd);
+  }
+  Fd(const Fd&) = delete;
+  Fd& operator=(const Fd&) = delete;
+  Fd(Fd&& other) noexcept : fd(std::exchange(other.fd, -1)) {}
+  Fd& operator=(Fd&& other) noexcept {
+    std::swap(fd, other.fd);
+    return *this;
+  }
+};
+
+std::string errno_text(int err) { return std::error_code(err, std::generic_category()).message(); }
+
+/// Why `name` in the folder `dir` could not be opened: a symbolic link (with its target) or the
+/// system's cause.
+std::string open_failure(int dir, const std::string& name, int err) {
+  struct stat st {};
+  if (::fstatat(dir, name.c_str(), &st, AT_SYMLINK_NOFOLLOW) == 0 && S_ISLNK(st.st_mode)) {
+    std::string target(4096, '\0');
+    const ssize_t n = ::readlinkat(dir, name.c_str(), target.data(), target.size());
+    target.resize(n > 0 ? static_cast<size_t>(n) : 0);
+    return "is a symbolic link" + (target.empty() ? std::string() : " to " + target) +
+           "; rayfarm packs only regular files inside the scene's folder, so that no link can "
+           "carry another file to the master: replace the link with a copy of what it points to";
+  }
+  return "cannot read it for the scene bundle: " + errno_text(err);
+}
+
+/// Reads the file `rel` of the folder `root` without following a symbolic link anywhere below
+/// `root`: each folder on the way and the file are opened with O_NOFOLLOW, so the file read is the
+/// regular file that lies inside `root` under that name, whatever links the folder holds.
+std::string read_inside(const fs::path& root, const fs::path& rel) {
+  const fs::path shown = root / rel;
+  if (rel.empty() || rel.is_absolute() || *rel.begin() == "..") {
+    throw BundleError(shown.string() + ": lies outside the scene's folder " + root.string());
+  }
+  Fd dir(::open(root.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC));
+  if (dir.fd < 0) {
+    throw BundleError(root.string() + ": cannot open the scene's folder: " + errno_text(errno));
+  }
+  fs::path walked = root;
+  const auto last = std::prev(rel.end());
+  for (auto it = rel.begin(); it != rel.end(); ++it) {
+    const std::string name = it->string();
+    walked /= name;
+    const int flags = O_RDONLY | O_NOFOLLOW | O_CLOEXEC | (it == last ? O_NONBLOCK : O_DIRECTORY);
+    Fd next(::openat(dir.fd, name.c_str(), flags));
+    if (next.fd < 0) {
+      const int err = errno;
+      std::string why = walked.string() + ": " + open_failure(dir.fd, name, err);
+      if (it != last) why += " (it is on the path of " + shown.string() + ")";
+      throw BundleError(why);
+    }
+    dir = std::move(next);
+  }
+  struct stat st {};
+  if (::fstat(dir.fd, &st) != 0) {
+    throw BundleError(shown.string() + ": cannot read it for the scene bundle: " +
+                      errno_text(errno));
+  }
+  if (!S_ISREG(st.st_mode)) {
+    throw BundleError(shown.string() +
+                      ": is not a regular file; rayfarm packs only regular files inside the "
+                      "scene's folder");
+  }
+  std::string data;
+  data.reserve(static_cast<size_t>(st.st_size));
+  char buf[1 << 16];
+  while (true) {
+    const ssize_t n = ::read(dir.fd, buf, sizeof buf);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) {
+      throw BundleError(shown.string() + ": read error while packing the scene bundle: " +
+                        errno_text(errno));
+    }
+    if (n == 0) break;
+    data.append(buf, static_cast<size_t>(n));
+  }
   return data;
 }
 
@@ -144,7 +226,7 @@ PackedScene pack_scene(const fs::path& scene_file) {
                     [&](const BundleFile& f) { return f.path == rel; })) {
       continue;  // referenced twice
     }
-    files.push_back({rel, read_file(s)});
+    files.push_back({rel, read_inside(root, s.lexically_relative(root))});
   }
   PackedScene packed;
   packed.scene_path = scene_abs.lexically_relative(root).generic_string();

@@ -59,7 +59,11 @@ std::string sha256_hex(std::string_view bytes);
 
 /// Loads `scene_file` (throws SceneError on a bad scene) and packs it with every file it
 /// references. The bundle root is the deepest folder holding all of them, so the scene's relative
-/// references still resolve after unpacking. Throws BundleError on an unreadable file.
+/// references still resolve after unpacking. Only regular files that lie inside that folder are
+/// packed: no symbolic link below it is followed, the scene file's included, so that a link cannot
+/// carry another file's content (e.g. /etc/passwd as an MTL) to the master. Throws BundleError
+/// naming the file and the cause on a link, on anything but a regular file, or on an unreadable
+/// file.
 PackedScene pack_scene(const std::filesystem::path& scene_file);
 
 /// Unpacks `bundle` into cache_dir/expected_hash/ and returns that folder. Verifies the hash

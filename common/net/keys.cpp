@@ -75,26 +75,34 @@ std::string where(const fs::path& file, int line) {
   return file.string() + ":" + std::to_string(line);
 }
 
-/// Parses a key file: the certificate format, a bare key, or lines of "KEY [NAME]".
-Parsed parse_key_text(const std::string& text, const fs::path& file) {
+/// Parses a key file: the certificate format, a bare key, or lines of "KEY [NAME]". A bad line
+/// throws KeyError, or, when `problems` is given, is described there and skipped.
+Parsed parse_key_text(const std::string& text, const fs::path& file,
+                      std::vector<std::string>* problems = nullptr) {
   Parsed parsed;
   std::istringstream in(text);
   std::string raw;
   int line_no = 0;
+  const auto bad_line = [&](const std::string& why) {
+    if (!problems) throw KeyError(where(file, line_no) + ": " + why);
+    problems->push_back(where(file, line_no) + ": " + why);
+  };
   while (std::getline(in, raw)) {
     ++line_no;
     const std::string line = trim(raw);
     if (line.empty()) continue;
     if (auto v = field_value(line, "public-key")) {
       if (!is_key(*v)) {
-        throw KeyError(where(file, line_no) + ": public-key is not a 40-character Z85 key");
+        bad_line("public-key is not a 40-character Z85 key");
+        continue;
       }
       parsed.public_keys.push_back({*v, "", line_no});
       continue;
     }
     if (auto v = field_value(line, "secret-key")) {
       if (!is_key(*v)) {
-        throw KeyError(where(file, line_no) + ": secret-key is not a 40-character Z85 key");
+        bad_line("secret-key is not a 40-character Z85 key");
+        continue;
       }
       parsed.secret_key = Parsed::Entry{*v, "", line_no};
       continue;
@@ -115,8 +123,7 @@ Parsed parse_key_text(const std::string& text, const fs::path& file) {
     if (line.find('=') != std::string::npos && raw.find_first_of(" \t") == 0) {
       continue;  // other metadata of a certificate, e.g. `    email = "..."`
     }
-    throw KeyError(where(file, line_no) +
-                   ": expected a 40-character Z85 key, \"public-key = ...\" or a # comment");
+    bad_line("expected a 40-character Z85 key, \"public-key = ...\" or a # comment");
   }
   return parsed;
 }
@@ -308,7 +315,9 @@ KeyFiles write_key_pair(const fs::path& dir, const std::string& name, const KeyP
   return files;
 }
 
-AllowList AllowList::load(const fs::path& path) {
+AllowList AllowList::load(const fs::path& path) { return load(path, nullptr); }
+
+AllowList AllowList::load(const fs::path& path, std::vector<std::string>* problems) {
   AllowList list;
   std::error_code ec;
   const auto status = fs::status(path, ec);
@@ -327,11 +336,22 @@ AllowList AllowList::load(const fs::path& path) {
     files.push_back(path);
   }
   for (const auto& file : files) {
-    const Parsed p = parse_key_text(read_small_file(file), file);
+    std::string text;
+    try {
+      text = read_small_file(file);
+    } catch (const KeyError& e) {
+      if (!problems) throw;
+      problems->push_back(e.what());
+      continue;
+    }
+    const Parsed p = parse_key_text(text, file, problems);
     if (p.secret_key) {
-      throw KeyError(where(file, p.secret_key->line) +
-                     ": a secret key has no place in an allow-list; give the public key file "
-                     "(NAME.key) and keep NAME.key_secret on its machine");
+      const std::string why = where(file, p.secret_key->line) +
+                              ": a secret key has no place in an allow-list; give the public key "
+                              "file (NAME.key) and keep NAME.key_secret on its machine";
+      if (!problems) throw KeyError(why);
+      problems->push_back(why + " (none of this file's keys apply)");
+      continue;
     }
     for (const auto& e : p.public_keys) {
       std::string name = !e.name.empty() ? e.name : !p.name.empty() ? p.name : file.stem().string();

@@ -20,6 +20,7 @@
 #include <string>
 #include <string_view>
 #include <utility>
+#include <vector>
 
 namespace rayfarm::net {
 
@@ -85,6 +86,11 @@ class AllowList {
   /// comments. A secret key, a malformed line or an unreadable file is a KeyError naming the
   /// file and line; an empty list is allowed (it admits no one).
   static AllowList load(const std::filesystem::path& path);
+  /// Reads what can be read of a file or folder of public keys: a file that cannot be read or
+  /// holds a secret key, and a malformed line, are skipped, each described in `problems` (file,
+  /// line and cause) instead of thrown, and every other key is listed. A path that does not exist
+  /// or a folder that cannot be listed still throws KeyError: nothing of it could be read.
+  static AllowList load(const std::filesystem::path& path, std::vector<std::string>* problems);
   /// A list from (key, name) pairs, for tests.
   static AllowList of(std::map<std::string, std::string> keys);
 

@@ -57,11 +57,18 @@ void configure_curve_client(zmq::socket_t& socket, const Curve& curve) {
   socket.set(zmq::sockopt::curve_secretkey, curve.secret_key);
 }
 
-std::string protocol_error_cause(uint32_t code) {
+/// What a Dealer says when the peer's security mechanism is not its own: which side has keys.
+std::string mechanism_mismatch(bool curve) {
+  return curve ? "the peer uses another security mechanism: this side has CURVE keys and the peer "
+                 "runs --insecure (plain)"
+               : "the peer uses another security mechanism: it has CURVE keys and this side runs "
+                 "--insecure (give this side --key and --master-key)";
+}
+
+std::string protocol_error_cause(uint32_t code, bool curve) {
   switch (code) {
     case ZMQ_PROTOCOL_ERROR_ZMTP_MECHANISM_MISMATCH:
-      return "the peer uses another security mechanism: one side has CURVE keys and the other "
-             "runs --insecure";
+      return mechanism_mismatch(curve);
     case ZMQ_PROTOCOL_ERROR_ZMTP_CRYPTOGRAPHIC:
       return "the CURVE handshake failed: the keys do not match (is the master's public key the "
              "right one?)";
@@ -141,6 +148,25 @@ struct Socket::Impl {
   zmq::socket_t monitor;
   bool in_handshake = false;  // connected, no handshake event yet
   HandshakeStatus handshake;
+  bool curve = false;           // this side has CURVE keys
+  bool mechanism_seen = false;  // a handshake failed on the mechanisms: the cause is known
+
+  /// The connection was closed by the peer during the handshake, before any failure said why.
+  /// Without CURVE keys this side has no key that could be wrong: a peer that hangs up on a plain
+  /// handshake uses CURVE (a CURVE server reads the plain greeting and closes the connection,
+  /// often before this side has read the greeting that would name its mechanism). With CURVE
+  /// keys, a wrong server key and a plain peer both look like this, unless an earlier attempt
+  /// showed the mechanisms differ.
+  HandshakeStatus closed_in_handshake() const {
+    if (!curve || mechanism_seen) {
+      return {Handshake::kFailed,
+              mechanism_mismatch(curve) + "; it closed the connection during the handshake"};
+    }
+    return {Handshake::kFailed,
+            "the peer closed the connection during the CURVE handshake: the server's public key "
+            "given to this side (--master-key) is probably wrong, or the peer uses another "
+            "security mechanism (it runs --insecure)"};
+  }
 
   ~Impl() {
     if (monitor) {
@@ -194,15 +220,13 @@ struct Socket::Impl {
           break;
         case ZMQ_EVENT_HANDSHAKE_FAILED_PROTOCOL:
           in_handshake = false;
-          handshake = {Handshake::kFailed, protocol_error_cause(value)};
+          if (value == ZMQ_PROTOCOL_ERROR_ZMTP_MECHANISM_MISMATCH) mechanism_seen = true;
+          handshake = {Handshake::kFailed, protocol_error_cause(value, curve)};
           break;
         case ZMQ_EVENT_HANDSHAKE_FAILED_NO_DETAIL:
           in_handshake = false;
           if (value == EPIPE || value == ECONNRESET) {
-            handshake = {Handshake::kFailed,
-                         "the peer closed the connection during the CURVE handshake: the "
-                         "server's public key given to this side (--master-key) is probably "
-                         "wrong, or the server runs --insecure"};
+            handshake = closed_in_handshake();
           } else {
             handshake = {Handshake::kFailed,
                          fmt::format("the security handshake failed ({})", zmq_strerror(value))};
@@ -211,10 +235,21 @@ struct Socket::Impl {
         case ZMQ_EVENT_DISCONNECTED:
           if (in_handshake && handshake.state != Handshake::kRefused &&
               handshake.state != Handshake::kFailed) {
-            handshake = {Handshake::kDropped,
-                         "the peer closed the connection during the handshake: it did not "
-                         "accept this socket's security (a wrong master public key, or CURVE "
-                         "against --insecure)"};
+            if (!curve || mechanism_seen) {
+              handshake = {Handshake::kDropped,
+                           "the peer closed the connection during the handshake: it probably "
+                           "uses another security mechanism (" +
+                               std::string(curve ? "this side has CURVE keys and it runs "
+                                                   "--insecure"
+                                                 : "it has CURVE keys and this side runs "
+                                                   "--insecure") +
+                               ")"};
+            } else {
+              handshake = {Handshake::kDropped,
+                           "the peer closed the connection during the handshake: it did not "
+                           "accept this socket's security (a wrong master public key, or the peer "
+                           "uses another security mechanism: it runs --insecure)"};
+            }
           }
           in_handshake = false;
           break;
@@ -275,6 +310,7 @@ Dealer::Dealer(const std::string& endpoint, int64_t max_message_bytes, const Cur
     impl_->socket = zmq::socket_t(context(), zmq::socket_type::dealer);
     configure(impl_->socket, max_message_bytes);
     configure_curve_client(impl_->socket, curve);
+    impl_->curve = curve.enabled();
     impl_->socket.set(zmq::sockopt::reconnect_ivl_max, kReconnectMaxMs);
     impl_->watch_handshakes();
     impl_->socket.connect(endpoint);

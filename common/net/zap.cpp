@@ -99,27 +99,48 @@ void ZapHandler::serve() {
 AllowListPolicy::AllowListPolicy(std::map<std::string, std::filesystem::path> lists,
                                  std::chrono::milliseconds reload_interval)
     : reload_interval_(reload_interval), loaded_(std::chrono::steady_clock::now()) {
-  for (auto& [domain, path] : lists) domains_[domain] = Domain{path, AllowList::load(path)};
+  for (auto& [domain, path] : lists) domains_[domain] = Domain{path, AllowList::load(path), {}};
 }
 
-std::string AllowListPolicy::reload() {
-  std::string note;
+void AllowListPolicy::reload(Decision& out) {
+  const auto add = [&out](const std::string& text, bool warning) {
+    out.reload_note += (out.reload_note.empty() ? "" : "; ") + text;
+    out.reload_warning = out.reload_warning || warning;
+  };
   for (auto& [domain, d] : domains_) {
+    const std::string list = "the " + domain + " allow-list " + d.path.string();
+    std::vector<std::string> problems;
+    AllowList fresh;
     try {
-      AllowList fresh = AllowList::load(d.path);
-      if (!(fresh == d.keys)) {
-        note += (note.empty() ? "" : "; ") + std::string("the ") + domain + " allow-list " +
-                d.path.string() + " changed: " + std::to_string(fresh.size()) + " keys (was " +
-                std::to_string(d.keys.size()) + ")";
-        d.keys = std::move(fresh);
-      }
+      fresh = AllowList::load(d.path, &problems);
     } catch (const KeyError& e) {
-      note += (note.empty() ? "" : "; ") + std::string("cannot read the ") + domain +
-              " allow-list again, keeping its " + std::to_string(d.keys.size()) +
-              " keys: " + e.what();
+      // Nothing of the list could be read (the path is gone or cannot be listed).
+      problems = {e.what()};
+      if (problems != d.problems) {
+        add("cannot read " + list + " again, keeping its " + std::to_string(d.keys.size()) +
+                " keys: " + e.what(),
+            true);
+      }
+      d.problems = std::move(problems);
+      continue;
     }
+    if (!(fresh == d.keys)) {
+      add(list + " changed: " + std::to_string(fresh.size()) + " keys (was " +
+              std::to_string(d.keys.size()) + ")",
+          false);
+      d.keys = std::move(fresh);
+    }
+    if (problems != d.problems) {
+      if (problems.empty()) {
+        add(list + " is read in full again", false);
+      } else {
+        std::string text = list + ": skipped what cannot be read (no key of it is admitted): ";
+        for (size_t i = 0; i < problems.size(); ++i) text += (i ? "; " : "") + problems[i];
+        add(text, true);
+      }
+    }
+    d.problems = std::move(problems);
   }
-  return note;
 }
 
 AllowListPolicy::Decision AllowListPolicy::decide(const ZapRequest& request) {
@@ -127,7 +148,7 @@ AllowListPolicy::Decision AllowListPolicy::decide(const ZapRequest& request) {
   Decision out;
   const auto now = std::chrono::steady_clock::now();
   if (now - loaded_ >= reload_interval_) {
-    out.reload_note = reload();
+    reload(out);
     loaded_ = now;
   }
   if (request.mechanism != "CURVE") {

@@ -13,6 +13,7 @@
 #include <mutex>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "common/net/keys.h"
 
@@ -66,7 +67,10 @@ class ZapHandler {
 /// Admits a key when the allow-list of the request's ZAP domain lists it. Each list is a file or a
 /// folder (AllowList::load), read again at most once per `reload_interval` while connections
 /// come, so that a key file added to a folder admits its peer without a restart and a removed one
-/// refuses the peer's next connection. Thread-safe.
+/// refuses the peer's next connection. A reload applies every key it can read: a file or line that
+/// cannot be read is skipped (its keys are not admitted) and reported as a warning, once for as
+/// long as the same files stay unreadable; only a list whose path cannot be read at all keeps its
+/// previous keys. Thread-safe.
 class AllowListPolicy {
  public:
   /// What `decide` concluded, with what the owner may want to log.
@@ -74,7 +78,10 @@ class AllowListPolicy {
     bool admitted = false;
     std::string name;         ///< the key's name in its list, when admitted
     std::string reason;       ///< why it was refused
-    std::string reload_note;  ///< a list was read again and changed, or could not be read
+    std::string reload_note;  ///< a list was read again and changed, or could not all be read
+    /// `reload_note` reports a file, line or list that could not be read (log it as a warning);
+    /// false when it only reports a change.
+    bool reload_warning = false;
   };
 
   /// Reads every domain's list now. Throws KeyError naming a bad file or line.
@@ -89,13 +96,14 @@ class AllowListPolicy {
   struct Domain {
     std::filesystem::path path;
     AllowList keys;
+    std::vector<std::string> problems;  // what the last reload could not read
   };
   mutable std::mutex mutex_;
   std::map<std::string, Domain> domains_;
   std::chrono::milliseconds reload_interval_;
   std::chrono::steady_clock::time_point loaded_;
 
-  std::string reload();  // mutex held
+  void reload(Decision& out);  // mutex held
 };
 
 }  // namespace rayfarm::net

@@ -43,6 +43,39 @@ class JsonMessageFlag : public spdlog::custom_flag_formatter {
   }
 };
 
+// %k: the message with its control characters escaped (\n, \r, \t, \xNN for the other bytes below
+// 0x20 and for 0x7f), so that a text record is one line whatever the message holds: a string a
+// peer sent (a scene path, a job name, a reason) cannot start a line of its own that looks like
+// another record, nor send escape sequences to a terminal.
+class TextMessageFlag : public spdlog::custom_flag_formatter {
+ public:
+  void format(const spdlog::details::log_msg& msg, const std::tm&,
+              spdlog::memory_buf_t& dest) override {
+    static constexpr char kHex[] = "0123456789abcdef";
+    auto put = [&dest](std::string_view text) {
+      dest.append(text.data(), text.data() + text.size());
+    };
+    for (const char c : msg.payload) {
+      const auto byte = static_cast<unsigned char>(c);
+      switch (c) {
+        case '\n': put("\\n"); break;
+        case '\r': put("\\r"); break;
+        case '\t': put("\\t"); break;
+        default:
+          if (byte < 0x20 || byte == 0x7f) {
+            const char esc[] = {'\\', 'x', kHex[byte >> 4], kHex[byte & 0xf]};
+            dest.append(esc, esc + sizeof esc);
+          } else {
+            dest.push_back(c);
+          }
+      }
+    }
+  }
+  std::unique_ptr<custom_flag_formatter> clone() const override {
+    return std::make_unique<TextMessageFlag>();
+  }
+};
+
 void apply(spdlog::logger& logger) {
   logger.set_level(g_level);
   if (g_format == LogFormat::kJson) {
@@ -51,7 +84,9 @@ void apply(spdlog::logger& logger) {
         R"({"time":"%Y-%m-%dT%H:%M:%S.%e%z","level":"%l","logger":"%n","pid":%P,"msg":"%j"})");
     logger.set_formatter(std::move(formatter));
   } else {
-    logger.set_pattern("%Y-%m-%d %H:%M:%S.%e %^%-5l%$ [%n] %v");
+    auto formatter = std::make_unique<spdlog::pattern_formatter>();
+    formatter->add_flag<TextMessageFlag>('k').set_pattern("%Y-%m-%d %H:%M:%S.%e %^%-5l%$ [%n] %k");
+    logger.set_formatter(std::move(formatter));
   }
 }
 

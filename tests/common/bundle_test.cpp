@@ -98,6 +98,67 @@ TEST(Bundle, PacksASceneWithEveryFileItReferencesAndNothingElse) {
   EXPECT_EQ(pack_scene(fs::relative(scene)).hash, packed.hash);
 }
 
+/// Expects pack_scene(`scene`) to throw a BundleError whose message holds each of `parts`.
+void expect_pack_error(const fs::path& scene, const std::vector<std::string>& parts) {
+  try {
+    const PackedScene packed = pack_scene(scene);
+    std::string paths;
+    for (const auto& f : packed.bundle.files) paths += " " + f.path;
+    FAIL() << "packed" << paths;
+  } catch (const BundleError& e) {
+    for (const auto& part : parts) {
+      EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what();
+    }
+  }
+}
+
+TEST(Bundle, ASymbolicLinkInTheSceneFolderIsRefusedNotFollowed) {
+  TempDir dir;
+  const fs::path box = dir.path() / "box";
+  const fs::path scene = cornell_with_mesh_folder(box);
+  // A file outside the scene's folder that the MTL parser reads without complaint.
+  const fs::path mtl = box / "meshes" / "cornell_box.mtl";
+  const std::string mtl_text = read_file(mtl);
+  write_file(dir.path() / "private" / "passwd", mtl_text + "# root:x:0:0:root:/root:/bin/bash\n");
+  fs::remove(mtl);
+  fs::create_symlink(dir.path() / "private" / "passwd", mtl);
+  ASSERT_NO_THROW(load_scene(scene));  // the scene loads: only packing must refuse the link
+  expect_pack_error(scene, {mtl.string() + ": is a symbolic link to " +
+                                (dir.path() / "private" / "passwd").string(),
+                            "only regular files inside the scene's folder"});
+
+  // A link that stays inside the folder is refused as well: what is packed is what lies there.
+  write_file(box / "meshes" / "real.mtl", mtl_text);
+  fs::remove(mtl);
+  fs::create_symlink("real.mtl", mtl);
+  expect_pack_error(scene, {mtl.string() + ": is a symbolic link to real.mtl"});
+
+  // A linked folder on the way to a file is refused, naming the folder and the file.
+  fs::remove(mtl);
+  write_file(mtl, mtl_text);
+  fs::rename(box / "meshes", dir.path() / "elsewhere");
+  fs::create_directory_symlink(dir.path() / "elsewhere", box / "meshes");
+  ASSERT_NO_THROW(load_scene(scene));
+  expect_pack_error(scene, {(box / "meshes").string() + ": is a symbolic link",
+                            "on the path of " + (box / "meshes" / "cornell_box.obj").string()});
+
+  // The scene file itself as a link.
+  fs::remove(box / "meshes");
+  fs::rename(dir.path() / "elsewhere", box / "meshes");
+  fs::rename(scene, box / "real.json");
+  fs::create_symlink("real.json", scene);
+  expect_pack_error(scene, {scene.string() + ": is a symbolic link"});
+
+  // With regular files only, the scene packs, the MTL with its own content.
+  fs::remove(scene);
+  fs::rename(box / "real.json", scene);
+  fs::remove(box / "meshes" / "real.mtl");
+  const PackedScene packed = pack_scene(scene);
+  ASSERT_EQ(packed.bundle.files.size(), 3u);
+  EXPECT_EQ(packed.bundle.files[0].path, "meshes/cornell_box.mtl");
+  EXPECT_EQ(packed.bundle.files[0].data, mtl_text);
+}
+
 TEST(Bundle, ABadSceneIsTheParsersError) {
   TempDir dir;
   write_file(dir.path() / "bad.json", "{ \"camera\": ");

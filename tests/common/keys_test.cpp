@@ -149,6 +149,41 @@ TEST(AllowList, SecretKeysMissingPathsAndBadLinesAreErrors) {
   }
 }
 
+TEST(AllowList, ReadingWhatCanBeReadSkipsAndNamesEachBadFileAndLine) {
+  TempDir dir;
+  const KeyPair w1 = generate_key_pair(), w2 = generate_key_pair(), s = generate_key_pair();
+  write_key_pair(dir.path() / "workers", "w1", w1);
+  dir.write("workers/broken.key", "nonsense\n");
+  write_key_pair(dir.path() / "secret", "s", s);
+  std::filesystem::copy_file(dir.path() / "secret" / "s.key_secret",
+                             dir.path() / "workers" / "s.key");
+  EXPECT_THROW(AllowList::load(dir.path() / "workers"), KeyError);  // strict, as at start
+  std::vector<std::string> problems;
+  const AllowList list = AllowList::load(dir.path() / "workers", &problems);
+  EXPECT_EQ(list.size(), 1u);
+  ASSERT_NE(list.find(w1.public_key), nullptr);
+  EXPECT_EQ(list.find(s.public_key), nullptr);
+  ASSERT_EQ(problems.size(), 2u);
+  EXPECT_NE(problems[0].find("broken.key:1: expected a 40-character Z85 key"), std::string::npos)
+      << problems[0];
+  EXPECT_NE(problems[1].find("s.key:"), std::string::npos) << problems[1];
+  EXPECT_NE(problems[1].find("secret key"), std::string::npos) << problems[1];
+
+  // In a file of lines, a bad line is skipped and the others apply.
+  const auto file = dir.write("clients.txt", w1.public_key + " one\n" +
+                                                 "0123456789 cut\n" +
+                                                 w2.public_key + " two\n");
+  problems.clear();
+  const AllowList lines = AllowList::load(file, &problems);
+  EXPECT_EQ(lines.size(), 2u);
+  ASSERT_NE(lines.find(w2.public_key), nullptr);
+  EXPECT_EQ(*lines.find(w2.public_key), "two");
+  ASSERT_EQ(problems.size(), 1u);
+  EXPECT_NE(problems[0].find("clients.txt:2: "), std::string::npos) << problems[0];
+  // A path that is not there is still an error: nothing of it can be read.
+  EXPECT_THROW(AllowList::load(dir.path() / "nowhere", &problems), KeyError);
+}
+
 TEST(Endpoints, OnlyLoopbackIsLoopback) {
   for (const char* e : {"tcp://127.0.0.1:5555", "tcp://127.1.2.3:1", "tcp://localhost:5556",
                         "tcp://[::1]:5555", "ipc:///tmp/rayfarm.sock", "inproc://x"}) {

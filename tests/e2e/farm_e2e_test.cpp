@@ -506,6 +506,18 @@ TEST_F(FarmTest, AClientWithAWrongKeyIsRefusedClearlyAndTheMasterLogsItsAddress)
         << r.err;
     EXPECT_NE(r.err.find("(--master-key) is probably wrong"), std::string::npos) << r.err;
   }
+  // A plain (--insecure) client has no key that could be wrong: however the master hangs up on
+  // it, it is told that the master uses CURVE, every time.
+  for (int run = 0; run < 5; ++run) {
+    const RunResult r = cli({"list", "--timeout", "5"}, true, milliseconds{20000},
+                            std::vector<std::string>{"--insecure"});
+    EXPECT_EQ(r.code, 4) << r.err;
+    EXPECT_NE(r.err.find("the peer uses another security mechanism: it has CURVE keys and this "
+                         "side runs --insecure"),
+              std::string::npos)
+        << "run " << run << ": " << r.err;
+    EXPECT_EQ(r.err.find("--master-key) is probably wrong"), std::string::npos) << r.err;
+  }
   ASSERT_TRUE(wait_until(
       [&] {
         return has_line(
