@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <array>
+#include <thread>
+#include <deque>
+#include <condition_variable>
 #include <mutex>
 #include <tuple>
 #include <vector>
@@ -65,6 +68,10 @@ constexpr net::QueueBounds kClientQueues{/*send=*/8, /*receive=*/4};
 /// bundle limit in all per window.
 constexpr auto kBundleWindow = std::chrono::seconds{60};
 
+/// Submissions being checked at once, in all and from one connection; more are refused.
+constexpr size_t kMaxSubmissionsInFlight = 4;
+constexpr size_t kMaxSubmissionsPerPeer = 1;
+
 /// Repeated refusals of the same key from the same address are logged at most this often.
 constexpr auto kRefusalLogInterval = std::chrono::seconds{10};
 
@@ -98,7 +105,10 @@ struct Broker::Gate {
 
   net::ZapVerdict decide(const net::ZapRequest& r) {
     const net::AllowListPolicy::Decision d = policy.decide(r);
-    if (!d.reload_note.empty()) log()->info("{}", d.reload_note);
+    if (!d.reload_note.empty()) {
+      log()->log(d.reload_warning ? spdlog::level::warn : spdlog::level::info, "{}",
+                 d.reload_note);
+    }
     if (d.admitted) return {true, d.name};
     const char* role = r.domain == kWorkerDomain ? "worker" : "client";
     std::lock_guard lock(mutex);
@@ -115,6 +125,115 @@ struct Broker::Gate {
                     : "");
     seen = Recent{now, 0};
     return {};
+  }
+};
+
+/// Checks submissions against the limits, unpacks their bundles, loads their scenes, reads their
+/// references and stores them (JobManager::prepare), on a thread of its own: the reactor keeps
+/// serving heartbeats and results meanwhile, and admits each job once it is ready.
+class Broker::Submissions {
+ public:
+  struct Done {
+    net::PeerId peer;
+    std::string label;  // the client, for the log
+    std::string scene;  // the scene path, printable, for the log
+    std::optional<JobManager::PreparedJob> job;
+    std::string error;  // why it was refused
+  };
+
+  Submissions(const JobManager& jobs, Limits limits)
+      : jobs_(jobs), limits_(std::move(limits)), thread_([this] { loop(); }) {}
+  ~Submissions() {
+    {
+      std::lock_guard lock(mutex_);
+      stop_ = true;
+    }
+    wake_.notify_all();
+    thread_.join();
+  }
+
+  /// Queues a submission; false when too many are being checked (in all, or from `peer`).
+  bool add(const net::PeerId& peer, std::string label, std::string user, wire::SubmitJob job) {
+    std::lock_guard lock(mutex_);
+    if (in_flight_ >= kMaxSubmissionsInFlight || per_peer_[peer] >= kMaxSubmissionsPerPeer) {
+      if (per_peer_[peer] == 0) per_peer_.erase(peer);
+      return false;
+    }
+    ++in_flight_;
+    ++per_peer_[peer];
+    queue_.push_back(Task{peer, std::move(label), std::move(user), std::move(job)});
+    wake_.notify_one();
+    return true;
+  }
+  /// The submissions checked since the last call.
+  std::vector<Done> take_done() {
+    std::lock_guard lock(mutex_);
+    std::vector<Done> out;
+    out.swap(done_);
+    for (const Done& d : out) {
+      --in_flight_;
+      if (--per_peer_[d.peer] == 0) per_peer_.erase(d.peer);
+    }
+    return out;
+  }
+  /// Submissions queued or being checked.
+  size_t in_flight() const {
+    std::lock_guard lock(mutex_);
+    return in_flight_;
+  }
+  /// Waits until every queued submission is checked.
+  void drain() {
+    std::unique_lock lock(mutex_);
+    idle_.wait(lock, [this] { return queue_.empty() && !busy_; });
+  }
+
+ private:
+  struct Task {
+    net::PeerId peer;
+    std::string label;
+    std::string user;
+    wire::SubmitJob job;
+  };
+  const JobManager& jobs_;
+  const Limits limits_;
+  mutable std::mutex mutex_;
+  std::condition_variable wake_, idle_;
+  std::deque<Task> queue_;
+  std::vector<Done> done_;
+  std::map<net::PeerId, size_t> per_peer_;
+  size_t in_flight_ = 0;
+  bool busy_ = false;
+  bool stop_ = false;
+  std::thread thread_;  // last: starts once the rest is ready
+
+  void loop() {
+    std::unique_lock lock(mutex_);
+    for (;;) {
+      wake_.wait(lock, [this] { return stop_ || !queue_.empty(); });
+      if (queue_.empty()) return;  // stopping, nothing left
+      Task task = std::move(queue_.front());
+      queue_.pop_front();
+      busy_ = true;
+      lock.unlock();
+      Done done{task.peer, std::move(task.label), protocol::printable(task.job.scene_path(), 200),
+                std::nullopt, ""};
+      try {
+        // The limits come first: past one, nothing is unpacked or loaded.
+        if (auto refusal = check_figures(figures_of(task.job), limits_)) {
+          done.error = *refusal;
+        } else {
+          done.job = jobs_.prepare(task.job, task.user);
+        }
+      } catch (const JobRejected& e) {
+        done.error = e.what();
+      } catch (const std::exception& e) {
+        done.error = std::string("the master failed to check the job: ") + e.what();
+      }
+      lock.lock();
+      done_.push_back(std::move(done));
+      busy_ = false;
+      idle_.notify_all();
+    }
   }
 };
 
@@ -169,6 +288,7 @@ Broker::Broker(MasterOptions options)
       clients_socket_(options_.client_endpoint, options_.limits.max_message_bytes,
                       curve_for(options_, kClientDomain), kClientQueues),
       next_heartbeat_(Clock::now()) {
+  submissions_ = std::make_unique<Submissions>(jobs_, options_.limits);
   const size_t restarted = jobs_.recover();
   log()->info("master listening: workers on {}, clients on {}; data dir {}{}", worker_endpoint(),
               client_endpoint(), options_.data_dir.string(),
@@ -208,8 +328,12 @@ void Broker::run(const std::atomic<bool>& stop) {
         handle_client(*delivery);
       }
     }
+    admit_submissions();
     on_timers();
   }
+  // Submissions being checked are finished and answered: each is on disk once checked.
+  submissions_->drain();
+  admit_submissions();
   jobs_.shutdown();  // every running job checkpointed before the master exits
   log()->info("master stopping: {} workers connected, {} jobs unfinished (kept in {})",
               workers_.size(), jobs_.active_jobs(), options_.data_dir.string());
@@ -408,6 +532,22 @@ void Broker::handle_worker(const net::Delivery& delivery) {
   }
 }
 
+void Broker::admit_submissions() {
+  bool admitted = false;
+  for (Submissions::Done& done : submissions_->take_done()) {
+    wire::SubmitReply out;
+    if (done.job) {
+      out.set_job_id(jobs_.admit(std::move(*done.job)));
+      admitted = true;
+    } else {
+      log()->warn("job refused ({}) from {}: {}", done.scene, done.label, done.error);
+      out.set_error(jobs_.for_clients(done.error));
+    }
+    reply(done.peer, encode(std::move(out)));
+  }
+  if (admitted) dispatch();
+}
+
 bool Broker::may_manage(const std::string& owner, const std::string& user) const {
   return owner == user || options_.security.admin_clients.count(user) != 0;
 }
@@ -510,23 +650,25 @@ void Broker::handle_client(const net::Delivery& delivery) {
       welcome.set_heartbeat_interval_ms(static_cast<uint32_t>(options_.heartbeat.interval.count()));
       welcome.set_liveness(static_cast<uint32_t>(options_.heartbeat.liveness));
       reply(peer, encode(std::move(welcome)));
-    } else if (const auto* submit = msg.as<wire::SubmitJob>()) {
-      wire::SubmitReply out;
-      if (auto refusal = check_submission(*submit, jobs_.active_jobs(), options_.limits)) {
-        log()->warn("job refused ({}) from {}: {}", protocol::printable(submit->scene_path()),
-                    label, *refusal);
-        out.set_error(*refusal);
-      } else {
-        try {
-          out.set_job_id(jobs_.submit(*submit, delivery.user));
-        } catch (const JobRejected& e) {
-          log()->warn("job rejected ({}): {}", protocol::printable(submit->scene_path(), 200),
-                      e.what());
-          out.set_error(jobs_.for_clients(e.what()));
-        }
+    } else if (auto* submit = msg.as_mutable<wire::SubmitJob>()) {
+      // Checked and stored on the submissions' thread; admitted and answered by
+      // admit_submissions() once ready.
+      std::optional<std::string> refusal =
+          check_queue(jobs_.active_jobs() + submissions_->in_flight(), options_.limits);
+      wire::SubmitJob job;
+      job.Swap(submit);
+      if (!refusal && !submissions_->add(peer, label, delivery.user, std::move(job))) {
+        refusal = fmt::format(
+            "the master is busy checking other submissions ({} at most at once, {} per "
+            "connection); submit again in a moment",
+            kMaxSubmissionsInFlight, kMaxSubmissionsPerPeer);
       }
-      reply(peer, encode(std::move(out)));
-      dispatch();
+      if (refusal) {
+        log()->warn("job refused from {}: {}", label, *refusal);
+        wire::SubmitReply out;
+        out.set_error(*refusal);
+        reply(peer, encode(std::move(out)));
+      }
     } else if (const auto* request = msg.as<wire::StatusRequest>()) {
       const std::string* owner = jobs_.owner_of(request->job_id());
       if (owner && !may_see(*owner, delivery.user)) {

@@ -105,9 +105,12 @@ class Broker {
   };
   Complaints complaints_;
 
+  class Submissions;  // checks and stores submissions on a thread of its own
+
   MasterOptions options_;
   JobStore store_;
   JobManager jobs_;
+  std::unique_ptr<Submissions> submissions_;  // uses jobs_: destroyed before it
   std::unique_ptr<Gate> gate_;  // before the sockets: bound first, closed last
   net::Router workers_socket_;
   net::Router clients_socket_;
@@ -119,6 +122,8 @@ class Broker {
   void handle_worker(const net::Delivery& delivery);
   void handle_client(const net::Delivery& delivery);
   void send_bundle(const net::PeerId& peer, Worker& w, const std::string& hash);
+  /// Replies to the submissions whose checks have finished, admitting the accepted ones.
+  void admit_submissions();
   /// Logs a complaint about a peer's message, rate-limited per socket and key (Complaints).
   void complain(const std::string& socket, const std::string& key, const std::string& text);
   void register_worker(const net::PeerId& peer, const wire::Hello& hello,

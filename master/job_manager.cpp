@@ -105,7 +105,7 @@ std::string storage_refusal(const std::exception& e, const fs::path& root) {
 
 }  // namespace
 
-void JobManager::check_reference_bytes(const std::string& exr, FilmSize film) {
+Image JobManager::check_reference_bytes(const std::string& exr, FilmSize film) const {
   fs::path scratch;
   try {
     scratch = store_.make_scratch_dir();
@@ -116,11 +116,11 @@ void JobManager::check_reference_bytes(const std::string& exr, FilmSize film) {
     throw JobRejected(storage_refusal(e, store_.root()));
   }
   std::error_code ec;
+  Image reference;
   try {
     // The header's size is checked against the film before any pixel is allocated, so a
     // reference costs at most the film's size, whatever its header claims.
-    const Image reference =
-        read_exr(scratch / "reference.exr", ExrExpect{film.width, film.height, true});
+    reference = read_exr(scratch / "reference.exr", ExrExpect{film.width, film.height, true});
     check_reference(reference, film, "reference image");
   } catch (const std::exception& e) {
     fs::remove_all(scratch, ec);
@@ -128,6 +128,8 @@ void JobManager::check_reference_bytes(const std::string& exr, FilmSize film) {
                                   "reference image"));
   }
   fs::remove_all(scratch, ec);
+  reference.extra.clear();
+  return reference;
 }
 
 JobManager::JobManager(JobStore& store, JobManagerOptions options)
@@ -137,15 +139,15 @@ std::string JobManager::name_of(const WorkerId& worker) const {
   return options_.worker_name ? options_.worker_name(worker) : net::peer_label(worker);
 }
 
-void JobManager::activate(Job& job) {
+void JobManager::activate(Job& job, std::optional<Image> preloaded) {
   const JobSpec& s = job.record.spec;
   job.merger = std::make_unique<Merger>(UnitGrid(s.film, s.tile_size, s.settings.spp, s.pass_spp));
   job.planner = std::make_unique<PassPlanner>(split_tiles(s.film, s.tile_size),
                                               job.merger->grid().pass_count(), s.pass_spp, s.stop);
   scheduler_.add_job(s.id, job.merger->grid().size(), job.planner->gated());
   if (job.planner->gated()) scheduler_.release(s.id, job.planner->take_released());
-  std::optional<Image> reference;
-  if (s.has_reference) {
+  std::optional<Image> reference = std::move(preloaded);
+  if (s.has_reference && !reference) {
     try {
       reference = load_reference(store_.reference_path(s.id), s.film);
     } catch (const std::exception& e) {
@@ -370,6 +372,11 @@ const std::string* JobManager::owner_of(const std::string& id) const {
 }
 
 std::string JobManager::submit(const wire::SubmitJob& request, const std::string& owner) {
+  return admit(prepare(request, owner));
+}
+
+JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
+                                            const std::string& owner) const {
   // The bundle and the scene path.
   Bundle bundle;
   try {
@@ -461,7 +468,8 @@ std::string JobManager::submit(const wire::SubmitJob& request, const std::string
     throw JobRejected(e.what());
   }
   spec.has_reference = !request.reference_exr().empty();
-  if (spec.has_reference) check_reference_bytes(request.reference_exr(), spec.film);
+  PreparedJob prepared;
+  if (spec.has_reference) prepared.reference = check_reference_bytes(request.reference_exr(), spec.film);
   const UnitGrid grid(spec.film, spec.tile_size, spec.settings.spp, spec.pass_spp);
   if (grid.size() > kMaxUnits) {
     throw JobRejected(
@@ -471,23 +479,40 @@ std::string JobManager::submit(const wire::SubmitJob& request, const std::string
   spec.submitted_unix_ms = unix_ms_now();
   spec.owner = owner;
 
-  // Store it, then schedule it.
-  spec.id = store_.allocate_id();
-  Job job;
-  job.record.spec = spec;
+  // Store it; admit() schedules it.
+  try {
+    spec.id = store_.allocate_id();
+  } catch (const std::exception& e) {
+    throw JobRejected(storage_refusal(e, store_.root()));
+  }
+  JobRecord record;
+  record.spec = spec;
   try {
     wire::Bundle canonical;
     protocol::bundle_to_wire(bundle, &canonical);
     store_.save_bundle(spec.id, canonical);
     if (spec.has_reference) store_.save_reference(spec.id, request.reference_exr());
-    store_.save_record(job.record);  // throws: a job is accepted only once it is on disk
+    store_.save_record(record);  // throws: a job is accepted only once it is on disk
     store_.sync_job_dir(spec.id);
   } catch (const std::exception& e) {
     fs::remove_all(store_.job_dir(spec.id), ec);
     throw JobRejected(storage_refusal(e, store_.root()));
   }
+  prepared.spec = std::move(spec);
+  prepared.warnings = scene.warnings;
+  prepared.bundle_files = bundle.files.size();
+  prepared.bundle_bytes = bundle.data_bytes();
+  return prepared;
+}
+
+std::string JobManager::admit(PreparedJob prepared) {
+  const JobSpec& spec = prepared.spec;
+  const UnitGrid grid(spec.film, spec.tile_size, spec.settings.spp, spec.pass_spp);
+  const std::string& hash = spec.bundle_hash;
+  Job job;
+  job.record.spec = spec;
   bundle_owner_.emplace(hash, spec.id);
-  activate(job);
+  activate(job, std::move(prepared.reference));
   log_jobs()->info(
       "job {} accepted: '{}', scene {} {}x{}, {}, {}, max depth {}, seed {}; {} tiles of {} x "
       "{} passes of {} spp = {} units; bundle of {} files, {} ({}){}",
@@ -495,11 +520,12 @@ std::string JobManager::submit(const wire::SubmitJob& request, const std::string
       describe_stop(spec.stop, spec.settings.spp),
       integrator_name(spec.settings.integrator), spec.settings.max_depth, spec.settings.seed,
       grid.tile_count(), spec.tile_size, grid.pass_count(), spec.pass_spp, grid.size(),
-      bundle.files.size(), human_bytes(bundle.data_bytes()), hash.substr(0, 12),
+      prepared.bundle_files, human_bytes(prepared.bundle_bytes), hash.substr(0, 12),
       spec.has_reference ? "; error measured against its reference image" : "");
-  for (const auto& w : scene.warnings) log_jobs()->warn("job {}: {}", spec.id, w);
-  jobs_.emplace(spec.id, std::move(job));
-  return spec.id;
+  for (const auto& w : prepared.warnings) log_jobs()->warn("job {}: {}", spec.id, w);
+  const std::string id = spec.id;
+  jobs_.emplace(id, std::move(job));
+  return id;
 }
 
 std::optional<wire::WorkUnit> JobManager::next_unit(const WorkerId& worker,

@@ -65,8 +65,22 @@ class JobManager {
   /// Returns once every checkpoint queued so far is on disk (tests, benchmarks).
   void wait_for_checkpoints() { checkpoints_.flush(); }
 
-  /// Validates and accepts a job for `owner` (the submitting client key's name); returns its id.
-  /// Throws JobRejected naming the cause.
+  /// A submission checked and stored, not yet scheduled.
+  struct PreparedJob {
+    JobSpec spec;
+    std::optional<Image> reference;  ///< read once, so that admitting it reads no file
+    std::vector<std::string> warnings;
+    size_t bundle_files = 0;
+    uint64_t bundle_bytes = 0;
+  };
+  /// Validates a submission for `owner` (the submitting client key's name) and stores it in the
+  /// data dir: the slow part of accepting a job (unpacking, loading the scene, reading the
+  /// reference, writing and syncing files). Touches nothing but the store: safe on another thread
+  /// than the rest. Throws JobRejected naming the cause.
+  PreparedJob prepare(const wire::SubmitJob& request, const std::string& owner) const;
+  /// Schedules a prepared job; returns its id.
+  std::string admit(PreparedJob prepared);
+  /// prepare() then admit(): validates and accepts a job; returns its id. Throws JobRejected.
   std::string submit(const wire::SubmitJob& request, const std::string& owner = {});
   /// The owner of a job; nullptr when the job is unknown.
   const std::string* owner_of(const std::string& id) const;
@@ -167,7 +181,8 @@ class JobManager {
   std::map<std::string, Job> jobs_;
   std::map<std::string, std::string> bundle_owner_;  // bundle hash -> a job that has it
 
-  void activate(Job& job);
+  /// Gives the job its merger, planner and error tracker; `reference` when already read.
+  void activate(Job& job, std::optional<Image> reference = std::nullopt);
   /// Brings a freshly activated job to the state of its newest usable checkpoint; false when it
   /// has none (it starts from the beginning). Logs what it used and what it could not.
   bool resume(Job& job);
@@ -177,8 +192,9 @@ class JobManager {
   void note_failure(Job& job, const WorkerId& worker, const std::string& key, uint64_t unit,
                     const std::string& why);
   void record_row(Job& job);
-  /// Throws JobRejected unless `exr` is a readable EXR of the film's size.
-  void check_reference_bytes(const std::string& exr, FilmSize film);
+  /// The reference image in `exr`; throws JobRejected unless it is a readable EXR of the film's
+  /// size.
+  Image check_reference_bytes(const std::string& exr, FilmSize film) const;
   /// Queues the job's image; `wait` returns only once it is on disk.
   void write_image(Job& job, bool wait = false);
   void on_round_done(Job& job);

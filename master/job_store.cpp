@@ -149,6 +149,7 @@ JobStore::JobStore(fs::path data_dir) : root_(std::move(data_dir)) {
 fs::path JobStore::job_dir(const std::string& id) const { return root_ / "jobs" / id; }
 
 std::string JobStore::allocate_id() {
+  std::lock_guard lock(mutex_);
   for (;; ++next_id_) {
     char buf[32];
     std::snprintf(buf, sizeof buf, "j%04llu", static_cast<unsigned long long>(next_id_));
@@ -163,7 +164,11 @@ std::string JobStore::allocate_id() {
 }
 
 fs::path JobStore::make_scratch_dir() {
-  const fs::path dir = root_ / "tmp" / fmt::format("s{}", ++scratch_counter_);
+  fs::path dir;
+  {
+    std::lock_guard lock(mutex_);
+    dir = root_ / "tmp" / fmt::format("s{}", ++scratch_counter_);
+  }
   std::error_code ec;
   fs::remove_all(dir, ec);
   fs::create_directories(dir, ec);

@@ -14,6 +14,7 @@
 //   <data>/tmp/                  scratch space (scene validation), emptied at start
 #include <cstdint>
 #include <filesystem>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
@@ -65,7 +66,8 @@ class JobStore {
 
   const std::filesystem::path& root() const { return root_; }
   std::filesystem::path job_dir(const std::string& id) const;
-  /// A new job id ("j0001", "j0002", ...), never one in use in the data dir.
+  /// A new job id ("j0001", "j0002", ...), never one in use in the data dir. Thread-safe, as are
+  /// make_scratch_dir and the writers of one job's files.
   std::string allocate_id();
   /// A fresh empty folder under tmp/.
   std::filesystem::path make_scratch_dir();
@@ -95,6 +97,7 @@ class JobStore {
 
  private:
   std::filesystem::path root_;
+  std::mutex mutex_;  // guards the counters: ids and scratch folders are made on any thread
   uint64_t next_id_ = 1;
   uint64_t scratch_counter_ = 0;
 };

@@ -400,9 +400,9 @@ TEST_F(FarmTest, GarbageOnEitherSocketIsLoggedAndIgnored) {
     const auto error = client.expect<wire::Error>();
     EXPECT_NE(error.message().find("cannot decode"), std::string::npos) << error.message();
   }
+  // Logged once per socket and key, not once per message (a peer cannot flood the log).
   EXPECT_TRUE(wait_until(
-      [&] { return count_of(master().log(), "ignored a bad message") == 2 * garbage.size(); },
-      milliseconds{5000}))
+      [&] { return count_of(master().log(), "ignored a bad message") == 2; }, milliseconds{5000}))
       << master().log();
   // A valid message on the wrong socket is refused by name.
   worker.send(protocol::encode(wire::ListJobs{}));
