@@ -384,7 +384,17 @@ int run_submit(const SubmitArgs& args) {
   }
 
   FarmClient client(args.client);
-  const auto reply = client.call<wire::SubmitReply>(encode(std::move(request)));
+  // A master checking many submissions at once says it is busy: try again, within --timeout.
+  const auto deadline = std::chrono::steady_clock::now() +
+                        std::chrono::duration<double>(args.client.timeout);
+  auto pause = std::chrono::milliseconds{100};
+  wire::SubmitReply reply = client.call<wire::SubmitReply>(encode(request));
+  while (reply.error().rfind("the master is busy", 0) == 0 &&
+         std::chrono::steady_clock::now() + pause < deadline) {
+    std::this_thread::sleep_for(pause);
+    pause = std::min(pause * 2, std::chrono::milliseconds{2000});
+    reply = client.call<wire::SubmitReply>(encode(request));
+  }
   if (!reply.error().empty()) throw MasterError("the master rejected the job: " + reply.error());
   std::cout << reply.job_id() << "\n" << std::flush;
   if (!args.wait) return 0;

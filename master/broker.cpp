@@ -68,8 +68,9 @@ constexpr net::QueueBounds kClientQueues{/*send=*/8, /*receive=*/4};
 /// bundle limit in all per window.
 constexpr auto kBundleWindow = std::chrono::seconds{60};
 
-/// Submissions being checked at once, in all and from one connection; more are refused.
-constexpr size_t kMaxSubmissionsInFlight = 4;
+/// Submissions waiting to be checked (or being checked), in all and from one connection; more are
+/// refused as busy (the CLI tries again).
+constexpr size_t kMaxSubmissionsInFlight = 16;
 constexpr size_t kMaxSubmissionsPerPeer = 1;
 
 /// Repeated refusals of the same key from the same address are logged at most this often.
@@ -659,8 +660,8 @@ void Broker::handle_client(const net::Delivery& delivery) {
       job.Swap(submit);
       if (!refusal && !submissions_->add(peer, label, delivery.user, std::move(job))) {
         refusal = fmt::format(
-            "the master is busy checking other submissions ({} at most at once, {} per "
-            "connection); submit again in a moment",
+            "the master is busy checking other submissions ({} may wait, {} per connection); "
+            "submit again in a moment",
             kMaxSubmissionsInFlight, kMaxSubmissionsPerPeer);
       }
       if (refusal) {
