@@ -10,6 +10,7 @@
 #include "common/protocol/codec.h"
 #include "common/protocol/convert.h"
 #include "master/broker.h"
+#include "tests/master/broker_peer.h"
 #include "tests/support/handshake.h"
 #include "tests/support/temp_dir.h"
 
@@ -44,24 +45,9 @@ class BrokerSecurityTest : public ::testing::Test {
   }
 };
 
-/// The first message within `timeout` that is not a heartbeat, decoded.
-std::optional<protocol::Decoded> next(net::Dealer& d, milliseconds timeout = milliseconds{5000}) {
-  const auto deadline = std::chrono::steady_clock::now() + timeout;
-  while (std::chrono::steady_clock::now() < deadline) {
-    if (auto frames = d.receive(milliseconds{50})) {
-      protocol::Decoded m = protocol::decode(*frames);
-      if (!m.as<wire::Heartbeat>()) return m;
-    }
-  }
-  return std::nullopt;
-}
+using test_peer::next;
 
-net::Frames hello(wire::Role role) {
-  wire::Hello h;
-  h.set_role(role);
-  h.set_name("test");
-  return protocol::encode(std::move(h));
-}
+net::Frames hello(wire::Role role) { return protocol::encode(test_peer::hello(role)); }
 
 TEST_F(BrokerSecurityTest, PlainSocketsOnlyOnLoopback) {
   MasterOptions o;

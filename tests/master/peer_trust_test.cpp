@@ -23,6 +23,7 @@
 #include "common/util/log.h"
 #include "master/broker.h"
 #include "master/job_manager.h"
+#include "tests/master/broker_peer.h"
 #include "tests/master/job_requests.h"
 #include "tests/support/temp_dir.h"
 
@@ -350,17 +351,7 @@ class BrokerTrustTest : public ::testing::Test {
   }
 };
 
-/// The first message within `timeout` that is not a heartbeat, decoded.
-std::optional<protocol::Decoded> next(net::Dealer& d, milliseconds timeout = milliseconds{5000}) {
-  const auto deadline = std::chrono::steady_clock::now() + timeout;
-  while (std::chrono::steady_clock::now() < deadline) {
-    if (auto frames = d.receive(milliseconds{50})) {
-      protocol::Decoded m = protocol::decode(*frames);
-      if (!m.as<wire::Heartbeat>()) return m;
-    }
-  }
-  return std::nullopt;
-}
+using test_peer::next;
 
 /// Sends `request` and returns the reply, or fails the test.
 template <class Message>
@@ -371,12 +362,7 @@ protocol::Decoded ask(net::Dealer& d, Message request) {
   return reply ? std::move(*reply) : protocol::Decoded{};
 }
 
-wire::Hello hello(wire::Role role) {
-  wire::Hello h;
-  h.set_role(role);
-  h.set_name("test");
-  return h;
-}
+using test_peer::hello;
 
 /// A broker running on its own thread for the life of the object.
 struct Running {
