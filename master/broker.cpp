@@ -72,6 +72,7 @@ constexpr auto kBundleWindow = std::chrono::seconds{60};
 /// refused as busy (the CLI tries again).
 constexpr size_t kMaxSubmissionsInFlight = 16;
 constexpr size_t kMaxSubmissionsPerPeer = 1;
+constexpr size_t kMaxSubmissionsPerKey = 4;
 
 /// Repeated refusals of the same key from the same address are logged at most this often.
 constexpr auto kRefusalLogInterval = std::chrono::seconds{10};
@@ -140,6 +141,8 @@ class Broker::Submissions {
     std::string scene;  // the scene path, printable, for the log
     std::optional<JobManager::PreparedJob> job;
     std::string error;  // why it was refused
+    std::string user;   // the client's key
+    uint64_t bytes = 0;
   };
 
   Submissions(const JobManager& jobs, Limits limits)
@@ -153,16 +156,23 @@ class Broker::Submissions {
     thread_.join();
   }
 
-  /// Queues a submission; false when too many are being checked (in all, or from `peer`).
-  bool add(const net::PeerId& peer, std::string label, std::string user, wire::SubmitJob job) {
+  /// Queues a submission of `bytes` (its bundle's); false when too many are waiting: in all, from
+  /// `peer` or from its key `user`, or in bytes (twice the bundle limit, one always fits).
+  bool add(const net::PeerId& peer, std::string label, std::string user, wire::SubmitJob job,
+           uint64_t bytes) {
     std::lock_guard lock(mutex_);
-    if (in_flight_ >= kMaxSubmissionsInFlight || per_peer_[peer] >= kMaxSubmissionsPerPeer) {
-      if (per_peer_[peer] == 0) per_peer_.erase(peer);
+    const size_t from_peer = per_peer_.count(peer) ? per_peer_.at(peer) : 0;
+    const size_t from_key = per_key_.count(user) ? per_key_.at(user) : 0;
+    if (in_flight_ >= kMaxSubmissionsInFlight || from_peer >= kMaxSubmissionsPerPeer ||
+        from_key >= kMaxSubmissionsPerKey ||
+        (in_flight_ > 0 && bytes_ + bytes > 2 * limits_.max_bundle_bytes)) {
       return false;
     }
     ++in_flight_;
     ++per_peer_[peer];
-    queue_.push_back(Task{peer, std::move(label), std::move(user), std::move(job)});
+    ++per_key_[user];
+    bytes_ += bytes;
+    queue_.push_back(Task{peer, std::move(label), std::move(user), std::move(job), bytes});
     wake_.notify_one();
     return true;
   }
@@ -173,7 +183,9 @@ class Broker::Submissions {
     out.swap(done_);
     for (const Done& d : out) {
       --in_flight_;
+      bytes_ -= d.bytes;
       if (--per_peer_[d.peer] == 0) per_peer_.erase(d.peer);
+      if (--per_key_[d.user] == 0) per_key_.erase(d.user);
     }
     return out;
   }
@@ -194,6 +206,7 @@ class Broker::Submissions {
     std::string label;
     std::string user;
     wire::SubmitJob job;
+    uint64_t bytes = 0;
   };
   const JobManager& jobs_;
   const Limits limits_;
@@ -202,7 +215,9 @@ class Broker::Submissions {
   std::deque<Task> queue_;
   std::vector<Done> done_;
   std::map<net::PeerId, size_t> per_peer_;
+  std::map<std::string, size_t> per_key_;
   size_t in_flight_ = 0;
+  uint64_t bytes_ = 0;
   bool busy_ = false;
   bool stop_ = false;
   std::thread thread_;  // last: starts once the rest is ready
@@ -216,8 +231,8 @@ class Broker::Submissions {
       queue_.pop_front();
       busy_ = true;
       lock.unlock();
-      Done done{task.peer, std::move(task.label), protocol::printable(task.job.scene_path(), 200),
-                std::nullopt, ""};
+      Done done{task.peer,   std::move(task.label), protocol::printable(task.job.scene_path(), 200),
+                std::nullopt, "",         task.user,         task.bytes};
       try {
         // The limits come first: past one, nothing is unpacked or loaded.
         if (auto refusal = check_figures(figures_of(task.job), limits_)) {
@@ -281,6 +296,11 @@ Broker::Broker(MasterOptions options)
         JobManagerOptions o = options_.jobs;
         o.image_interval = options_.image_interval;
         o.worker_name = [this](const WorkerId& w) { return worker_label(w); };
+        o.connected_workers = [this] {
+          std::vector<std::string> out;
+          for (const auto& [peer, w] : workers_) out.push_back(w.key.empty() ? peer : w.key);
+          return out;
+        };
         return o;
       }()),
       gate_(open_gate(options_)),
@@ -464,8 +484,9 @@ void Broker::handle_worker(const net::Delivery& delivery) {
     return;
   }
   if (!msg.version_ok()) {
-    log()->warn("worker socket: refused {} ({}): it speaks protocol version {}, this master {}",
-                worker_label(peer), msg.type, msg.version, protocol::kProtocolVersion);
+    complain("worker", delivery.user,
+             fmt::format("refused {} ({}): it speaks protocol version {}, this master {}",
+                         worker_label(peer), msg.type, msg.version, protocol::kProtocolVersion));
     send_worker(peer, refusal_frames(msg.version, "worker"));
     remove_worker(peer, "refused (protocol version)");
     return;
@@ -538,8 +559,13 @@ void Broker::admit_submissions() {
   for (Submissions::Done& done : submissions_->take_done()) {
     wire::SubmitReply out;
     if (done.job) {
-      out.set_job_id(jobs_.admit(std::move(*done.job)));
-      admitted = true;
+      try {
+        out.set_job_id(jobs_.admit(std::move(*done.job)));
+        admitted = true;
+      } catch (const std::exception& e) {
+        log()->error("job refused ({}) from {}: {}", done.scene, done.label, e.what());
+        out.set_error(jobs_.for_clients(e.what()));
+      }
     } else {
       log()->warn("job refused ({}) from {}: {}", done.scene, done.label, done.error);
       out.set_error(jobs_.for_clients(done.error));
@@ -608,6 +634,9 @@ void Broker::send_bundle(const net::PeerId& peer, Worker& w, const std::string& 
     log()->warn("bundle {} not sent to {}: {}", hash.substr(0, 12), worker_label(peer), refusal);
     reply_msg.set_error(std::string("the master will not send bundle ") + hash.substr(0, 12) +
                         " now: " + refusal + "; ask again later");
+    const auto retry = std::chrono::duration_cast<std::chrono::milliseconds>(
+        w.bundle_window + kBundleWindow - now);
+    reply_msg.set_retry_after_ms(static_cast<uint32_t>(std::max<int64_t>(retry.count(), 1000)));
     send_worker(peer, encode(std::move(reply_msg)));
     return;
   }
@@ -633,8 +662,9 @@ void Broker::handle_client(const net::Delivery& delivery) {
     return;
   }
   if (!msg.version_ok()) {
-    log()->warn("client socket: refused {} ({}): it speaks protocol version {}, this master {}",
-                label, msg.type, msg.version, protocol::kProtocolVersion);
+    complain("client", delivery.user,
+             fmt::format("refused {} ({}): it speaks protocol version {}, this master {}", label,
+                         msg.type, msg.version, protocol::kProtocolVersion));
     reply(peer, refusal_frames(msg.version, "client"));
     return;
   }
@@ -654,18 +684,24 @@ void Broker::handle_client(const net::Delivery& delivery) {
     } else if (auto* submit = msg.as_mutable<wire::SubmitJob>()) {
       // Checked and stored on the submissions' thread; admitted and answered by
       // admit_submissions() once ready.
+      // The queue and the bundle's size and file count are checked here, before anything is
+      // queued; the scene's figures on the thread.
+      const SubmissionFigures figures = bundle_figures(*submit);
       std::optional<std::string> refusal =
           check_queue(jobs_.active_jobs() + submissions_->in_flight(), options_.limits);
-      wire::SubmitJob job;
-      job.Swap(submit);
-      if (!refusal && !submissions_->add(peer, label, delivery.user, std::move(job))) {
-        refusal = fmt::format(
-            "the master is busy checking other submissions ({} may wait, {} per connection); "
-            "submit again in a moment",
-            kMaxSubmissionsInFlight, kMaxSubmissionsPerPeer);
+      if (!refusal) refusal = check_figures(figures, options_.limits);
+      if (!refusal) {
+        wire::SubmitJob job;
+        job.Swap(submit);
+        if (!submissions_->add(peer, label, delivery.user, std::move(job), figures.bundle_bytes)) {
+          refusal = fmt::format(
+              "the master is busy checking other submissions (at most {} wait, {} per key, {} "
+              "per connection); submit again in a moment",
+              kMaxSubmissionsInFlight, kMaxSubmissionsPerKey, kMaxSubmissionsPerPeer);
+        }
       }
       if (refusal) {
-        log()->warn("job refused from {}: {}", label, *refusal);
+        complain("client", delivery.user, fmt::format("job refused from {}: {}", label, *refusal));
         wire::SubmitReply out;
         out.set_error(*refusal);
         reply(peer, encode(std::move(out)));
@@ -692,8 +728,9 @@ void Broker::handle_client(const net::Delivery& delivery) {
       if (owner && !may_see(*owner, delivery.user)) {
         reply(peer, error_frames(not_visible(cancel->job_id()), cancel->job_id()));
       } else if (owner && !may_manage(*owner, delivery.user)) {
-        log()->warn("{} may not cancel job {} of key '{}'; refused", label, cancel->job_id(),
-                    protocol::printable(*owner));
+        complain("client", delivery.user,
+                 fmt::format("{} may not cancel job {} of key '{}'; refused", label,
+                             protocol::printable(cancel->job_id()), protocol::printable(*owner)));
         reply(peer, error_frames(not_owner(cancel->job_id(), *owner, "cancel"), cancel->job_id()));
       } else if (auto state = jobs_.cancel(cancel->job_id())) {
         wire::CancelReply out;

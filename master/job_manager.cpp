@@ -512,7 +512,24 @@ std::string JobManager::admit(PreparedJob prepared) {
   Job job;
   job.record.spec = spec;
   bundle_owner_.emplace(hash, spec.id);
-  activate(job, std::move(prepared.reference));
+  try {
+    activate(job, std::move(prepared.reference));
+  } catch (const std::exception& e) {
+    // E.g. no memory for the job's film: it is on disk, so it is recorded as failed (and listed)
+    // rather than tried again at every start.
+    scheduler_.remove_job(spec.id);
+    job.merger.reset();
+    job.planner.reset();
+    job.tracker.reset();
+    job.record.state = wire::JOB_FAILED;
+    job.record.error = std::string("the master cannot hold the job: ") + e.what();
+    job.record.stop_reason = stop_reason_name(StopReason::kFailed);
+    log_jobs()->error("job {}: {}", spec.id, job.record.error);
+    const std::string error = job.record.error;
+    auto [it, inserted] = jobs_.emplace(spec.id, std::move(job));
+    save(it->second);
+    throw JobRejected(error);
+  }
   log_jobs()->info(
       "job {} accepted: '{}', scene {} {}x{}, {}, {}, max depth {}, seed {}; {} tiles of {} x "
       "{} passes of {} spp = {} units; bundle of {} files, {} ({}){}",
@@ -549,9 +566,10 @@ std::optional<wire::WorkUnit> JobManager::next_unit(const WorkerId& worker,
     // again to reconnecting workers must not grow without bound).
     constexpr size_t kHoldersKept = 8;
     auto& holders = job.lease_history[ref->unit];
-    if (std::find(holders.begin(), holders.end(), worker) == holders.end()) {
+    const std::pair<WorkerId, std::string> holder{worker, key};
+    if (std::find(holders.begin(), holders.end(), holder) == holders.end()) {
       if (holders.size() >= kHoldersKept) holders.erase(holders.begin());
-      holders.push_back(worker);
+      holders.push_back(holder);
     }
   }
   if (!job.started) {
@@ -589,19 +607,22 @@ MergeOutcome JobManager::on_result(const WorkerId& worker, const wire::UnitResul
   }
   Job& job = it->second;
   const UnitRef ref{id, result.unit_id()};
+  // Lines about dropped results are a peer's to cause: a burst per key, then one a second.
+  const auto level = log_budget_.take(key.empty() ? worker : key) ? spdlog::level::info
+                                                                  : spdlog::level::debug;
   if (!job.merger) {
     if (job.record.state == wire::JOB_DONE) {
-      log_merger()->info("job {} unit {}: duplicate result from {} dropped (the job is done)", id,
+      log_merger()->log(level, "job {} unit {}: duplicate result from {} dropped (the job is done)", id,
                          result.unit_id(), name_of(worker));
       return MergeOutcome::kDuplicate;
     }
-    log_merger()->info("job {} unit {}: result from {} dropped (the job is {})", id,
+    log_merger()->log(level, "job {} unit {}: result from {} dropped (the job is {})", id,
                        result.unit_id(), name_of(worker),
                        protocol::job_state_name(job.record.state));
     return MergeOutcome::kRejected;
   }
   if (job.finishing) {
-    log_merger()->info("job {} unit {}: result from {} dropped (the job's work is done)", id,
+    log_merger()->log(level, "job {} unit {}: result from {} dropped (the job's work is done)", id,
                        result.unit_id(), name_of(worker));
     return MergeOutcome::kDuplicate;
   }
@@ -613,7 +634,7 @@ MergeOutcome JobManager::on_result(const WorkerId& worker, const wire::UnitResul
     return MergeOutcome::kRejected;
   };
   if (job.merger->merged(result.unit_id())) {
-    log_merger()->info("job {} unit {}: duplicate result from {} dropped (merged before)", id,
+    log_merger()->log(level, "job {} unit {}: duplicate result from {} dropped (merged before)", id,
                        result.unit_id(), name_of(worker));
     return MergeOutcome::kDuplicate;
   }
@@ -621,7 +642,7 @@ MergeOutcome JobManager::on_result(const WorkerId& worker, const wire::UnitResul
   // a valid worker key, is dropped and counts against nobody (it cannot fail the job either).
   const auto history = job.lease_history.find(result.unit_id());
   if (history == job.lease_history.end() ||
-      std::find(history->second.begin(), history->second.end(), worker) ==
+      std::find(history->second.begin(), history->second.end(), std::pair{worker, key}) ==
           history->second.end()) {
     log_merger()->debug("job {} unit {}: result from {} dropped: the unit was never leased to it",
                         id, result.unit_id(), name_of(worker));
@@ -735,6 +756,19 @@ void JobManager::note_failure(Job& job, const WorkerId& worker, const std::strin
     log_jobs()->warn("job {}: {} blocked from the job after {} failures (last: {}); it gets "
                      "other jobs' units",
                      id, label, worker_count, why);
+    // With every connected worker blocked (one key shared by the whole farm, or a scene that
+    // fails everywhere), the job could never finish: it fails, saying why.
+    if (options_.connected_workers) {
+      const std::vector<std::string> connected = options_.connected_workers();
+      if (!connected.empty() &&
+          std::all_of(connected.begin(), connected.end(),
+                      [&](const std::string& w) { return scheduler_.is_blocked(id, w); })) {
+        finish(job, wire::JOB_FAILED,
+               fmt::format("every connected worker ({}) is blocked from the job after {} "
+                           "failures; the last: {}",
+                           connected.size(), options_.max_worker_failures, on_unit[who]));
+      }
+    }
   }
 }
 
@@ -852,9 +886,11 @@ std::string JobManager::store_final(Job& job, const JobRecord& final_record, boo
   }
   try {
     store_.save_record(final_record);
+    store_.sync_job_dir(id);  // the renames too, before the checkpoints go
   } catch (const std::exception& e) {
     return std::string("cannot save the job's record: ") + e.what();
   }
+  job.record_unsaved = false;
   return "";
 }
 

@@ -46,6 +46,10 @@ struct JobManagerOptions {
   int max_worker_failures = 3;
   /// When a slow unit is leased a second time.
   StragglerPolicy stragglers;
+  /// Who is connected now, as failures count them: each worker's key, or the worker itself
+  /// without keys. A job that every one of them is blocked from fails (it could never finish).
+  /// Unset: not checked.
+  std::function<std::vector<std::string>()> connected_workers;
 };
 
 class JobManager {
@@ -149,8 +153,9 @@ class JobManager {
     // messages; per key, how many.
     std::map<uint64_t, std::map<std::string, std::string>> unit_failures;
     std::map<std::string, int> worker_failures;
-    // Who was leased each unit not merged yet (a lost worker's late result is still its own).
-    std::unordered_map<uint64_t, std::vector<WorkerId>> lease_history;
+    // Who was leased each unit not merged yet, connection and key (a lost worker's late result is
+    // still its own; a peer that takes over its connection id with another key is not).
+    std::unordered_map<uint64_t, std::vector<std::pair<WorkerId, std::string>>> lease_history;
     // Checkpoints.
     uint64_t checkpoint_sequence = 0;
     bool checkpoint_due = false;  // merged since the last checkpoint
@@ -173,8 +178,29 @@ class JobManager {
     std::chrono::milliseconds storage_backoff{0};
   };
 
+  /// Lines a peer may cause: a burst of kBurst per key, refilled at one a second.
+  struct LogBudget {
+    static constexpr double kBurst = 32;
+    struct Bucket {
+      double tokens = kBurst;
+      Clock::time_point refilled = Clock::now();
+    };
+    std::map<std::string, Bucket> buckets;
+    bool take(const std::string& who) {
+      if (buckets.size() > 4096) buckets.clear();
+      Bucket& b = buckets[who];
+      const auto now = Clock::now();
+      b.tokens = std::min(kBurst, b.tokens + std::chrono::duration<double>(now - b.refilled).count());
+      b.refilled = now;
+      if (b.tokens < 1) return false;
+      b.tokens -= 1;
+      return true;
+    }
+  };
+
   JobStore& store_;
   JobManagerOptions options_;
+  LogBudget log_budget_;
   ImageWriter writer_;
   CheckpointWriter checkpoints_;
   Scheduler scheduler_;

@@ -53,6 +53,15 @@ uint64_t unit_result_bytes(uint64_t tile_width, uint64_t tile_height) {
   return 2 * tile_width * tile_height * 3 * 16 + kResultOverheadBytes;
 }
 
+SubmissionFigures bundle_figures(const wire::SubmitJob& request) {
+  SubmissionFigures f;
+  for (const auto& file : request.bundle().files()) {
+    f.bundle_bytes += file.data().size();
+    ++f.bundle_files;
+  }
+  return f;
+}
+
 SubmissionFigures figures_of(const wire::SubmitJob& request) {
   SubmissionFigures f;
   const std::string* scene_text = nullptr;

@@ -40,6 +40,8 @@ struct SubmissionFigures {
   uint64_t tile_size = 64;  ///< the override, or the default tile of 64 pixels
 };
 
+/// The bundle's size and file count only: cheap, no parsing (for the reactor thread).
+SubmissionFigures bundle_figures(const wire::SubmitJob& request);
 /// Reads the figures of `request`: the bundle's size, and the film size and spp from the scene
 /// file's JSON (only the "film" and "render" blocks are looked at; the whole scene is loaded
 /// later, once the limits pass).

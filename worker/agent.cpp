@@ -105,6 +105,7 @@ struct Agent::Impl {
   size_t asked = 0;                          // WorkRequests not answered yet
   std::vector<wire::WorkUnit> needs_bundle;  // units waiting for their bundle
   std::string bundle_requested;              // the hash asked for, "" when none
+  Clock::time_point bundle_retry{};          // the master said to ask again after this
   std::vector<InFlight> in_flight;
   uint64_t next_seq = 0;
   std::deque<net::Frames> outbox;  // results to send once welcomed again
@@ -326,7 +327,7 @@ struct Agent::Impl {
 
   /// Asks for the bundle of the first unit waiting for one, unless a request is out.
   void request_bundle() {
-    if (!bundle_requested.empty() || needs_bundle.empty()) return;
+    if (!bundle_requested.empty() || needs_bundle.empty() || Clock::now() < bundle_retry) return;
     const wire::WorkUnit& unit = needs_bundle.front();
     log()->info("job {}: fetching bundle {} from the master", unit.job_id(),
                 unit.bundle_hash().substr(0, 12));
@@ -342,6 +343,14 @@ struct Agent::Impl {
       return;
     }
     bundle_requested.clear();
+    if (reply.retry_after_ms() > 0) {
+      // Not refused: the master sends it later. The units keep waiting; wait_and_handle() asks
+      // again once the time has passed.
+      log()->info("the master will send bundle {} later: {}", reply.hash().substr(0, 12),
+                  reply.error());
+      bundle_retry = Clock::now() + milliseconds{std::min<uint32_t>(reply.retry_after_ms(), 60000)};
+      return;
+    }
     std::vector<wire::WorkUnit> ready;
     auto waiting = std::stable_partition(
         needs_bundle.begin(), needs_bundle.end(),
@@ -480,6 +489,10 @@ struct Agent::Impl {
 
   /// Waits up to `wait` for a render to finish or a message to arrive, and handles what came.
   void wait_and_handle(milliseconds wait) {
+    if (!needs_bundle.empty() && bundle_requested.empty()) {
+      request_bundle();  // a bundle the master said to ask for again later
+      wait = std::min(wait, milliseconds{100});
+    }
     if (!in_flight.empty()) {
       // Wait on the renders themselves, so that a result leaves the moment it is ready; what the
       // master sent meanwhile (heartbeats) is read right after.

@@ -85,11 +85,12 @@ void write_exr_file(const fs::path& file, const Image& image) {
 }
 
 /// The data window's size from the header of the EXR at `path`, read without OpenEXR (which
-/// reads a table sized by the header when it opens a file); nullopt when the first 64 KiB hold
-/// no well-formed header with a data window (OpenEXR then says what is wrong).
+/// reads a table sized by the header when it opens a file); the last one when the header has
+/// several (as OpenEXR reads it). nullopt when the first MiB holds no complete, well-formed
+/// header with a data window.
 std::optional<std::pair<int64_t, int64_t>> peek_data_window(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);
-  std::string head(65536, '\0');
+  std::string head(size_t{1} << 20, '\0');
   in.read(head.data(), static_cast<std::streamsize>(head.size()));
   head.resize(static_cast<size_t>(in.gcount()));
   auto read_i32 = [&](size_t at) {
@@ -106,18 +107,20 @@ std::optional<std::pair<int64_t, int64_t>> peek_data_window(const fs::path& path
     at = end + 1;
     return true;
   };
+  std::optional<std::pair<int64_t, int64_t>> window;
   for (;;) {
     std::string name, type;
     if (!read_name(name)) return std::nullopt;
-    if (name.empty()) return std::nullopt;  // end of the header without a data window
+    if (name.empty()) return window;  // the end of the header
     if (!read_name(type) || at + 4 > head.size()) return std::nullopt;
     const int32_t size = read_i32(at);
     at += 4;
     if (size < 0 || at + static_cast<size_t>(size) > head.size()) return std::nullopt;
-    if (name == "dataWindow" && type == "box2i" && size == 16) {
+    if (name == "dataWindow") {
+      if (type != "box2i" || size != 16) return std::nullopt;
       const int64_t x0 = read_i32(at), y0 = read_i32(at + 4), x1 = read_i32(at + 8),
                     y1 = read_i32(at + 12);
-      return std::pair{x1 - x0 + 1, y1 - y0 + 1};
+      window = std::pair{x1 - x0 + 1, y1 - y0 + 1};
     }
     at += static_cast<size_t>(size);
   }
@@ -136,10 +139,12 @@ Image read_exr_file(const fs::path& path, const ExrExpect& expect) {
                         std::to_string(expect.height));
   };
   if (expect.width != 0) {
-    if (const auto peeked = peek_data_window(path);
-        peeked && size_mismatch(peeked->first, peeked->second)) {
-      refuse_size(peeked->first, peeked->second);
+    const auto peeked = peek_data_window(path);
+    if (!peeked) {
+      fail_read(path, "not an OpenEXR file with a readable header and data window in its first "
+                      "MiB");
     }
+    if (size_mismatch(peeked->first, peeked->second)) refuse_size(peeked->first, peeked->second);
   }
   Imf::InputFile in(path.c_str());
   const Imf::Header& header = in.header();

@@ -354,7 +354,10 @@ AllowList AllowList::load(const fs::path& path, std::vector<std::string>* proble
       continue;
     }
     for (const auto& e : p.public_keys) {
-      std::string name = !e.name.empty() ? e.name : !p.name.empty() ? p.name : file.stem().string();
+      // The name is the operator's: a name on the key's line of a list file, else the file's
+      // name. A name written inside a key file is its holder's choice, and names are what
+      // ownership and --admin-clients go by, so it is not used.
+      std::string name = !e.name.empty() ? e.name : file.stem().string();
       if (p.public_keys.size() > 1 && e.name.empty())
         name.append(":").append(std::to_string(e.line));
       list.keys_.emplace(e.key, std::move(name));

@@ -161,6 +161,48 @@ TEST_F(PeerTrustTest, FailuresCountPerKeyAndOnlyForUnitsTheConnectionHolds) {
   EXPECT_NE(st->error().find("key 'k2'"), std::string::npos) << st->error();
 }
 
+TEST_F(PeerTrustTest, AJobEveryConnectedWorkerIsBlockedFromFails) {
+  // One key shared by every worker of the farm (as compose does): blocking it leaves nobody to
+  // render the job, which then fails instead of waiting forever.
+  JobManagerOptions o;
+  std::vector<std::string> connected{"shared"};
+  o.connected_workers = [&] { return connected; };
+  JobManager farm(store, o);
+  const std::string id = farm.submit(furnace_job(4, 16, 4));
+  for (const std::string conn : {"w1", "w2", "w3"}) {
+    const auto unit = farm.next_unit(conn, "shared");
+    ASSERT_TRUE(unit);
+    farm.on_unit_failed(conn, failure_of(*unit, "cannot load the scene"), "shared");
+  }
+  const auto st = farm.status(id, 3);
+  EXPECT_EQ(st->state(), wire::JOB_FAILED);
+  EXPECT_NE(st->error().find("every connected worker (1) is blocked"), std::string::npos)
+      << st->error();
+  EXPECT_NE(st->error().find("cannot load the scene"), std::string::npos) << st->error();
+  // With another key connected, the job waits for it instead.
+  connected = {"shared", "other"};
+  const std::string next = farm.submit(furnace_job(4, 16, 4));
+  for (const std::string conn : {"w1", "w2", "w3"}) {
+    const auto unit = farm.next_unit(conn, "shared");
+    ASSERT_TRUE(unit);
+    farm.on_unit_failed(conn, failure_of(*unit, "cannot load the scene"), "shared");
+  }
+  EXPECT_EQ(farm.status(next, 3)->state(), wire::JOB_RUNNING);
+  EXPECT_TRUE(farm.next_unit("w4", "other"));
+}
+
+TEST(KeyNames, AKeyIsNamedByItsFileNotByTheNameItsHolderWroteInIt) {
+  // Names decide who owns a job and who is an admin: they are the operator's, not the holder's.
+  TempDir dir;
+  const net::KeyPair keys = net::generate_key_pair();
+  const net::KeyFiles files = net::write_key_pair(dir.path() / "made", "admin", keys);
+  fs::create_directories(dir.path() / "clients");
+  fs::copy_file(files.public_file, dir.path() / "clients" / "bob.key");
+  const net::AllowList list = net::AllowList::load(dir.path() / "clients");
+  ASSERT_NE(list.find(keys.public_key), nullptr);
+  EXPECT_EQ(*list.find(keys.public_key), "bob");
+}
+
 /// `exr` with the data and display windows of its header rewritten to w x h.
 std::string claim_size(std::string exr, int32_t w, int32_t h) {
   for (const char* name : {"dataWindow", "displayWindow"}) {
@@ -499,6 +541,7 @@ TEST_F(BrokerTrustTest, ABundleIsNotSentTwiceToOneConnectionWithinAMinute) {
     ASSERT_TRUE(reply) << again->type;
     EXPECT_EQ(reply->bundle().files_size(), 0) << "a bundle was queued again";
     EXPECT_NE(reply->error().find("less than a minute ago"), std::string::npos) << reply->error();
+    EXPECT_GT(reply->retry_after_ms(), 0u) << "a worker must ask again, not fail its units";
     ++refused;
   }
   EXPECT_EQ(refused, 20);
