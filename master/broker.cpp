@@ -256,6 +256,8 @@ void Broker::register_worker(const net::PeerId& peer, const wire::Hello& hello,
   Worker& w = workers_[peer];
   w.name = hello.name().empty() ? "unnamed" : protocol::printable(hello.name());
   w.threads = hello.threads();
+  w.key_name = protocol::printable(key_name);
+  w.build = protocol::printable(hello.build());
   heard_from(w);
   w.wants = 0;
   log()->info("{} joined{}: {} threads, {}; {} worker{} connected", worker_label(peer),
@@ -332,7 +334,14 @@ void Broker::handle_worker(const net::Delivery& delivery) {
     if (const auto* result = msg.as<wire::UnitResult>()) {
       // Merged even from an unknown peer (a worker declared lost): the bits do not depend on who
       // rendered the unit, and the merger takes each unit once.
-      jobs_.on_result(peer, *result);
+      const MergeOutcome outcome = jobs_.on_result(peer, *result);
+      if (it != workers_.end() && outcome == MergeOutcome::kMerged) {
+        const auto& t = result->tile();
+        it->second.units_merged += 1;
+        it->second.samples_merged += double(t.x1() - t.x0()) * double(t.y1() - t.y0()) *
+                                     double(result->sample_end() - result->sample_begin());
+        it->second.render_seconds += std::max(0.0, result->render_seconds());
+      }
       if (it == workers_.end()) {
         send_worker(peer, error_frames("unknown worker: send Hello first"));
       }
@@ -448,6 +457,27 @@ void Broker::handle_client(const net::Delivery& delivery) {
       } else {
         reply(peer, error_frames("unknown job '" + cancel->job_id() + "'", cancel->job_id()));
       }
+    } else if (msg.as<wire::ListWorkers>()) {
+      reply(peer, encode(worker_list()));
+    } else if (const auto* remove = msg.as<wire::RemoveJob>()) {
+      try {
+        jobs_.remove(remove->job_id());
+        wire::RemoveReply out;
+        out.set_job_id(remove->job_id());
+        reply(peer, encode(std::move(out)));
+      } catch (const JobRejected& e) {
+        reply(peer, error_frames(e.what(), remove->job_id()));
+      }
+    } else if (const auto* retry = msg.as<wire::RetryJob>()) {
+      try {
+        wire::RetryReply out;
+        out.set_state(jobs_.retry(retry->job_id()));
+        out.set_job_id(retry->job_id());
+        reply(peer, encode(std::move(out)));
+        dispatch();
+      } catch (const JobRejected& e) {
+        reply(peer, error_frames(e.what(), retry->job_id()));
+      }
     } else if (const auto* fetch = msg.as<wire::FetchImage>()) {
       try {
         reply(peer, encode(jobs_.image(fetch->job_id())));
@@ -462,6 +492,24 @@ void Broker::handle_client(const net::Delivery& delivery) {
     log()->error("client socket: failed to handle {} from {}: {}", msg.type, label, e.what());
     reply(peer, error_frames(std::string("the master failed to handle the request: ") + e.what()));
   }
+}
+
+wire::WorkerList Broker::worker_list() const {
+  wire::WorkerList list;
+  const auto now = Clock::now();
+  for (const auto& [peer, w] : workers_) {
+    wire::WorkerInfo* info = list.add_workers();
+    info->set_id(net::peer_label(peer));
+    info->set_name(w.name);
+    info->set_key_name(w.key_name);
+    info->set_threads(w.threads);
+    for (const std::string& unit : jobs_.units_of(peer)) info->add_units(unit);
+    info->set_units_done(w.units_merged);
+    info->set_samples_per_second(w.render_seconds > 0 ? w.samples_merged / w.render_seconds : 0.0);
+    info->set_last_seen_seconds(std::chrono::duration<double>(now - w.heard).count());
+    info->set_build(w.build);
+  }
+  return list;
 }
 
 }  // namespace rayfarm::master

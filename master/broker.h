@@ -77,6 +77,12 @@ class Broker {
     Clock::duration forgiven{};  // time the master was busy, added to expires since `heard`
     uint32_t wants = 0;         // WorkRequests not answered yet
     uint64_t units_sent = 0;
+    // For `rayfarm workers`.
+    std::string key_name;       // its key's name on the allow-list
+    std::string build;          // its software version
+    uint64_t units_merged = 0;  // its results merged
+    double samples_merged = 0;  // their samples
+    double render_seconds = 0;  // and the time it took to render them
   };
 
   struct Gate;  // the ZAP handler and its allow-lists
@@ -94,6 +100,7 @@ class Broker {
   static std::unique_ptr<Gate> open_gate(const MasterOptions& options);
   void handle_worker(const net::Delivery& delivery);
   void handle_client(const net::Delivery& delivery);
+  wire::WorkerList worker_list() const;
   void register_worker(const net::PeerId& peer, const wire::Hello& hello,
                        const std::string& key_name);
   void remove_worker(const net::PeerId& peer, const std::string& why);

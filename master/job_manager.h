@@ -87,6 +87,15 @@ class JobManager {
 
   /// Cancels a job; the state afterwards, or nullopt when the job is unknown.
   std::optional<wire::JobState> cancel(const std::string& id);
+  /// Removes a finished (done, failed, cancelled) or unreadable job and its folder. Throws
+  /// JobRejected naming the cause: an unknown job, or one still queued or running.
+  void remove(const std::string& id);
+  /// Runs a failed or cancelled job again from its first sample, under the same id (its image
+  /// and error record start over). Returns the state afterwards (queued). Throws JobRejected
+  /// naming the cause: an unknown job, one that is done, queued or running, or unreadable.
+  wire::JobState retry(const std::string& id);
+  /// The units `worker` holds now, as "JOB/UNIT".
+  std::vector<std::string> units_of(const WorkerId& worker) const;
   /// Status of one job; nullopt when unknown. `workers_total` is the master's worker count.
   std::optional<wire::JobStatus> status(const std::string& id, uint32_t workers_total) const;
   /// Status of every job, in id order.
