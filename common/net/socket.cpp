@@ -202,7 +202,8 @@ struct Socket::Impl {
             handshake = {Handshake::kFailed,
                          "the peer closed the connection during the CURVE handshake: the "
                          "server's public key given to this side (--master-key) is probably "
-                         "wrong, or the server runs --insecure"};
+                         "wrong, or the server runs --insecure",
+                         /*peer_closed=*/true};
           } else {
             handshake = {Handshake::kFailed,
                          fmt::format("the security handshake failed ({})", zmq_strerror(value))};
