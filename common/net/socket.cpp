@@ -206,7 +206,8 @@ struct Socket::Impl {
                          /*peer_closed=*/true};
           } else {
             handshake = {Handshake::kFailed,
-                         fmt::format("the security handshake failed ({})", zmq_strerror(value))};
+                         fmt::format("the security handshake failed ({})", zmq_strerror(value)),
+                         /*peer_closed=*/true};
           }
           break;
         case ZMQ_EVENT_DISCONNECTED:

@@ -57,8 +57,9 @@ enum class Handshake {
 struct HandshakeStatus {
   Handshake state = Handshake::kPending;
   std::string detail;
-  /// kFailed because the peer closed the connection mid-handshake: a wrong server key, or a
-  /// peer (or a proxy in front of it) that is starting or stopping; retrying may succeed.
+  /// kFailed with no protocol error: the connection broke mid-handshake (the peer closed it:
+  /// a wrong server key, or a peer, or a proxy in front of it, starting or stopping); retrying
+  /// may succeed.
   bool peer_closed = false;
 };
 
