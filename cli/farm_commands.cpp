@@ -285,6 +285,7 @@ nlohmann::json status_json(const wire::JobStatus& st) {
                          : nlohmann::json(integrator_label(st.settings().integrator()))},
       {"max_depth", st.settings().max_depth()},
       {"seed", st.settings().seed()},
+      {"clamp", st.settings().clamp()},
       {"tile_size", st.tile_size()},
       {"pass_spp", st.pass_spp()},
       {"passes_done", st.passes_done()},
@@ -333,10 +334,13 @@ void print_status(const wire::JobStatus& st) {
                              st.error());
   }
   if (st.state() == wire::JOB_STATE_UNSPECIFIED) return;  // nothing else is known
-  std::cout << fmt::format("image      {}x{}, {} spp, {}, max depth {}, seed {}\n", st.width(),
+  std::cout << fmt::format("image      {}x{}, {} spp, {}, max depth {}, seed {}{}\n", st.width(),
                            st.height(), st.settings().spp(),
                            integrator_label(st.settings().integrator()), st.settings().max_depth(),
-                           st.settings().seed());
+                           st.settings().seed(),
+                           st.settings().clamp() > 0
+                               ? fmt::format(", clamp {:g} (biased)", st.settings().clamp())
+                               : "");
   std::cout << fmt::format(
       "work       tiles of {} px, passes of {} spp: {}/{} units ({:.1f}%), {} leased\n",
       st.tile_size(), st.pass_spp(), st.units_done(), st.units_total(), percent(st),
@@ -550,6 +554,7 @@ struct SubmitArgs {
   std::string name;
   bool wait = false;
   bool json = false;
+  float clamp = 0.f;
   std::string output;
   StopArgs stop;
   FilmArgs film;
@@ -578,6 +583,7 @@ int run_submit(const SubmitArgs& args) {
     o->set_integrator(protocol::integrator_to_wire(*parse_integrator(*args.integrator)));
   if (args.tile) o->set_tile_size(*args.tile);
   if (args.pass_spp) o->set_pass_spp(*args.pass_spp);
+  o->set_clamp(args.clamp);
   if (args.film.given()) {
     const auto film = args.film.resolve(load_scene(args.scene).film);
     o->set_width(film->width);
@@ -636,6 +642,7 @@ void add_submit(CLI::App& app, int& exit_code) {
                   "Samples per pass (default: automatic); does not change the image")
       ->check(CLI::PositiveNumber);
   add_film_options(cmd, args->film);
+  add_clamp_option(cmd, args->clamp);
   add_stop_options(cmd, args->stop,
                    "Reference EXR sent with the job: the error against it is measured at every pass");
   cmd->add_option("--name", args->name, "Job name (default: the scene file's name)");

@@ -28,6 +28,7 @@ struct RenderArgs {
   std::optional<uint32_t> spp, max_depth, tile, pass_spp;
   std::optional<uint64_t> seed;
   std::optional<std::string> integrator;
+  float clamp = 0.f;
   uint32_t threads = 0;
   StopArgs stop;
   FilmArgs film;
@@ -86,6 +87,7 @@ int run_render(const RenderArgs& args) {
   if (args.max_depth) settings.max_depth = *args.max_depth;
   if (args.seed) settings.seed = *args.seed;
   if (args.integrator) settings.integrator = *parse_integrator(*args.integrator);
+  settings.clamp = args.clamp;
   if (settings.spp == 0) throw std::invalid_argument("--spp must be at least 1");
 
   LocalRenderOptions options;
@@ -146,6 +148,7 @@ int run_render(const RenderArgs& args) {
       {"rayfarm:scene", std::filesystem::path(args.scene).filename().string()},
       {"rayfarm:stop", stop_reason_name(final_progress.reason)},
       {"rayfarm:est_rel_mse", fmt::format("{:.6g}", last.est_rel_mse)}};
+  if (settings.clamp > 0) attributes["rayfarm:clamp"] = fmt::format("{:g}", settings.clamp);
   std::string wrote = args.output;
   if (format == OutputFormat::kExr) {
     write_film(args.output, film, attributes);
@@ -204,6 +207,7 @@ void add_render_command(CLI::App& app, int& exit_code) {
       ->check(CLI::IsMember({"naive", "nee", "mis"}));
   cmd->add_option("--max-depth", args->max_depth, "Most scattering vertices per path");
   cmd->add_option("--seed", args->seed, "Random seed (default: the scene's)");
+  add_clamp_option(cmd, args->clamp);
   cmd->add_option("--threads", args->threads, "Threads (0 = all)")->capture_default_str();
   cmd->add_option("--tile", args->tile, "Tile size in pixels (default 64); does not change the image");
   cmd->add_option("--pass-spp", args->pass_spp, "Samples per pass (default: automatic); does not change the image");

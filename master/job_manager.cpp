@@ -376,6 +376,10 @@ std::string JobManager::submit(const wire::SubmitJob& request) {
   if (o.has_spp()) spec.settings.spp = o.spp();
   if (o.has_max_depth()) spec.settings.max_depth = o.max_depth();
   if (o.has_seed()) spec.settings.seed = o.seed();
+  if (!(o.clamp() >= 0.f) || !std::isfinite(o.clamp())) {
+    throw JobRejected(fmt::format("clamp must be 0 (off) or positive, got {}", o.clamp()));
+  }
+  spec.settings.clamp = o.clamp();
   if (o.integrator() != wire::INTEGRATOR_UNSPECIFIED) {
     try {
       spec.settings.integrator = protocol::integrator_from_wire(o.integrator());
@@ -778,13 +782,14 @@ void JobManager::finish(Job& job, wire::JobState state, const std::string& error
 void JobManager::write_image(Job& job, bool wait) {
   const JobSpec& s = job.record.spec;
   // The same attributes as `rayfarm render`, plus the job's own.
-  const std::map<std::string, std::string> attributes{
+  std::map<std::string, std::string> attributes{
       {"rayfarm:integrator", integrator_name(s.settings.integrator)},
       {"rayfarm:seed", std::to_string(s.settings.seed)},
       {"rayfarm:max_depth", std::to_string(s.settings.max_depth)},
       {"rayfarm:scene", fs::path(s.scene_path).filename().string()},
       {"rayfarm:job", s.id},
       {"rayfarm:spp_target", std::to_string(s.settings.spp)}};
+  if (s.settings.clamp > 0) attributes["rayfarm:clamp"] = fmt::format("{:g}", s.settings.clamp);
   // The same pixels as `rayfarm render` (film_to_image), written on the writer's thread.
   ImageWriter::ErrorRecord record;
   record.rows = job.rows;

@@ -59,6 +59,7 @@ json to_json(const JobRecord& r) {
               {"max_depth", s.settings.max_depth},
               {"integrator", integrator_name(s.settings.integrator)},
               {"seed", s.settings.seed},
+              {"clamp", finite_or(s.settings.clamp, 0.0)},
               {"width", s.film.width},
               {"height", s.film.height},
               {"tile_size", s.tile_size},
@@ -95,6 +96,8 @@ JobRecord from_json(const json& j) {
   if (!integrator) throw std::runtime_error("unknown integrator");
   s.settings.integrator = *integrator;
   s.settings.seed = j.at("seed").get<uint64_t>();
+  s.settings.clamp = static_cast<float>(number_or(j, "clamp", 0.0));
+  if (!(s.settings.clamp >= 0)) throw std::runtime_error("negative clamp");
   s.film.width = j.at("width").get<uint32_t>();
   s.film.height = j.at("height").get<uint32_t>();
   s.tile_size = j.at("tile_size").get<uint32_t>();

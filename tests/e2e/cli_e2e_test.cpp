@@ -11,6 +11,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <sstream>
 #include <thread>
@@ -236,6 +237,37 @@ TEST_F(CliTest, ResOverridesTheFilmLocallyAndOnTheFarmAlike) {
   EXPECT_TRUE(bit_identical(dir() / "farm.exr", local));
 }
 
+TEST_F(CliTest, ClampIsOffByDefaultRecordedWhenOnAndTheSameOnTheFarm) {
+  const fs::path scene = small_scene("cornell-box", 32);
+  const std::vector<std::string> plain{"--spp", "16", "--seed", "4"};
+  std::vector<std::string> clamped = plain;
+  clamped.insert(clamped.end(), {"--clamp", "0.5"});
+  const Image unclamped_image = read_exr(local_render(scene, plain));
+  const fs::path local = local_render(scene, clamped);
+  const Image clamped_image = read_exr(local);
+  EXPECT_EQ(unclamped_image.attributes.count("rayfarm:clamp"), 0u) << "off by default";
+  ASSERT_EQ(clamped_image.attributes.count("rayfarm:clamp"), 1u);
+  EXPECT_EQ(clamped_image.attributes.at("rayfarm:clamp"), "0.5");
+  // The unclamped image has brighter pixels than the clamp; no mean of clamped samples can.
+  EXPECT_GT(*std::max_element(unclamped_image.rgb.begin(), unclamped_image.rgb.end()), 0.5f);
+  EXPECT_LE(*std::max_element(clamped_image.rgb.begin(), clamped_image.rgb.end()), 0.5f + 1e-6f);
+  const RunResult negative = cli({"render", scene.string(), "-o", (dir() / "n.exr").string(),
+                                  "--clamp", "-1"},
+                                 false);
+  EXPECT_NE(negative.code, 0);
+  EXPECT_NE(negative.err.find("--clamp"), std::string::npos) << negative.err;
+
+  start_master();
+  start_worker();
+  std::vector<std::string> args{"submit", scene.string(), "--wait", "-o",
+                                (dir() / "farm-clamped.exr").string()};
+  args.insert(args.end(), clamped.begin(), clamped.end());
+  const RunResult r = cli(args);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(bit_identical(dir() / "farm-clamped.exr", local));
+  EXPECT_EQ(read_exr(dir() / "farm-clamped.exr").attributes.count("rayfarm:clamp"), 1u);
+}
+
 // --- With a farm ---
 
 TEST_F(CliTest, JsonOutputIsOneObjectPerLine) {
@@ -272,6 +304,11 @@ TEST_F(CliTest, JsonOutputIsOneObjectPerLine) {
   ASSERT_EQ(one.size(), 1u);
   EXPECT_EQ(one[0].at("state"), "done");
   EXPECT_EQ(one[0].at("passes_done"), one[0].at("passes_total"));
+  // Every process names its version in its first log line.
+  for (const std::string log : {master().log(), read_file(dir() / "w1.log")}) {
+    EXPECT_NE(log.substr(0, log.find('\n')).find(protocol::kBuildVersion), std::string::npos)
+        << log.substr(0, 300);
+  }
   const RunResult workers = cli({"workers", "--json"});
   ASSERT_EQ(workers.code, 0) << workers.err;
   const auto ws = json_lines(workers.out);

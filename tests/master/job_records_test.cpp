@@ -354,6 +354,56 @@ TEST_F(JobRecordsTest, AFinishedAdaptiveJobShowsThePassesItRan) {
   EXPECT_EQ(restarted.status(id, 1)->passes_done(), 3u);
 }
 
+TEST_F(JobRecordsTest, RemoveTakesOnlyFinishedJobsAndKeepsServingASharedBundle) {
+  const std::string first = jobs.submit(furnace(4, 32, 4));
+  const std::string second = jobs.submit(furnace(4, 32, 4));  // the same scene, the same bundle
+  try {
+    jobs.remove(first);
+    FAIL() << "removed a queued job";
+  } catch (const JobRejected& e) {
+    EXPECT_NE(std::string(e.what()).find("cancel it first"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(jobs.remove("j4242"), JobRejected);
+  const auto unit = jobs.next_unit("w1");
+  ASSERT_TRUE(unit);
+  ASSERT_EQ(unit->job_id(), first);
+  jobs.on_result("w1", result(*unit));
+  ASSERT_EQ(jobs.status(first, 1)->state(), wire::JOB_DONE);
+  jobs.remove(first);
+  EXPECT_FALSE(jobs.status(first, 1));
+  EXPECT_FALSE(fs::exists(store.job_dir(first)));
+  // The other job's units still find their bundle, and the ids go on.
+  EXPECT_TRUE(jobs.bundle(unit->bundle_hash()));
+  while (auto u = jobs.next_unit("w1")) jobs.on_result("w1", result(*u));
+  EXPECT_EQ(jobs.status(second, 1)->state(), wire::JOB_DONE);
+  EXPECT_NE(jobs.submit(furnace(4, 32, 4)), first);
+  // After a restart too.
+  JobStore store2(dir.path() / "data");
+  JobManager restarted(store2);
+  restarted.recover();
+  EXPECT_EQ(restarted.list(0).size(), 2u);
+}
+
+TEST_F(JobRecordsTest, RetryRunsAFailedJobAgainToTheSameImageAsAFreshOne) {
+  const std::string fresh = jobs.submit(furnace(8, 16, 4));
+  while (auto unit = jobs.next_unit("w1")) jobs.on_result("w1", result(*unit));
+  const std::string failed = jobs.submit(furnace(8, 16, 4));
+  fail_unit(failed);
+  ASSERT_EQ(jobs.status(failed, 1)->state(), wire::JOB_FAILED);
+  EXPECT_THROW(jobs.retry(fresh), JobRejected) << "a done job is not retried";
+  EXPECT_EQ(jobs.retry(failed), wire::JOB_QUEUED);
+  const auto queued = jobs.status(failed, 1);
+  EXPECT_EQ(queued->state(), wire::JOB_QUEUED);
+  EXPECT_TRUE(queued->error().empty()) << queued->error();
+  EXPECT_EQ(queued->units_done(), 0u);
+  while (auto unit = jobs.next_unit("w1")) jobs.on_result("w1", result(*unit));
+  const auto done = jobs.status(failed, 1);
+  EXPECT_EQ(done->state(), wire::JOB_DONE);
+  EXPECT_EQ(done->units_done(), jobs.status(fresh, 1)->units_done());
+  const Image a = read_exr(store.image_path(fresh)), b = read_exr(store.image_path(failed));
+  EXPECT_EQ(a.rgb, b.rgb);
+}
+
 // ---------------------------------------------------------------------------------------------
 // The ETA
 
