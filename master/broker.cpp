@@ -336,11 +336,17 @@ void Broker::handle_worker(const net::Delivery& delivery) {
       // rendered the unit, and the merger takes each unit once.
       const MergeOutcome outcome = jobs_.on_result(peer, *result);
       if (it != workers_.end() && outcome == MergeOutcome::kMerged) {
+        Worker& w = it->second;
         const auto& t = result->tile();
-        it->second.units_merged += 1;
-        it->second.samples_merged += double(t.x1() - t.x0()) * double(t.y1() - t.y0()) *
-                                     double(result->sample_end() - result->sample_begin());
-        it->second.render_seconds += std::max(0.0, result->render_seconds());
+        const auto now = Clock::now();
+        if (w.units_merged++ == 0) {
+          const double render = std::clamp(result->render_seconds(), 0.0, 3600.0);
+          w.working_since = now - std::chrono::duration_cast<Clock::duration>(
+                                      std::chrono::duration<double>(render));
+        }
+        w.last_result = now;
+        w.samples_merged += double(t.x1() - t.x0()) * double(t.y1() - t.y0()) *
+                            double(result->sample_end() - result->sample_begin());
       }
       if (it == workers_.end()) {
         send_worker(peer, error_frames("unknown worker: send Hello first"));
@@ -505,7 +511,9 @@ wire::WorkerList Broker::worker_list() const {
     info->set_threads(w.threads);
     for (const std::string& unit : jobs_.units_of(peer)) info->add_units(unit);
     info->set_units_done(w.units_merged);
-    info->set_samples_per_second(w.render_seconds > 0 ? w.samples_merged / w.render_seconds : 0.0);
+    const double working = std::chrono::duration<double>(w.last_result - w.working_since).count();
+    info->set_samples_per_second(w.units_merged > 0 && working > 0 ? w.samples_merged / working
+                                                                   : 0.0);
     info->set_last_seen_seconds(std::chrono::duration<double>(now - w.heard).count());
     info->set_build(w.build);
   }

@@ -82,7 +82,9 @@ class Broker {
     std::string build;          // its software version
     uint64_t units_merged = 0;  // its results merged
     double samples_merged = 0;  // their samples
-    double render_seconds = 0;  // and the time it took to render them
+    // From the start of its first merged unit to its last result: its rate is samples over this
+    // (units rendered at once overlap, so their render times do not add up).
+    Clock::time_point working_since, last_result;
   };
 
   struct Gate;  // the ZAP handler and its allow-lists

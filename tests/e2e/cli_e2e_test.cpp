@@ -316,6 +316,7 @@ TEST_F(CliTest, JsonOutputIsOneObjectPerLine) {
   EXPECT_EQ(ws[0].at("name"), "w1");
   EXPECT_EQ(ws[0].at("key_name"), "w1");
   EXPECT_GE(ws[0].at("units_done").get<int>(), 1);
+  EXPECT_GT(ws[0].at("samples_per_second").get<double>(), 0.0);
 }
 
 TEST_F(CliTest, WatchRidesOutAMasterRestart) {
