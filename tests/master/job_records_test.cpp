@@ -101,6 +101,7 @@ TEST(JobStoreRecords, EveryStateAndNonFiniteFiguresSurviveASaveAndALoad) {
     r.spp_mean = i % 3 ? 3.5 : kNaN;
     r.elapsed_seconds = 2.0 + static_cast<double>(i);
     r.passes_done = static_cast<uint32_t>(i);
+    r.spec.settings.clamp = i % 2 ? 0.f : 2.5f;
     r.stop_reason = i ? "cancelled" : "";
     r.error = i == 3 ? "unit 0 failed" : "";
     store.save_record(r);
@@ -118,6 +119,7 @@ TEST(JobStoreRecords, EveryStateAndNonFiniteFiguresSurviveASaveAndALoad) {
     EXPECT_EQ(r.passes_done, s.passes_done);
     EXPECT_EQ(r.elapsed_seconds, s.elapsed_seconds);
     EXPECT_EQ(r.spec.stop.target_error, s.spec.stop.target_error);
+    EXPECT_EQ(r.spec.settings.clamp, s.spec.settings.clamp);
     // Finite figures come back exactly; the others as unknown (-1, or 0 for a mean).
     EXPECT_EQ(r.est_rel_mse, std::isfinite(s.est_rel_mse) ? s.est_rel_mse : -1.0);
     EXPECT_EQ(r.ref_rel_mse, std::isfinite(s.ref_rel_mse) ? s.ref_rel_mse : -1.0);
