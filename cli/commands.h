@@ -11,8 +11,9 @@ void add_render_command(CLI::App& app, int& exit_code);
 void add_compare_command(CLI::App& app, int& exit_code);
 /// The farm's client commands (submit, status, list, watch, cancel, fetch), each with --master
 /// (default $RAYFARM_MASTER or tcp://localhost:5556), --timeout, --key and --master-key (or
-/// --insecure). Exit codes: 0 success, 1 error, 2 the job failed or was cancelled (submit --wait,
-/// watch), 3 master unreachable, 4 the master refused this client's key, 130 Ctrl-C.
+/// --insecure). Exit codes: 0 success, 1 error, 2 usage error (main.cpp), 3 master unreachable,
+/// 4 the master refused this client's key, 5 the job failed or was cancelled (submit --wait,
+/// watch), 130 Ctrl-C.
 void add_farm_commands(CLI::App& app, int& exit_code);
 /// `rayfarm keygen [-o DIR] [--name NAME]`: writes DIR/NAME.key and DIR/NAME.key_secret.
 void add_keygen_command(CLI::App& app, int& exit_code);

@@ -8,8 +8,12 @@
 #include <fmt/format.h>
 
 #include "cli/commands.h"
+#include "cli/film_option.h"
+#include "cli/output_path.h"
 #include "cli/stop_options.h"
 #include "common/image/film_output.h"
+#include "common/image/png.h"
+#include "common/protocol/version.h"
 #include "common/report/error_tracker.h"
 #include "common/scene/parser.h"
 #include "common/util/log.h"
@@ -24,8 +28,10 @@ struct RenderArgs {
   std::optional<uint32_t> spp, max_depth, tile, pass_spp;
   std::optional<uint64_t> seed;
   std::optional<std::string> integrator;
+  float clamp = 0.f;
   uint32_t threads = 0;
   StopArgs stop;
+  FilmArgs film;
 };
 
 /// "out.exr" -> "out.error.csv" and "out.error.png": the error record beside the image.
@@ -70,14 +76,18 @@ class ProgressReporter {
 
 int run_render(const RenderArgs& args) {
   auto log = get_logger("render");
+  const OutputFormat format = check_output_path(args.output);  // before any work
+  log->info("{}", protocol::kBuildVersion);
   Scene scene = load_scene(args.scene);
   for (const std::string& w : scene.warnings) log->warn("{}", w);
+  if (const auto film = args.film.resolve(scene.film)) scene.film = *film;
 
   RenderSettings settings = scene.render;
   if (args.spp) settings.spp = *args.spp;
   if (args.max_depth) settings.max_depth = *args.max_depth;
   if (args.seed) settings.seed = *args.seed;
   if (args.integrator) settings.integrator = *parse_integrator(*args.integrator);
+  settings.clamp = args.clamp;
   if (settings.spp == 0) throw std::invalid_argument("--spp must be at least 1");
 
   LocalRenderOptions options;
@@ -138,7 +148,14 @@ int run_render(const RenderArgs& args) {
       {"rayfarm:scene", std::filesystem::path(args.scene).filename().string()},
       {"rayfarm:stop", stop_reason_name(final_progress.reason)},
       {"rayfarm:est_rel_mse", fmt::format("{:.6g}", last.est_rel_mse)}};
-  write_film(args.output, film, attributes);
+  if (settings.clamp > 0) attributes["rayfarm:clamp"] = fmt::format("{:g}", settings.clamp);
+  std::string wrote = args.output;
+  if (format == OutputFormat::kExr) {
+    write_film(args.output, film, attributes);
+    wrote += " and " + preview_path(args.output).string();
+  } else {
+    write_png_preview(args.output, film_to_image(film, attributes));
+  }
   write_error_csv(error_csv_path(args.output), tracker.rows());
   write_error_plot(error_plot_path(args.output), tracker.rows(),
                    fmt::format("{} ({}, {})", std::filesystem::path(args.scene).filename().string(),
@@ -147,8 +164,7 @@ int run_render(const RenderArgs& args) {
 
   const double samples = static_cast<double>(film.pixel_samples());
   const double spp_mean = samples / (double(scene.film.width) * scene.film.height);
-  std::cout << fmt::format("wrote {} and {}; error record {} and {}\n", args.output,
-                           preview_path(args.output).string(),
+  std::cout << fmt::format("wrote {}; error record {} and {}\n", wrote,
                            error_csv_path(args.output).string(),
                            error_plot_path(args.output).string());
   std::cout << fmt::format("time {:.3f} s, {:.3f} Msamples/s, {:.3f} Mrays/s, {:.2f} spp/s at {}x{}\n",
@@ -182,15 +198,20 @@ void add_render_command(CLI::App& app, int& exit_code) {
   auto args = std::make_shared<RenderArgs>();
   CLI::App* cmd = app.add_subcommand("render", "Render a scene on this machine to an EXR (+ PNG preview)");
   cmd->add_option("scene", args->scene, "Scene file (JSON)")->required();
-  cmd->add_option("-o,--output", args->output, "Output EXR file")->required();
+  cmd->add_option("-o,--output", args->output,
+                  "Output: x.exr (float EXR, and an sRGB preview x.png beside it) or x.png (the "
+                  "preview alone); checked before rendering")
+      ->required();
   cmd->add_option("--spp", args->spp, "Samples per pixel (default: the scene's)");
   cmd->add_option("--integrator", args->integrator, "naive, nee or mis (default: the scene's)")
       ->check(CLI::IsMember({"naive", "nee", "mis"}));
   cmd->add_option("--max-depth", args->max_depth, "Most scattering vertices per path");
   cmd->add_option("--seed", args->seed, "Random seed (default: the scene's)");
+  add_clamp_option(cmd, args->clamp);
   cmd->add_option("--threads", args->threads, "Threads (0 = all)")->capture_default_str();
   cmd->add_option("--tile", args->tile, "Tile size in pixels (default 64); does not change the image");
   cmd->add_option("--pass-spp", args->pass_spp, "Samples per pass (default: automatic); does not change the image");
+  add_film_options(cmd, args->film);
   add_stop_options(cmd, args->stop, "Reference EXR: the error against it is measured at every pass");
   cmd->callback([args, &exit_code] {
     try {

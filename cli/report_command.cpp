@@ -10,6 +10,7 @@
 #include <vector>
 
 #include <fmt/format.h>
+#include <nlohmann/json.hpp>
 
 #include "cli/commands.h"
 #include "cli/farm_client.h"
@@ -28,6 +29,10 @@ struct ReportArgs {
   std::string target;
   std::string output;  ///< -o; "" = the default
   JobFetcher fetch;
+  bool json = false;  ///< rows as JSON lines on stdout; the other lines go to stderr
+
+  /// Where the lines besides the rows go.
+  std::ostream& text() const { return json ? std::cerr : std::cout; }
 };
 
 /// A CSV path rather than a job id: an existing file, a .csv name, or anything with a folder.
@@ -64,7 +69,28 @@ std::string summary_line(const std::vector<ErrorRow>& rows) {
   return line;
 }
 
-void print_report(const std::vector<ErrorRow>& rows) {
+nlohmann::json optional_figure(const std::optional<double>& v) {
+  return v ? nlohmann::json(*v) : nlohmann::json(nullptr);
+}
+
+void print_report(const std::vector<ErrorRow>& rows, const ReportArgs& args) {
+  if (args.json) {
+    for (const ErrorRow& r : rows) {
+      std::cout << nlohmann::json{{"time_s", r.time_s},
+                                  {"spp", r.spp},
+                                  {"samples_per_s", r.samples_per_s},
+                                  {"est_rel_mse", r.est_rel_mse},
+                                  {"est_rmse", r.est_rmse},
+                                  {"ref_rel_mse", optional_figure(r.ref_rel_mse)},
+                                  {"ref_rmse", optional_figure(r.ref_rmse)},
+                                  {"ref_mae", optional_figure(r.ref_mae)},
+                                  {"ref_max", optional_figure(r.ref_max)}}
+                       .dump()
+                << "\n";
+    }
+    std::cerr << summary_line(rows) << "\n";
+    return;
+  }
   std::cout << format_error_table(rows) << summary_line(rows) << "\n";
 }
 
@@ -75,10 +101,10 @@ int report_file(const ReportArgs& args) {
     std::cerr << fmt::format("rayfarm report: error: {} has no rows yet\n", csv.string());
     return kExitError;
   }
-  print_report(rows);
+  print_report(rows, args);
   if (!args.output.empty()) {
     write_error_plot(args.output, rows, csv.string());
-    std::cout << fmt::format("plot: {}\n", args.output);
+    args.text() << fmt::format("plot: {}\n", args.output);
     return 0;
   }
   // The plot the render wrote beside its error.csv.
@@ -86,9 +112,9 @@ int report_file(const ReportArgs& args) {
   beside.replace_extension(".png");
   std::error_code ec;
   if (fs::exists(beside, ec)) {
-    std::cout << fmt::format("plot: {}\n", beside.string());
+    args.text() << fmt::format("plot: {}\n", beside.string());
   } else {
-    std::cout << fmt::format("plot: none beside {} (draw one with -o PLOT.png)\n", csv.string());
+    args.text() << fmt::format("plot: none beside {} (draw one with -o PLOT.png)\n", csv.string());
   }
   return 0;
 }
@@ -123,8 +149,8 @@ int report_job(const ReportArgs& args) {
               << job_line(st) << "\n";
     return kExitError;
   }
-  print_report(rows);
-  std::cout << job_line(st) << "\n";
+  print_report(rows, args);
+  args.text() << job_line(st) << "\n";
 
   const fs::path plot = args.output.empty() ? args.target + "-error.png" : args.output;
   if (!job.image->error_png().empty()) {
@@ -132,7 +158,7 @@ int report_job(const ReportArgs& args) {
   } else {
     write_error_plot(plot, rows, fmt::format("job {} {}", st.job_id(), st.name()));
   }
-  std::cout << fmt::format("plot: {}\n", plot.string());
+  args.text() << fmt::format("plot: {}\n", plot.string());
   return 0;
 }
 
@@ -148,6 +174,8 @@ void add_report_command(CLI::App& app, int& exit_code) {
                   "Plot to write (PNG). Default for a job: JOB-error.png here; for a file: "
                   "none, the error.png beside it is shown");
   args->fetch = add_job_fetch_options(cmd);
+  cmd->add_flag("--json", args->json,
+                "The rows as JSON, one object per line (docs/cli.md); the summary goes to stderr");
   cmd->callback([args, &exit_code] {
     exit_code = run_farm_command("report", [&] {
       return is_local_file(args->target) ? report_file(*args) : report_job(*args);

@@ -27,6 +27,14 @@ struct StopArgs {
   }
 };
 
+/// --clamp: off by default; when on, the image is biased (docs/error.md) and says so in its header.
+inline void add_clamp_option(CLI::App* cmd, float& clamp) {
+  cmd->add_option("--clamp", clamp,
+                  "Scale down any sample whose largest component exceeds this: fewer fireflies, "
+                  "but biased (recorded in the EXR as rayfarm:clamp; 0 = off, the default)")
+      ->check(CLI::NonNegativeNumber);
+}
+
 /// --reference (described by `reference_help`), --target-error, --time-limit, --no-adaptive,
 /// --min-passes.
 inline void add_stop_options(CLI::App* cmd, StopArgs& args, const std::string& reference_help) {

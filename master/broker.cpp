@@ -298,7 +298,7 @@ Broker::Broker(MasterOptions options)
         o.worker_name = [this](const WorkerId& w) { return worker_label(w); };
         o.connected_workers = [this] {
           std::vector<std::string> out;
-          for (const auto& [peer, w] : workers_) out.push_back(w.key.empty() ? peer : w.key);
+          for (const auto& [peer, w] : workers_) out.push_back(w.key_name.empty() ? peer : w.key_name);
           return out;
         };
         return o;
@@ -423,7 +423,8 @@ void Broker::register_worker(const net::PeerId& peer, const wire::Hello& hello,
   Worker& w = workers_[peer];
   w.name = hello.name().empty() ? "unnamed" : protocol::printable(hello.name());
   w.threads = hello.threads();
-  w.key = key_name;
+  w.key_name = key_name;  // as the ZAP handler named it: leases and failures go by it
+  w.build = protocol::printable(hello.build());
   heard_from(w);
   w.wants = 0;
   log()->info("{} joined{}: {} threads, {}; {} worker{} connected", worker_label(peer),
@@ -458,7 +459,7 @@ void Broker::dispatch() {
     sent = false;
     for (auto& [peer, w] : workers_) {
       if (w.wants == 0) continue;
-      auto unit = jobs_.next_unit(peer, w.key);
+      auto unit = jobs_.next_unit(peer, w.key_name);
       if (!unit) continue;  // e.g. blocked from the jobs that have units
       if (!workers_socket_.send(peer, encode(std::move(*unit)))) {
         unreachable.push_back(peer);
@@ -503,12 +504,26 @@ void Broker::handle_worker(const net::Delivery& delivery) {
       // Merged only when this connection was leased the unit; it may have been declared lost
       // since (its late result still counts: the bits do not depend on who rendered the unit,
       // and the merger takes each unit once).
-      if (jobs_.on_result(peer, *result, delivery.user) == MergeOutcome::kUnleased) {
+      const MergeOutcome outcome = jobs_.on_result(peer, *result, delivery.user);
+      if (outcome == MergeOutcome::kUnleased) {
         complain("worker", delivery.user,
                  fmt::format("dropped a result for job {} unit {} from {}: no such job, or the "
                              "unit was never leased to it",
                              protocol::printable(result->job_id()), result->unit_id(),
                              worker_label(peer)));
+      }
+      if (it != workers_.end() && outcome == MergeOutcome::kMerged) {
+        Worker& w = it->second;
+        const auto& t = result->tile();
+        const auto now = Clock::now();
+        if (w.units_merged++ == 0) {
+          const double render = std::clamp(result->render_seconds(), 0.0, 3600.0);
+          w.working_since = now - std::chrono::duration_cast<Clock::duration>(
+                                      std::chrono::duration<double>(render));
+        }
+        w.last_result = now;
+        w.samples_merged += double(t.x1() - t.x0()) * double(t.y1() - t.y0()) *
+                            double(result->sample_end() - result->sample_begin());
       }
       if (it == workers_.end()) {
         send_worker(peer, error_frames("unknown worker: send Hello first"));
@@ -567,7 +582,8 @@ void Broker::admit_submissions() {
         out.set_error(jobs_.for_clients(e.what()));
       }
     } else {
-      log()->warn("job refused ({}) from {}: {}", done.scene, done.label, done.error);
+      log()->log(refusal_log_.take(done.user) ? spdlog::level::warn : spdlog::level::debug,
+                 "job refused ({}) from {}: {}", done.scene, done.label, done.error);
       out.set_error(jobs_.for_clients(done.error));
     }
     reply(done.peer, encode(std::move(out)));
@@ -669,6 +685,22 @@ void Broker::handle_client(const net::Delivery& delivery) {
     return;
   }
   const uint32_t worker_count = static_cast<uint32_t>(workers_.size());
+  // Only the job's owner or an admin may change it; a key that may not even see it is told the
+  // job is unknown. True when the request was refused (and answered).
+  auto refuse_unless_manager = [&](const std::string& id, const char* action) {
+    const std::string* owner = jobs_.owner_of(id);
+    if (!owner) return false;  // unknown: the handler says so
+    if (!may_see(*owner, delivery.user)) {
+      reply(peer, error_frames(not_visible(id), id));
+      return true;
+    }
+    if (may_manage(*owner, delivery.user)) return false;
+    complain("client", delivery.user,
+             fmt::format("{} may not {} job {} of key '{}'; refused", label, action,
+                         protocol::printable(id), protocol::printable(*owner)));
+    reply(peer, error_frames(not_owner(id, *owner, action), id));
+    return true;
+  };
   try {
     if (const auto* hello = msg.as<wire::Hello>()) {
       if (hello->role() == wire::ROLE_WORKER) {
@@ -701,7 +733,8 @@ void Broker::handle_client(const net::Delivery& delivery) {
         }
       }
       if (refusal) {
-        complain("client", delivery.user, fmt::format("job refused from {}: {}", label, *refusal));
+        log()->log(refusal_log_.take(delivery.user) ? spdlog::level::warn : spdlog::level::debug,
+                   "job refused from {}: {}", label, *refusal);
         wire::SubmitReply out;
         out.set_error(*refusal);
         reply(peer, encode(std::move(out)));
@@ -724,21 +757,37 @@ void Broker::handle_client(const net::Delivery& delivery) {
       }
       reply(peer, encode(std::move(list)));
     } else if (const auto* cancel = msg.as<wire::CancelJob>()) {
-      const std::string* owner = jobs_.owner_of(cancel->job_id());
-      if (owner && !may_see(*owner, delivery.user)) {
-        reply(peer, error_frames(not_visible(cancel->job_id()), cancel->job_id()));
-      } else if (owner && !may_manage(*owner, delivery.user)) {
-        complain("client", delivery.user,
-                 fmt::format("{} may not cancel job {} of key '{}'; refused", label,
-                             protocol::printable(cancel->job_id()), protocol::printable(*owner)));
-        reply(peer, error_frames(not_owner(cancel->job_id(), *owner, "cancel"), cancel->job_id()));
-      } else if (auto state = jobs_.cancel(cancel->job_id())) {
+      if (refuse_unless_manager(cancel->job_id(), "cancel")) return;
+      if (auto state = jobs_.cancel(cancel->job_id())) {
         wire::CancelReply out;
         out.set_job_id(cancel->job_id());
         out.set_state(*state);
         reply(peer, encode(std::move(out)));
       } else {
         reply(peer, error_frames("unknown job '" + protocol::printable(cancel->job_id()) + "'", cancel->job_id()));
+      }
+    } else if (msg.as<wire::ListWorkers>()) {
+      reply(peer, encode(worker_list()));
+    } else if (const auto* remove = msg.as<wire::RemoveJob>()) {
+      if (refuse_unless_manager(remove->job_id(), "remove")) return;
+      try {
+        jobs_.remove(remove->job_id());
+        wire::RemoveReply out;
+        out.set_job_id(remove->job_id());
+        reply(peer, encode(std::move(out)));
+      } catch (const JobRejected& e) {
+        reply(peer, error_frames(jobs_.for_clients(e.what()), remove->job_id()));
+      }
+    } else if (const auto* retry = msg.as<wire::RetryJob>()) {
+      if (refuse_unless_manager(retry->job_id(), "retry")) return;
+      try {
+        wire::RetryReply out;
+        out.set_state(jobs_.retry(retry->job_id()));
+        out.set_job_id(retry->job_id());
+        reply(peer, encode(std::move(out)));
+        dispatch();
+      } catch (const JobRejected& e) {
+        reply(peer, error_frames(jobs_.for_clients(e.what()), retry->job_id()));
       }
     } else if (const auto* fetch = msg.as<wire::FetchImage>()) {
       const std::string* owner = jobs_.owner_of(fetch->job_id());
@@ -761,6 +810,26 @@ void Broker::handle_client(const net::Delivery& delivery) {
     reply(peer, error_frames(jobs_.for_clients(
                     std::string("the master failed to handle the request: ") + e.what())));
   }
+}
+
+wire::WorkerList Broker::worker_list() const {
+  wire::WorkerList list;
+  const auto now = Clock::now();
+  for (const auto& [peer, w] : workers_) {
+    wire::WorkerInfo* info = list.add_workers();
+    info->set_id(net::peer_label(peer));
+    info->set_name(w.name);
+    info->set_key_name(protocol::printable(w.key_name));
+    info->set_threads(w.threads);
+    for (const std::string& unit : jobs_.units_of(peer)) info->add_units(unit);
+    info->set_units_done(w.units_merged);
+    const double working = std::chrono::duration<double>(w.last_result - w.working_since).count();
+    info->set_samples_per_second(w.units_merged > 0 && working > 0 ? w.samples_merged / working
+                                                                   : 0.0);
+    info->set_last_seen_seconds(std::chrono::duration<double>(now - w.heard).count());
+    info->set_build(w.build);
+  }
+  return list;
 }
 
 }  // namespace rayfarm::master

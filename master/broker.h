@@ -22,6 +22,7 @@
 #include "master/job_manager.h"
 #include "master/job_store.h"
 #include "master/limits.h"
+#include "master/log_budget.h"
 
 namespace rayfarm::master {
 
@@ -77,7 +78,6 @@ class Broker {
   using Clock = std::chrono::steady_clock;
   struct Worker {
     std::string name;
-    std::string key;  // the name of the key it connected with ("" without CURVE)
     uint32_t threads = 0;
     Clock::time_point heard;    // its last message
     Clock::time_point expires;  // declared lost when silent until then
@@ -88,6 +88,14 @@ class Broker {
     std::map<std::string, Clock::time_point> bundles_sent;
     Clock::time_point bundle_window;
     uint64_t bundle_bytes = 0;
+    // For `rayfarm workers`.
+    std::string key_name;       // its key's name on the allow-list
+    std::string build;          // its software version
+    uint64_t units_merged = 0;  // its results merged
+    double samples_merged = 0;  // their samples
+    // From the start of its first merged unit to its last result: its rate is samples over this
+    // (units rendered at once overlap, so their render times do not add up).
+    Clock::time_point working_since, last_result;
   };
 
   struct Gate;  // the ZAP handler and its allow-lists
@@ -104,6 +112,7 @@ class Broker {
     bool should_log(const std::string& who, uint64_t& unlogged);
   };
   Complaints complaints_;
+  LogBudget refusal_log_;  // lines about refused submissions, per key
 
   class Submissions;  // checks and stores submissions on a thread of its own
 
@@ -126,6 +135,7 @@ class Broker {
   void admit_submissions();
   /// Logs a complaint about a peer's message, rate-limited per socket and key (Complaints).
   void complain(const std::string& socket, const std::string& key, const std::string& text);
+  wire::WorkerList worker_list() const;
   void register_worker(const net::PeerId& peer, const wire::Hello& hello,
                        const std::string& key_name);
   void remove_worker(const net::PeerId& peer, const std::string& why);

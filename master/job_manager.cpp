@@ -1,5 +1,7 @@
 #include "master/job_manager.h"
 
+#include "master/eta.h"
+
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
@@ -71,19 +73,6 @@ std::string describe_stop(const StopRules& stop, uint32_t spp) {
   }
   if (stop.time_limit_s > 0) out += fmt::format(", time limit {:g} s", stop.time_limit_s);
   return out;
-}
-
-/// Seconds left: to the last sample, or to the target error (relMSE falls as 1/t) or the time
-/// limit when one of those comes first.
-double estimate_eta(const JobSpec& s, double remaining_samples, double rate, double seconds,
-                    double est_rel_mse) {
-  double eta = rate > 0 ? remaining_samples / rate : 0.0;
-  if (s.stop.target_error > 0 && est_rel_mse > s.stop.target_error && seconds > 0 &&
-      std::isfinite(est_rel_mse)) {
-    eta = std::min(eta, seconds * (est_rel_mse / s.stop.target_error - 1.0));
-  }
-  if (s.stop.time_limit_s > 0) eta = std::min(eta, std::max(0.0, s.stop.time_limit_s - seconds));
-  return eta;
 }
 
 /// What a client is told when the master cannot store its job (the cause, without the master's
@@ -162,6 +151,7 @@ void JobManager::activate(Job& job, std::optional<Image> preloaded) {
   job.unit_failures.clear();
   job.worker_failures.clear();
   job.lease_history.clear();
+  job.all_blocked_since.reset();
   job.checkpoint_due = false;
   job.last_checkpoint = Clock::now();
   job.rounds_recorded = 0;
@@ -175,9 +165,13 @@ size_t JobManager::recover() {
   size_t restarted = 0;
   for (JobRecord& record : store_.load_records()) {
     const std::string id = record.spec.id;
-    bundle_owner_.emplace(record.spec.bundle_hash, id);
     Job job;
     job.record = std::move(record);
+    if (job.record.unreadable) {  // listed as it is, with its cause; never saved over
+      jobs_.emplace(id, std::move(job));
+      continue;
+    }
+    bundle_owner_.emplace(job.record.spec.bundle_hash, id);
     if (is_active_state(job.record.state)) {
       if (!store_.load_bundle(id)) {
         job.record.state = wire::JOB_FAILED;
@@ -436,6 +430,10 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
   if (o.has_spp()) spec.settings.spp = o.spp();
   if (o.has_max_depth()) spec.settings.max_depth = o.max_depth();
   if (o.has_seed()) spec.settings.seed = o.seed();
+  if (!(o.clamp() >= 0.f) || !std::isfinite(o.clamp())) {
+    throw JobRejected(fmt::format("clamp must be 0 (off) or positive, got {}", o.clamp()));
+  }
+  spec.settings.clamp = o.clamp();
   if (o.integrator() != wire::INTEGRATOR_UNSPECIFIED) {
     try {
       spec.settings.integrator = protocol::integrator_from_wire(o.integrator());
@@ -457,6 +455,13 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
   }
   spec.pass_spp = o.pass_spp() == 0 ? default_pass_spp(spec.tile_size, spec.settings.spp)
                                     : std::min(o.pass_spp(), spec.settings.spp);
+  if (o.width() != 0 || o.height() != 0) {
+    if (o.width() == 0 || o.height() == 0) {
+      throw JobRejected(fmt::format("the film override needs a width and a height, got {}x{}",
+                                    o.width(), o.height()));
+    }
+    spec.film = {o.width(), o.height()};
+  }
   if (spec.film.width == 0 || spec.film.height == 0) throw JobRejected("the scene's film is empty");
   spec.stop.target_error = o.target_error();
   spec.stop.time_limit_s = o.time_limit_s();
@@ -591,6 +596,8 @@ std::optional<wire::WorkUnit> JobManager::next_unit(const WorkerId& worker,
   out.set_bundle_hash(s.bundle_hash);
   out.set_scene_path(s.scene_path);
   out.set_pass(u.pass);
+  out.set_film_width(s.film.width);  // the job's film, which may override the scene's
+  out.set_film_height(s.film.height);
   log_scheduler()->debug("job {} unit {} (pass {}) leased to {}", s.id, u.id, u.pass,
                          name_of(worker));
   return out;
@@ -687,8 +694,8 @@ void JobManager::on_round_done(Job& job) {
   record_row(job);
   const ErrorRow& row = job.rows.back();
   const double eta = estimate_eta(
-      s, static_cast<double>(m.grid().samples_total() - m.samples_merged()), row.samples_per_s,
-      seconds, row.est_rel_mse);
+      s.stop, static_cast<double>(m.grid().samples_total() - m.samples_merged()),
+      row.samples_per_s, seconds, job.rows);
   // The per-tile figure: the tile with the largest estimated error, and where it is.
   const TiledErrorEstimate& tiles = job.tracker->estimate();
   const int worst_tile = tiles.worst_tile();
@@ -756,20 +763,38 @@ void JobManager::note_failure(Job& job, const WorkerId& worker, const std::strin
     log_jobs()->warn("job {}: {} blocked from the job after {} failures (last: {}); it gets "
                      "other jobs' units",
                      id, label, worker_count, why);
-    // With every connected worker blocked (one key shared by the whole farm, or a scene that
-    // fails everywhere), the job could never finish: it fails, saying why.
-    if (options_.connected_workers) {
-      const std::vector<std::string> connected = options_.connected_workers();
-      if (!connected.empty() &&
-          std::all_of(connected.begin(), connected.end(),
-                      [&](const std::string& w) { return scheduler_.is_blocked(id, w); })) {
-        finish(job, wire::JOB_FAILED,
-               fmt::format("every connected worker ({}) is blocked from the job after {} "
-                           "failures; the last: {}",
-                           connected.size(), options_.max_worker_failures, on_unit[who]));
-      }
-    }
+    fail_if_nobody_can_render(job, Clock::now());
   }
+}
+
+bool JobManager::fail_if_nobody_can_render(Job& job, Clock::time_point now) {
+  // With every connected worker blocked (one key shared by the whole farm, or a scene that fails
+  // everywhere), the job could never finish: once that has lasted the grace, it fails.
+  const std::string& id = job.record.spec.id;
+  if (!job.merger || job.finishing || job.worker_failures.empty() || !options_.connected_workers) {
+    return false;
+  }
+  const std::vector<std::string> connected = options_.connected_workers();
+  const bool all_blocked =
+      !connected.empty() && std::all_of(connected.begin(), connected.end(), [&](const auto& w) {
+        return scheduler_.is_blocked(id, w);
+      });
+  if (!all_blocked) {
+    job.all_blocked_since.reset();
+    return false;
+  }
+  if (!job.all_blocked_since) job.all_blocked_since = now;
+  if (now - *job.all_blocked_since < options_.blocked_grace) return false;
+  std::string last;
+  for (const auto& [unit, on_unit] : job.unit_failures) {
+    for (const auto& [who, message] : on_unit) last = message;
+  }
+  finish(job, wire::JOB_FAILED,
+         fmt::format("every connected worker ({}) has been blocked from the job for {:g} s after "
+                     "{} failures each; the last: {}",
+                     connected.size(), options_.blocked_grace.count() / 1000.0,
+                     options_.max_worker_failures, last));
+  return true;
 }
 
 size_t JobManager::release_worker(const WorkerId& worker) {
@@ -789,6 +814,77 @@ std::optional<wire::JobState> JobManager::cancel(const std::string& id) {
   if (it == jobs_.end()) return std::nullopt;
   if (it->second.merger) finish(it->second, wire::JOB_CANCELLED, "cancelled by a client");
   return it->second.record.state;
+}
+
+void JobManager::remove(const std::string& id) {
+  auto it = jobs_.find(id);
+  if (it == jobs_.end()) throw JobRejected("unknown job '" + id + "'");
+  Job& job = it->second;
+  if (job.merger) {
+    throw JobRejected(fmt::format("job {} is {}: cancel it first", id,
+                                  protocol::job_state_name(job.record.state)));
+  }
+  writer_.flush();  // no image of it is still on its way to the folder
+  std::error_code ec;
+  fs::remove_all(store_.job_dir(id), ec);
+  if (ec) {
+    throw JobRejected(fmt::format("cannot remove {}: {}", store_.job_dir(id).string(), ec.message()));
+  }
+  const std::string hash = job.record.spec.bundle_hash;
+  jobs_.erase(it);
+  // Bundles are served by a job that has them: another one with the same scene, if any.
+  auto owner = bundle_owner_.find(hash);
+  if (owner != bundle_owner_.end() && owner->second == id) {
+    bundle_owner_.erase(owner);
+    for (const auto& [other, j] : jobs_) {
+      if (!j.record.unreadable && j.record.spec.bundle_hash == hash) {
+        bundle_owner_.emplace(hash, other);
+        break;
+      }
+    }
+  }
+  log_jobs()->info("job {} removed with its files", id);
+}
+
+wire::JobState JobManager::retry(const std::string& id) {
+  auto it = jobs_.find(id);
+  if (it == jobs_.end()) throw JobRejected("unknown job '" + id + "'");
+  Job& job = it->second;
+  const wire::JobState state = job.record.state;
+  if (job.record.unreadable) {
+    throw JobRejected("job " + id + " cannot be retried: " + job.record.error);
+  }
+  if (state != wire::JOB_FAILED && state != wire::JOB_CANCELLED) {
+    throw JobRejected(fmt::format("job {} is {}: only a failed or cancelled job can be retried{}",
+                                  id, protocol::job_state_name(state),
+                                  state == wire::JOB_DONE ? " (submit it again to render more)" : ""));
+  }
+  if (!store_.load_bundle(id)) {
+    throw JobRejected("job " + id + " cannot be retried: its bundle is missing from the data dir");
+  }
+  writer_.flush();
+  for (const char* name : {"image.exr", "image.png", "error.csv", "error.png"}) {
+    std::error_code ec;
+    fs::remove(store_.job_dir(id) / name, ec);
+  }
+  JobRecord& r = job.record;
+  const JobSpec spec = r.spec;
+  r = JobRecord{};
+  r.spec = spec;
+  job.contributors.clear();
+  job.storage_error.clear();
+  job.record_unsaved = false;
+  activate(job);
+  save(job);
+  log_jobs()->info("job {} queued again ('{}'): retried after it {}", id, spec.name,
+                   state == wire::JOB_FAILED ? "failed" : "was cancelled");
+  return job.record.state;
+}
+
+std::vector<std::string> JobManager::units_of(const WorkerId& worker) const {
+  std::vector<std::string> out;
+  for (const UnitRef& u : scheduler_.leased_units(worker)) out.push_back(fmt::format("{}/{}", u.job, u.unit));
+  return out;
 }
 
 void JobManager::finish(Job& job, wire::JobState state, const std::string& error,
@@ -816,6 +912,9 @@ void JobManager::finish(Job& job, wire::JobState state, const std::string& error
     JobRecord& r = final_record;
     r.units_done = job.merger->merged_count();
     r.spp_min = job.merger->min_spp();
+    // Leading passes every pixel has (a converged tile skips the later ones).
+    r.passes_done = r.spp_min >= s.settings.spp ? job.merger->grid().pass_count()
+                                                : r.spp_min / std::max<uint32_t>(1, s.pass_spp);
     r.spp_mean = static_cast<double>(job.merger->samples_merged()) /
                  (double(s.film.width) * s.film.height);
     r.tiles_converged = job.planner->tiles_converged();
@@ -911,13 +1010,14 @@ void JobManager::storage_failed(Job& job, const std::string& what) {
 void JobManager::write_image(Job& job, bool wait) {
   const JobSpec& s = job.record.spec;
   // The same attributes as `rayfarm render`, plus the job's own.
-  const std::map<std::string, std::string> attributes{
+  std::map<std::string, std::string> attributes{
       {"rayfarm:integrator", integrator_name(s.settings.integrator)},
       {"rayfarm:seed", std::to_string(s.settings.seed)},
       {"rayfarm:max_depth", std::to_string(s.settings.max_depth)},
       {"rayfarm:scene", fs::path(s.scene_path).filename().string()},
       {"rayfarm:job", s.id},
       {"rayfarm:spp_target", std::to_string(s.settings.spp)}};
+  if (s.settings.clamp > 0) attributes["rayfarm:clamp"] = fmt::format("{:g}", s.settings.clamp);
   // The same pixels as `rayfarm render` (film_to_image), written on the writer's thread.
   ImageWriter::ErrorRecord record;
   record.rows = job.rows;
@@ -956,6 +1056,7 @@ void JobManager::tick() {
       continue;
     }
     if (job.finishing) continue;
+    if (fail_if_nobody_can_render(job, now)) continue;
     if (job.merger) {
       // Failures of the writer threads show in the job's status until a later write succeeds.
       std::string failure = writer_.failure(store_.image_path(id));
@@ -983,6 +1084,7 @@ size_t JobManager::active_jobs() const {
 }
 
 bool JobManager::save(Job& job) {
+  if (job.record.unreadable) return true;  // its job.json stays as it is, for a look
   try {
     store_.save_record(job.record);
   } catch (const std::exception& e) {
@@ -1024,6 +1126,14 @@ wire::JobStatus JobManager::make_status(const Job& job, uint32_t workers_total) 
   st.set_name(s.name);
   st.set_owner(s.owner);
   st.set_state(job.record.state);
+  if (job.record.unreadable) {  // only its id and what is wrong are known
+    st.set_error(job.record.error);
+    st.set_est_rel_mse(-1.0);
+    st.set_ref_rel_mse(-1.0);
+    st.set_eta_seconds(-1.0);
+    st.set_workers_total(workers_total);
+    return st;
+  }
   st.set_width(s.film.width);
   st.set_height(s.film.height);
   *st.mutable_settings() = protocol::settings_to_wire(s.settings);
@@ -1065,15 +1175,18 @@ wire::JobStatus JobManager::make_status(const Job& job, uint32_t workers_total) 
       const double rate = static_cast<double>(m.samples_merged()) / seconds;
       st.set_samples_per_second(rate);
       st.set_eta_seconds(estimate_eta(
-          s, static_cast<double>(grid.samples_total() - m.samples_merged()), rate, seconds,
-          job.rows.empty() ? -1.0 : job.rows.back().est_rel_mse));
+          s.stop, static_cast<double>(grid.samples_total() - m.samples_merged()), rate, seconds,
+          job.rows));
     }
   } else {
     st.set_units_done(job.record.units_done);
     st.set_spp_done(job.record.spp_min);
+    // Records from before passes_done was kept: every pass when the job ran to its spp.
     const bool all_passes = job.record.state == wire::JOB_DONE &&
                             (job.record.stop_reason.empty() || job.record.stop_reason == "spp");
-    st.set_passes_done(all_passes ? grid.pass_count() : 0);
+    st.set_passes_done(job.record.passes_done > 0 ? job.record.passes_done
+                       : all_passes               ? grid.pass_count()
+                                                  : 0);
     if (job.record.state == wire::JOB_DONE) st.set_eta_seconds(0.0);
     if (job.record.elapsed_seconds > 0) {
       st.set_samples_per_second(job.record.spp_mean * s.film.width * s.film.height /

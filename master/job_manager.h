@@ -19,6 +19,7 @@
 #include "master/checkpoint.h"
 #include "master/image_writer.h"
 #include "master/job_store.h"
+#include "master/log_budget.h"
 #include "master/merger.h"
 #include "master/scheduler.h"
 #include "proto/rayfarm.pb.h"
@@ -47,9 +48,10 @@ struct JobManagerOptions {
   /// When a slow unit is leased a second time.
   StragglerPolicy stragglers;
   /// Who is connected now, as failures count them: each worker's key, or the worker itself
-  /// without keys. A job that every one of them is blocked from fails (it could never finish).
-  /// Unset: not checked.
+  /// without keys. A job that every one of them has been blocked from for `blocked_grace` fails
+  /// (it could never finish; a worker that joins meanwhile saves it). Unset: not checked.
   std::function<std::vector<std::string>()> connected_workers;
+  std::chrono::milliseconds blocked_grace{60000};
 };
 
 class JobManager {
@@ -117,6 +119,15 @@ class JobManager {
 
   /// Cancels a job; the state afterwards, or nullopt when the job is unknown.
   std::optional<wire::JobState> cancel(const std::string& id);
+  /// Removes a finished (done, failed, cancelled) or unreadable job and its folder. Throws
+  /// JobRejected naming the cause: an unknown job, or one still queued or running.
+  void remove(const std::string& id);
+  /// Runs a failed or cancelled job again from its first sample, under the same id (its image
+  /// and error record start over). Returns the state afterwards (queued). Throws JobRejected
+  /// naming the cause: an unknown job, one that is done, queued or running, or unreadable.
+  wire::JobState retry(const std::string& id);
+  /// The units `worker` holds now, as "JOB/UNIT".
+  std::vector<std::string> units_of(const WorkerId& worker) const;
   /// Status of one job; nullopt when unknown. `workers_total` is the master's worker count.
   std::optional<wire::JobStatus> status(const std::string& id, uint32_t workers_total) const;
   /// Status of every job, in id order.
@@ -153,6 +164,7 @@ class JobManager {
     // messages; per key, how many.
     std::map<uint64_t, std::map<std::string, std::string>> unit_failures;
     std::map<std::string, int> worker_failures;
+    std::optional<Clock::time_point> all_blocked_since;  // every connected worker is blocked
     // Who was leased each unit not merged yet, connection and key (a lost worker's late result is
     // still its own; a peer that takes over its connection id with another key is not).
     std::unordered_map<uint64_t, std::vector<std::pair<WorkerId, std::string>>> lease_history;
@@ -178,26 +190,6 @@ class JobManager {
     std::chrono::milliseconds storage_backoff{0};
   };
 
-  /// Lines a peer may cause: a burst of kBurst per key, refilled at one a second.
-  struct LogBudget {
-    static constexpr double kBurst = 32;
-    struct Bucket {
-      double tokens = kBurst;
-      Clock::time_point refilled = Clock::now();
-    };
-    std::map<std::string, Bucket> buckets;
-    bool take(const std::string& who) {
-      if (buckets.size() > 4096) buckets.clear();
-      Bucket& b = buckets[who];
-      const auto now = Clock::now();
-      b.tokens = std::min(kBurst, b.tokens + std::chrono::duration<double>(now - b.refilled).count());
-      b.refilled = now;
-      if (b.tokens < 1) return false;
-      b.tokens -= 1;
-      return true;
-    }
-  };
-
   JobStore& store_;
   JobManagerOptions options_;
   LogBudget log_budget_;
@@ -217,6 +209,9 @@ class JobManager {
   /// Counts a failure of `worker` on `unit`; blocks the worker or fails the job past the limits.
   void note_failure(Job& job, const WorkerId& worker, const std::string& key, uint64_t unit,
                     const std::string& why);
+  /// Fails the job when every connected worker has been blocked from it for blocked_grace; true
+  /// when it did.
+  bool fail_if_nobody_can_render(Job& job, Clock::time_point now);
   void record_row(Job& job);
   /// The reference image in `exr`; throws JobRejected unless it is a readable EXR of the film's
   /// size.

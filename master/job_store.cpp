@@ -3,6 +3,7 @@
 #include "common/util/atomic_file.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <iterator>
@@ -24,13 +25,28 @@ using nlohmann::json;
 
 namespace {
 
-// The inverse of protocol::job_state_name; anything else reads as queued.
+// The inverse of protocol::job_state_name; JOB_STATE_UNSPECIFIED for anything else.
 wire::JobState state_from_key(const std::string& s) {
+  if (s == "queued") return wire::JOB_QUEUED;
   if (s == "running") return wire::JOB_RUNNING;
   if (s == "done") return wire::JOB_DONE;
   if (s == "failed") return wire::JOB_FAILED;
   if (s == "cancelled") return wire::JOB_CANCELLED;
-  return wire::JOB_QUEUED;
+  return wire::JOB_STATE_UNSPECIFIED;
+}
+
+/// A figure for job.json: JSON has no NaN or infinity (nlohmann writes them as null), so a
+/// non-finite figure is written as the record's "unknown" value.
+double finite_or(double value, double unknown) { return std::isfinite(value) ? value : unknown; }
+
+/// A number of job.json: `fallback` when absent or null (an unknown figure), else it must be a
+/// number; throws naming the key otherwise.
+double number_or(const json& j, const char* key, double fallback) {
+  const auto it = j.find(key);
+  if (it == j.end() || it->is_null()) return fallback;
+  if (!it->is_number()) throw std::runtime_error(std::string("\"") + key + "\" is not a number");
+  const double v = it->get<double>();
+  return std::isfinite(v) ? v : fallback;
 }
 
 json to_json(const JobRecord& r) {
@@ -43,12 +59,13 @@ json to_json(const JobRecord& r) {
               {"max_depth", s.settings.max_depth},
               {"integrator", integrator_name(s.settings.integrator)},
               {"seed", s.settings.seed},
+              {"clamp", finite_or(s.settings.clamp, 0.0)},
               {"width", s.film.width},
               {"height", s.film.height},
               {"tile_size", s.tile_size},
               {"pass_spp", s.pass_spp},
-              {"target_error", s.stop.target_error},
-              {"time_limit_s", s.stop.time_limit_s},
+              {"target_error", finite_or(s.stop.target_error, 0.0)},
+              {"time_limit_s", finite_or(s.stop.time_limit_s, 0.0)},
               {"adaptive", s.stop.adaptive},
               {"min_passes", s.stop.min_passes},
               {"has_reference", s.has_reference},
@@ -56,14 +73,15 @@ json to_json(const JobRecord& r) {
               {"owner", s.owner},
               {"state", protocol::job_state_name(r.state)},
               {"error", r.error},
-              {"elapsed_seconds", r.elapsed_seconds},
+              {"elapsed_seconds", finite_or(r.elapsed_seconds, 0.0)},
               {"stop_reason", r.stop_reason},
               {"units_done", r.units_done},
+              {"passes_done", r.passes_done},
               {"spp_min", r.spp_min},
-              {"spp_mean", r.spp_mean},
+              {"spp_mean", finite_or(r.spp_mean, 0.0)},
               {"tiles_converged", r.tiles_converged},
-              {"est_rel_mse", r.est_rel_mse},
-              {"ref_rel_mse", r.ref_rel_mse}};
+              {"est_rel_mse", finite_or(r.est_rel_mse, -1.0)},
+              {"ref_rel_mse", finite_or(r.ref_rel_mse, -1.0)}};
 }
 
 JobRecord from_json(const json& j) {
@@ -79,27 +97,32 @@ JobRecord from_json(const json& j) {
   if (!integrator) throw std::runtime_error("unknown integrator");
   s.settings.integrator = *integrator;
   s.settings.seed = j.at("seed").get<uint64_t>();
+  s.settings.clamp = static_cast<float>(number_or(j, "clamp", 0.0));
+  if (!(s.settings.clamp >= 0)) throw std::runtime_error("negative clamp");
   s.film.width = j.at("width").get<uint32_t>();
   s.film.height = j.at("height").get<uint32_t>();
   s.tile_size = j.at("tile_size").get<uint32_t>();
   s.pass_spp = j.at("pass_spp").get<uint32_t>();
-  s.stop.target_error = j.value("target_error", 0.0);
-  s.stop.time_limit_s = j.value("time_limit_s", 0.0);
+  s.stop.target_error = number_or(j, "target_error", 0.0);
+  s.stop.time_limit_s = number_or(j, "time_limit_s", 0.0);
   s.stop.adaptive = j.value("adaptive", true);
   s.stop.min_passes = j.value("min_passes", 0u);
   s.has_reference = j.value("has_reference", false);
   s.submitted_unix_ms = j.at("submitted_unix_ms").get<int64_t>();
   s.owner = j.value("owner", "");
-  r.state = state_from_key(j.at("state").get<std::string>());
+  const std::string state = j.at("state").get<std::string>();
+  r.state = state_from_key(state);
+  if (r.state == wire::JOB_STATE_UNSPECIFIED) throw std::runtime_error("unknown state \"" + state + "\"");
   r.error = j.value("error", "");
-  r.elapsed_seconds = j.value("elapsed_seconds", 0.0);
+  r.elapsed_seconds = number_or(j, "elapsed_seconds", 0.0);
   r.stop_reason = j.value("stop_reason", "");
   r.units_done = j.value("units_done", uint64_t{0});
+  r.passes_done = j.value("passes_done", 0u);
   r.spp_min = j.value("spp_min", 0u);
-  r.spp_mean = j.value("spp_mean", 0.0);
+  r.spp_mean = number_or(j, "spp_mean", 0.0);
   r.tiles_converged = j.value("tiles_converged", 0u);
-  r.est_rel_mse = j.value("est_rel_mse", -1.0);
-  r.ref_rel_mse = j.value("ref_rel_mse", -1.0);
+  r.est_rel_mse = number_or(j, "est_rel_mse", -1.0);
+  r.ref_rel_mse = number_or(j, "ref_rel_mse", -1.0);
   if (!(s.stop.target_error >= 0) || !(s.stop.time_limit_s >= 0)) {
     throw std::runtime_error("negative target error or time limit");
   }
@@ -116,6 +139,17 @@ std::optional<std::string> slurp(const fs::path& path) {
   std::string data{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
   if (in.bad()) return std::nullopt;
   return data;
+}
+
+/// The record of a job whose job.json cannot be read: its folder's name and what is wrong.
+JobRecord unreadable_record(const std::string& id, const fs::path& file, const std::string& why) {
+  JobRecord r;
+  r.spec.id = id;
+  r.spec.name = "(unreadable record)";
+  r.state = wire::JOB_STATE_UNSPECIFIED;
+  r.error = fmt::format("the master cannot read {}: {}", file.string(), why);
+  r.unreadable = true;
+  return r;
 }
 
 /// The number in a job id "j0042", or 0 when it is not one.
@@ -177,6 +211,9 @@ fs::path JobStore::make_scratch_dir() {
 }
 
 void JobStore::save_record(const JobRecord& record) {
+  if (record.unreadable) {
+    throw std::logic_error("job " + record.spec.id + ": an unreadable record is never saved over");
+  }
   write_file_atomically(job_dir(record.spec.id) / "job.json", to_json(record).dump(2) + "\n");
 }
 
@@ -233,7 +270,10 @@ std::vector<JobRecord> JobStore::load_records() const {
         throw std::runtime_error("id does not match its folder");
       records.push_back(std::move(r));
     } catch (const std::exception& e) {
-      get_logger("master")->warn("skipping {}: {}", file.string(), e.what());
+      // Kept, as a record that says what is wrong: `rayfarm list` shows it, `rayfarm rm` removes it.
+      get_logger("master")->error("cannot read {}: {}; the job is listed as unreadable",
+                                  file.string(), e.what());
+      records.push_back(unreadable_record(dir.filename().string(), file, e.what()));
     }
   }
   return records;

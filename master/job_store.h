@@ -52,11 +52,15 @@ struct JobRecord {
   std::string stop_reason;       ///< once finished: stop_reason_name() of why
   // Once finished: the final image's figures.
   uint64_t units_done = 0;
+  uint32_t passes_done = 0;      ///< leading passes merged over the whole image
   uint32_t spp_min = 0;          ///< fewest samples of any pixel
   double spp_mean = 0.0;
   uint32_t tiles_converged = 0;
   double est_rel_mse = -1.0;     ///< negative: unknown
   double ref_rel_mse = -1.0;     ///< negative: no reference
+  /// The job's job.json could not be read: state is JOB_STATE_UNSPECIFIED, `error` says why, and
+  /// only spec.id is known. Such a record is listed, never saved over.
+  bool unreadable = false;
 };
 
 class JobStore {
@@ -92,7 +96,9 @@ class JobStore {
   }
   /// The bytes of a file of the job's folder (image.exr, error.csv, ...), nullopt when missing.
   std::optional<std::string> read_file(const std::string& id, const std::string& name) const;
-  /// Every readable job.json, in id order; unreadable ones are logged and skipped.
+  /// Every job.json, in id order. One that cannot be read (malformed, a missing key, a bad value)
+  /// is logged and returned as an unreadable record (JobRecord::unreadable) naming the cause.
+  /// A figure that is not finite is written as unknown (-1 or 0), and null reads back as unknown.
   std::vector<JobRecord> load_records() const;
 
  private:

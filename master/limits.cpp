@@ -80,6 +80,10 @@ SubmissionFigures figures_of(const wire::SubmitJob& request) {
     f.width = unsigned_field(*film, "width");
     f.height = unsigned_field(*film, "height");
   }
+  if (o.width() != 0 && o.height() != 0) {  // the job's film replaces the scene's
+    f.width = o.width();
+    f.height = o.height();
+  }
   if (!f.spp) {
     auto render = scene.find("render");
     if (render == scene.end()) {

@@ -7,6 +7,8 @@
 #include <CLI/CLI.hpp>
 
 #include "common/net/keys.h"
+#include "common/protocol/version.h"
+#include "common/util/log.h"
 #include "common/util/log_options.h"
 #include "master/broker.h"
 
@@ -122,11 +124,14 @@ int main(int argc, char** argv) {
                  "most jobs queued or running; more submissions are refused until some finish")
       ->check(CLI::Range(size_t{1}, size_t{1000000}))
       ->capture_default_str();
+  app.set_version_flag("--version", rayfarm::protocol::kBuildVersion);
   CLI11_PARSE(app, argc, argv);
   limits.max_message_bytes = max_message_mb << 20;
   limits.max_bundle_bytes = max_bundle_mb << 20;
 
   logging.apply();
+  rayfarm::get_logger("master")->info("rayfarm-master: {} (protocol {})", rayfarm::protocol::kBuildVersion,
+                                   rayfarm::protocol::kProtocolVersion);
   options.data_dir = data_dir;
   options.heartbeat.interval = std::chrono::milliseconds{heartbeat_ms};
   options.image_interval = std::chrono::milliseconds{image_interval_ms};

@@ -290,4 +290,10 @@ size_t Scheduler::leases_of(const WorkerId& worker) const {
   return w == by_worker_.end() ? 0 : w->second.size();
 }
 
+std::vector<UnitRef> Scheduler::leased_units(const WorkerId& worker) const {
+  auto w = by_worker_.find(worker);
+  if (w == by_worker_.end()) return {};
+  return {w->second.begin(), w->second.end()};
+}
+
 }  // namespace rayfarm::master

@@ -112,6 +112,8 @@ class Scheduler {
   Counts counts(const std::string& job) const;
   /// Units leased to `worker`.
   size_t leases_of(const WorkerId& worker) const;
+  /// The units leased to `worker`, in order.
+  std::vector<UnitRef> leased_units(const WorkerId& worker) const;
 
  private:
   struct Job {

@@ -4,19 +4,33 @@
 # Cornell box, follow its progress, and leave the EXR and a PNG preview in out/. The cluster is
 # stopped at the end, also on failure or Ctrl-C.
 #
-# Usage: scripts/demo.sh [--workers N] [--spp N] [--scene PATH]
+# The Cornell box is rendered to a target error rather than a fixed spp: it stops at the first of
+# the estimated relative MSE reaching --target-error, --time-limit seconds, or --spp samples per
+# pixel (docs/error.md). --clamp C trades a bias for fewer fireflies (off by default; recorded in the
+# EXR header).
+#
+# Usage: scripts/demo.sh [--workers N] [--target-error E] [--time-limit S] [--spp N] [--clamp C]
+#                        [--scene PATH]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 workers=2
-spp=256
+target_error=2.5e-4
+time_limit=120
+spp=4096
+clamp=0
 scene=scenes/cornell-box/scene.json
+usage="--workers N, --target-error E, --time-limit S, --spp N, --clamp C, --scene PATH"
 while [ $# -gt 0 ]; do
   case "$1" in
     --workers) workers=$2; shift 2 ;;
+    --target-error) target_error=$2; shift 2 ;;
+    --time-limit) time_limit=$2; shift 2 ;;
     --spp) spp=$2; shift 2 ;;
+    --clamp) clamp=$2; shift 2 ;;
     --scene) scene=$2; shift 2 ;;
-    *) echo "demo: unknown option $1 (--workers N, --spp N, --scene PATH)" >&2; exit 2 ;;
+    -h|--help) echo "usage: scripts/demo.sh [$usage]"; exit 0 ;;
+    *) echo "demo: unknown option $1 ($usage)" >&2; exit 2 ;;
   esac
 done
 
@@ -36,8 +50,9 @@ master=$RAYFARM_MASTER
 
 name=$(basename "$(dirname "$scene")")
 mkdir -p out
-job=$(build/cli/rayfarm submit "$scene" --master "$master" --spp "$spp" --name "$name")
-echo "demo: submitted job $job ($name, $spp spp) to $master"
-build/cli/rayfarm watch "$job" --master "$master"
-build/cli/rayfarm fetch "$job" --master "$master" -o "out/$name.exr"
+echo "demo: rendering $name to an estimated relMSE of $target_error (at most $time_limit s, $spp spp) on $master"
+# Follows the job, then fetches out/NAME.exr and out/NAME.png once it is done.
+build/cli/rayfarm submit "$scene" --master "$master" --name "$name" --spp "$spp" \
+  --target-error "$target_error" --time-limit "$time_limit" --clamp "$clamp" \
+  --wait -o "out/$name.exr"
 echo "demo: the image is out/$name.exr, its preview out/$name.png; logs are in $cluster/"

@@ -37,9 +37,6 @@ std::shared_ptr<spdlog::logger> log() { return get_logger("worker"); }
 
 /// How long a stopping worker waits for its last messages to leave.
 constexpr milliseconds kFinalLinger{2000};
-/// How long a stopping worker waits for the units in hand; past it, it says goodbye without them
-/// and the master requeues them at once.
-constexpr milliseconds kStopGrace{8000};  // within the 10 s that compose, k8s and local-cluster wait
 /// How often at most a worker logs that messages to the master are dropped: a refused worker's
 /// heartbeats are dropped every interval for as long as it is refused.
 constexpr std::chrono::seconds kDroppedLogInterval{60};
@@ -73,7 +70,8 @@ struct Outcome {
 
 std::string unit_key(const wire::WorkUnit& unit) {
   return unit.job_id() + '\0' + unit.bundle_hash() + '\0' + unit.scene_path() + '\0' +
-         unit.settings().SerializeAsString();
+         unit.settings().SerializeAsString() + '\0' + std::to_string(unit.film_width()) + 'x' +
+         std::to_string(unit.film_height());
 }
 
 }  // namespace
@@ -249,6 +247,9 @@ struct Agent::Impl {
     p->job_id = unit.job_id();
     p->scene = std::make_unique<Scene>(
         load_scene(options.cache_dir / unit.bundle_hash() / unit.scene_path()));
+    if (unit.film_width() != 0 && unit.film_height() != 0) {  // the job's film
+      p->scene->film = {unit.film_width(), unit.film_height()};
+    }
     const RenderSettings settings = protocol::settings_from_wire(unit.settings());
     arena.execute([&] { p->renderer = std::make_unique<Renderer>(*p->scene, settings); });
     log()->info(
@@ -537,7 +538,7 @@ struct Agent::Impl {
     while (!refused) {
       if (stop.load() && !stopping) {
         stopping = true;
-        stop_deadline = Clock::now() + kStopGrace;
+        stop_deadline = Clock::now() + options.stop_grace;
         if (in_flight.empty()) {
           log()->info("stopping");
         } else {
@@ -547,9 +548,10 @@ struct Agent::Impl {
       }
       if (stopping && in_flight.empty()) break;
       if (stopping && Clock::now() >= stop_deadline) {
-        log()->warn("the {} unit{} in hand did not finish within {} s of the stop; the master "
+        log()->warn("the {} unit{} in hand did not finish within {:g} s of the stop; the master "
                     "takes {} back",
-                    in_flight.size(), in_flight.size() == 1 ? "" : "s", kStopGrace.count() / 1000,
+                    in_flight.size(), in_flight.size() == 1 ? "" : "s",
+                    static_cast<double>(options.stop_grace.count()) / 1000.0,
                     in_flight.size() == 1 ? "it" : "them");
         abandoned = true;
         break;

@@ -8,6 +8,7 @@
 // finishes the unit in hand, returns its result and says goodbye.
 #include <atomic>
 #include <cstdint>
+#include <chrono>
 #include <filesystem>
 #include <memory>
 #include <string>
@@ -26,6 +27,10 @@ struct AgentOptions {
   /// unit's first; 0 = 2 with two or more threads, else 1.
   uint32_t units_in_flight = 0;
   protocol::HeartbeatOptions heartbeat;
+  /// How long a stopping worker (SIGTERM) waits for the units in hand to finish and go back to
+  /// the master; past it, its goodbye hands them back and the master requeues them. Keep it,
+  /// plus 2 s for the last messages, within the time the deployment waits before SIGKILL.
+  std::chrono::milliseconds stop_grace{8000};
   /// This worker's key pair and the master's public key; empty for a plain socket (--insecure),
   /// which `run` allows only to a loopback endpoint.
   net::Curve curve;

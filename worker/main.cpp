@@ -8,6 +8,8 @@
 #include <CLI/CLI.hpp>
 
 #include "common/net/peer_options.h"
+#include "common/protocol/version.h"
+#include "common/util/log.h"
 #include "common/util/log_options.h"
 #include "worker/agent.h"
 
@@ -44,12 +46,22 @@ int main(int argc, char** argv) {
   app.add_option("--reconnect-max-ms", reconnect_max_ms, "longest back-off between reconnections")
       ->check(CLI::Range(int64_t{10}, int64_t{600000}))
       ->capture_default_str();
+  int64_t stop_grace_ms = options.stop_grace.count();
+  app.add_option("--stop-grace-ms", stop_grace_ms,
+                 "on SIGTERM, how long to wait for the units in hand before handing them back; "
+                 "keep it 2 s under the time the deployment waits before SIGKILL")
+      ->check(CLI::Range(int64_t{0}, int64_t{3600000}))
+      ->capture_default_str();
   rayfarm::net::PeerKeyOptions keys;
   rayfarm::net::add_peer_key_options(app, keys, "worker");
+  app.set_version_flag("--version", rayfarm::protocol::kBuildVersion);
   CLI11_PARSE(app, argc, argv);
 
   logging.apply();
+  rayfarm::get_logger("worker")->info("rayfarm-worker: {} (protocol {})", rayfarm::protocol::kBuildVersion,
+                                   rayfarm::protocol::kProtocolVersion);
   options.cache_dir = cache_dir;
+  options.stop_grace = std::chrono::milliseconds{stop_grace_ms};
   options.heartbeat.interval = std::chrono::milliseconds{heartbeat_ms};
   options.heartbeat.reconnect_max = std::chrono::milliseconds{reconnect_max_ms};
   options.heartbeat.reconnect_min =

@@ -46,8 +46,11 @@ struct Renderer::Impl {
         ++nonfinite;
         continue;
       }
+      // --clamp: the sample scaled down so that its largest component is the clamp (biased).
+      const float largest = max_component(l);
+      const float scale = settings.clamp > 0.f && largest > settings.clamp ? settings.clamp / largest : 1.f;
       for (int c = 0; c < 3; ++c) {
-        const double v = l[c];
+        const double v = l[c] * scale;
         sum[c] += to_fixed(v);
         sum_sq[c] += to_fixed(v * v);
       }

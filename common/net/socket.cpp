@@ -227,9 +227,11 @@ struct Socket::Impl {
           in_handshake = false;
           if (value == EPIPE || value == ECONNRESET) {
             handshake = closed_in_handshake();
+            handshake.peer_closed = true;  // the master may be starting: the CLI tries again
           } else {
             handshake = {Handshake::kFailed,
-                         fmt::format("the security handshake failed ({})", zmq_strerror(value))};
+                         fmt::format("the security handshake failed ({})", zmq_strerror(value)),
+                         /*peer_closed=*/true};
           }
           break;
         case ZMQ_EVENT_DISCONNECTED:

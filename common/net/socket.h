@@ -66,6 +66,10 @@ enum class Handshake {
 struct HandshakeStatus {
   Handshake state = Handshake::kPending;
   std::string detail;
+  /// kFailed with no protocol error: the connection broke mid-handshake (the peer closed it:
+  /// a wrong server key, or a peer, or a proxy in front of it, starting or stopping); retrying
+  /// may succeed.
+  bool peer_closed = false;
 };
 
 /// Common base: owns the ZeroMQ socket. Not copyable, movable.

@@ -1,5 +1,7 @@
 #include "common/protocol/convert.h"
 
+#include <cmath>
+
 namespace rayfarm::protocol {
 
 wire::Integrator integrator_to_wire(IntegratorType type) {
@@ -34,6 +36,7 @@ wire::RenderSettings settings_to_wire(const RenderSettings& settings) {
   out.set_max_depth(settings.max_depth);
   out.set_integrator(integrator_to_wire(settings.integrator));
   out.set_seed(settings.seed);
+  out.set_clamp(settings.clamp);
   return out;
 }
 
@@ -44,6 +47,10 @@ RenderSettings settings_from_wire(const wire::RenderSettings& settings) {
   out.max_depth = settings.max_depth();
   out.integrator = integrator_from_wire(settings.integrator());
   out.seed = settings.seed();
+  if (!(settings.clamp() >= 0.f) || !std::isfinite(settings.clamp())) {
+    throw ProtocolError("render settings with a clamp that is negative or not finite");
+  }
+  out.clamp = settings.clamp();
   return out;
 }
 

@@ -6,9 +6,11 @@
 
 namespace rayfarm::protocol {
 
-inline constexpr uint32_t kProtocolVersion = 1;
+// 2: WorkUnit carries the job's film (a job may override the scene's), which a version-1 worker
+// would ignore, rendering the wrong image.
+inline constexpr uint32_t kProtocolVersion = 2;
 
 /// Software version of this build, sent in Hello and Welcome for the logs.
-inline constexpr const char* kBuildVersion = "rayfarm 0.1.0";
+inline constexpr const char* kBuildVersion = "rayfarm 0.2.0";
 
 }  // namespace rayfarm::protocol

@@ -90,6 +90,9 @@ struct RenderSettings {
   uint32_t max_depth = 16;
   IntegratorType integrator = IntegratorType::kMis;
   uint64_t seed = 0;              ///< selects the random streams; same seed, same image
+  /// When positive, a sample whose largest component exceeds it is scaled down to it: fewer
+  /// fireflies, at the cost of a bias (the image no longer converges to the true one). 0 = off.
+  float clamp = 0.f;
 };
 
 struct Scene {
