@@ -6,10 +6,10 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
-#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -339,17 +339,15 @@ void print_status(const wire::JobStatus& st) {
   }
   if (!st.error().empty()) {
     // Why it failed; for a cancelled job, who cancelled it.
-    std::cout << fmt::format("{:<10} {}\n", st.state() == wire::JOB_CANCELLED ? "cancelled" : "error",
-                             st.error());
+    std::cout << fmt::format("{:<10} {}\n",
+                             st.state() == wire::JOB_CANCELLED ? "cancelled" : "error", st.error());
   }
   if (st.state() == wire::JOB_STATE_UNSPECIFIED) return;  // nothing else is known
-  std::cout << fmt::format("image      {}x{}, {} spp, {}, max depth {}, seed {}{}\n", st.width(),
-                           st.height(), st.settings().spp(),
-                           integrator_label(st.settings().integrator()), st.settings().max_depth(),
-                           st.settings().seed(),
-                           st.settings().clamp() > 0
-                               ? fmt::format(", clamp {:g} (biased)", st.settings().clamp())
-                               : "");
+  std::cout << fmt::format(
+      "image      {}x{}, {} spp, {}, max depth {}, seed {}{}\n", st.width(), st.height(),
+      st.settings().spp(), integrator_label(st.settings().integrator()), st.settings().max_depth(),
+      st.settings().seed(),
+      st.settings().clamp() > 0 ? fmt::format(", clamp {:g} (biased)", st.settings().clamp()) : "");
   std::cout << fmt::format(
       "work       tiles of {} px, passes of {} spp: {}/{} units ({:.1f}%), {} leased\n",
       st.tile_size(), st.pass_spp(), st.units_done(), st.units_total(), percent(st),
@@ -360,9 +358,9 @@ void print_status(const wire::JobStatus& st) {
     std::cout << fmt::format(
         "relMSE     estimated {}{}\n",
         st.est_rel_mse() >= 0 ? fmt::format("{:.4g}", st.est_rel_mse()) : "unknown",
-        st.ref_rel_mse() >= 0 ? fmt::format(", measured against the reference {:.4g}",
-                                            st.ref_rel_mse())
-                              : "");
+        st.ref_rel_mse() >= 0
+            ? fmt::format(", measured against the reference {:.4g}", st.ref_rel_mse())
+            : "");
   }
   if (st.tiles_converged() > 0) {
     std::cout << fmt::format("tiles      {}/{} converged\n", st.tiles_converged(), st.tiles_total());
@@ -380,16 +378,15 @@ void print_table(const wire::JobList& list) {
     std::cout << "no jobs\n";
     return;
   }
-  std::cout << fmt::format("{:<8} {:<24} {:<12} {:<9} {:>7} {:>11} {:>11} {:>10}\n", "JOB",
-                           "NAME", "OWNER", "STATE", "DONE", "SPP", "SIZE", "ELAPSED");
+  std::cout << fmt::format("{:<8} {:<24} {:<12} {:<9} {:>7} {:>11} {:>11} {:>10}\n", "JOB", "NAME",
+                           "OWNER", "STATE", "DONE", "SPP", "SIZE", "ELAPSED");
   for (const auto& st : list.jobs()) {
-    std::cout << fmt::format("{:<8} {:<24} {:<12} {:<9} {:>6.1f}% {:>11} {:>11} {:>10}\n",
-                             st.job_id(), st.name().substr(0, 24),
-                             st.owner().empty() ? "-" : st.owner().substr(0, 12),
-                             protocol::job_state_name(st.state()),
-                             percent(st), fmt::format("{}/{}", st.spp_done(), st.settings().spp()),
-                             fmt::format("{}x{}", st.width(), st.height()),
-                             format_duration(st.elapsed_seconds()));
+    std::cout << fmt::format(
+        "{:<8} {:<24} {:<12} {:<9} {:>6.1f}% {:>11} {:>11} {:>10}\n", st.job_id(),
+        st.name().substr(0, 24), st.owner().empty() ? "-" : st.owner().substr(0, 12),
+        protocol::job_state_name(st.state()), percent(st),
+        fmt::format("{}/{}", st.spp_done(), st.settings().spp()),
+        fmt::format("{}x{}", st.width(), st.height()), format_duration(st.elapsed_seconds()));
   }
   for (const auto& st : list.jobs()) {
     if (st.state() == wire::JOB_STATE_UNSPECIFIED) {
@@ -400,7 +397,7 @@ void print_table(const wire::JobList& list) {
 
 /// Fetches the job's image into `output` (checked by check_output_path); returns what it wrote.
 std::string fetch_image(FarmClient& client, const std::string& job, const fs::path& output,
-                 OutputFormat format) {
+                        OutputFormat format) {
   wire::FetchImage request;
   request.set_job_id(job);
   const auto image = client.call<wire::ImageData>(encode(std::move(request)));
@@ -447,8 +444,8 @@ class StatusPoller {
   auto with_retry(F&& request) -> decltype(request(std::declval<FarmClient&>())) {
     while (true) {
       const auto now = std::chrono::steady_clock::now();
-      const auto left = budget_ - std::chrono::duration_cast<std::chrono::milliseconds>(
-                                      now - last_answer_);
+      const auto left =
+          budget_ - std::chrono::duration_cast<std::chrono::milliseconds>(now - last_answer_);
       try {
         // Each try waits a short while: a master that went away will not answer on the old
         // connection, and a new one reaches the master that came back.
@@ -574,7 +571,8 @@ struct SubmitArgs {
 int run_submit(const SubmitArgs& args) {
   std::optional<OutputFormat> format;
   if (!args.output.empty()) {
-    if (!args.wait) throw std::invalid_argument("-o needs --wait: the image is fetched when the job is done");
+    if (!args.wait)
+      throw std::invalid_argument("-o needs --wait: the image is fetched when the job is done");
     format = check_output_path(args.output);  // before the job is sent
   }
   const PackedScene packed = pack_scene(args.scene);
@@ -616,8 +614,8 @@ int run_submit(const SubmitArgs& args) {
   {
     FarmClient client(args.client);
     // A master checking many submissions at once says it is busy: try again, within --timeout.
-    const auto deadline = std::chrono::steady_clock::now() +
-                          std::chrono::duration<double>(args.client.timeout);
+    const auto deadline =
+        std::chrono::steady_clock::now() + std::chrono::duration<double>(args.client.timeout);
     auto pause = std::chrono::milliseconds{100};
     wire::SubmitReply reply = client.call<wire::SubmitReply>(encode(request));
     while (reply.error().rfind("the master is busy", 0) == 0 &&
@@ -806,17 +804,17 @@ void add_retry(CLI::App& app, int& exit_code) {
 }
 
 nlohmann::json worker_json(const wire::WorkerInfo& w) {
-  return nlohmann::json{{"id", w.id()},
-                        {"name", w.name()},
-                        {"key_name", w.key_name().empty() ? nlohmann::json(nullptr)
-                                                          : nlohmann::json(w.key_name())},
-                        {"state", w.units().empty() ? "idle" : "busy"},
-                        {"threads", w.threads()},
-                        {"units", w.units()},
-                        {"units_done", w.units_done()},
-                        {"samples_per_second", w.samples_per_second()},
-                        {"last_seen_seconds", w.last_seen_seconds()},
-                        {"build", w.build()}};
+  return nlohmann::json{
+      {"id", w.id()},
+      {"name", w.name()},
+      {"key_name", w.key_name().empty() ? nlohmann::json(nullptr) : nlohmann::json(w.key_name())},
+      {"state", w.units().empty() ? "idle" : "busy"},
+      {"threads", w.threads()},
+      {"units", w.units()},
+      {"units_done", w.units_done()},
+      {"samples_per_second", w.samples_per_second()},
+      {"last_seen_seconds", w.last_seen_seconds()},
+      {"build", w.build()}};
 }
 
 void add_workers(CLI::App& app, int& exit_code) {
@@ -842,12 +840,11 @@ void add_workers(CLI::App& app, int& exit_code) {
       for (const auto& w : list.workers()) {
         std::string units = w.units().empty() ? "-" : w.units(0);
         if (w.units_size() > 1) units += fmt::format(" +{}", w.units_size() - 1);
-        std::cout << fmt::format("{:<20} {:<16} {:<5} {:>7} {:<16} {:>6} {:>16} {:>9}\n",
-                                 w.name().substr(0, 20),
-                                 w.key_name().empty() ? "-" : w.key_name().substr(0, 16),
-                                 w.units().empty() ? "idle" : "busy", w.threads(), units,
-                                 w.units_done(), format_rate(w.samples_per_second()),
-                                 format_duration(w.last_seen_seconds()) + " ago");
+        std::cout << fmt::format(
+            "{:<20} {:<16} {:<5} {:>7} {:<16} {:>6} {:>16} {:>9}\n", w.name().substr(0, 20),
+            w.key_name().empty() ? "-" : w.key_name().substr(0, 16),
+            w.units().empty() ? "idle" : "busy", w.threads(), units, w.units_done(),
+            format_rate(w.samples_per_second()), format_duration(w.last_seen_seconds()) + " ago");
       }
       return 0;
     });
@@ -861,8 +858,9 @@ void add_fetch(CLI::App& app, int& exit_code) {
   CLI::App* cmd = app.add_subcommand(
       "fetch", "Download a job's current or final EXR (and a PNG preview beside it)");
   cmd->add_option("job", *job, "Job id")->required();
-  cmd->add_option("-o,--output", *output,
-                  "Output: x.exr (and its PNG preview x.png beside it) or x.png (the preview alone)")
+  cmd->add_option(
+         "-o,--output", *output,
+         "Output: x.exr (and its PNG preview x.png beside it) or x.png (the preview alone)")
       ->required();
   add_client_options(cmd, *args);
   cmd->callback([args, job, output, &exit_code] {

@@ -2,10 +2,10 @@
 
 #include <algorithm>
 #include <array>
-#include <thread>
-#include <deque>
 #include <condition_variable>
+#include <deque>
 #include <mutex>
+#include <thread>
 #include <tuple>
 #include <vector>
 
@@ -108,8 +108,7 @@ struct Broker::Gate {
   net::ZapVerdict decide(const net::ZapRequest& r) {
     const net::AllowListPolicy::Decision d = policy.decide(r);
     if (!d.reload_note.empty()) {
-      log()->log(d.reload_warning ? spdlog::level::warn : spdlog::level::info, "{}",
-                 d.reload_note);
+      log()->log(d.reload_warning ? spdlog::level::warn : spdlog::level::info, "{}", d.reload_note);
     }
     if (d.admitted) return {true, d.name};
     const char* role = r.domain == kWorkerDomain ? "worker" : "client";
@@ -231,8 +230,13 @@ class Broker::Submissions {
       queue_.pop_front();
       busy_ = true;
       lock.unlock();
-      Done done{task.peer,   std::move(task.label), protocol::printable(task.job.scene_path(), 200),
-                std::nullopt, "",         task.user,         task.bytes};
+      Done done{task.peer,
+                std::move(task.label),
+                protocol::printable(task.job.scene_path(), 200),
+                std::nullopt,
+                "",
+                task.user,
+                task.bytes};
       try {
         // The limits come first: past one, nothing is unpacked or loaded.
         if (auto refusal = check_figures(figures_of(task.job), limits_)) {
@@ -292,17 +296,19 @@ std::unique_ptr<Broker::Gate> Broker::open_gate(const MasterOptions& options) {
 Broker::Broker(MasterOptions options)
     : options_(std::move(options)),
       store_(options_.data_dir),
-      jobs_(store_, [this] {
-        JobManagerOptions o = options_.jobs;
-        o.image_interval = options_.image_interval;
-        o.worker_name = [this](const WorkerId& w) { return worker_label(w); };
-        o.connected_workers = [this] {
-          std::vector<std::string> out;
-          for (const auto& [peer, w] : workers_) out.push_back(w.key_name.empty() ? peer : w.key_name);
-          return out;
-        };
-        return o;
-      }()),
+      jobs_(store_,
+            [this] {
+              JobManagerOptions o = options_.jobs;
+              o.image_interval = options_.image_interval;
+              o.worker_name = [this](const WorkerId& w) { return worker_label(w); };
+              o.connected_workers = [this] {
+                std::vector<std::string> out;
+                for (const auto& [peer, w] : workers_)
+                  out.push_back(w.key_name.empty() ? peer : w.key_name);
+                return out;
+              };
+              return o;
+            }()),
       gate_(open_gate(options_)),
       workers_socket_(options_.worker_endpoint, options_.limits.max_message_bytes,
                       curve_for(options_, kWorkerDomain), kWorkerQueues),
@@ -615,10 +621,10 @@ bool Broker::Complaints::should_log(const std::string& who, uint64_t& unlogged) 
 void Broker::complain(const std::string& socket, const std::string& key, const std::string& text) {
   uint64_t unlogged = 0;
   if (!complaints_.should_log(socket + '\0' + key, unlogged)) return;
-  log()->warn("{} socket: {}{}", socket, text,
-              unlogged ? fmt::format(" ({} more such messages with this key since the last line)",
-                                     unlogged)
-                       : "");
+  log()->warn(
+      "{} socket: {}{}", socket, text,
+      unlogged ? fmt::format(" ({} more such messages with this key since the last line)", unlogged)
+               : "");
 }
 
 void Broker::send_bundle(const net::PeerId& peer, Worker& w, const std::string& hash) {
@@ -644,14 +650,15 @@ void Broker::send_bundle(const net::PeerId& peer, Worker& w, const std::string& 
   if (w.bundles_sent.count(hash)) {
     refusal = "it was sent to this connection less than a minute ago";
   } else if (w.bundle_bytes + bytes > 2 * options_.limits.max_bundle_bytes) {
-    refusal = "this connection was sent more bundle bytes in the last minute than the master allows";
+    refusal =
+        "this connection was sent more bundle bytes in the last minute than the master allows";
   }
   if (refusal) {
     log()->warn("bundle {} not sent to {}: {}", hash.substr(0, 12), worker_label(peer), refusal);
     reply_msg.set_error(std::string("the master will not send bundle ") + hash.substr(0, 12) +
                         " now: " + refusal + "; ask again later");
-    const auto retry = std::chrono::duration_cast<std::chrono::milliseconds>(
-        w.bundle_window + kBundleWindow - now);
+    const auto retry = std::chrono::duration_cast<std::chrono::milliseconds>(w.bundle_window +
+                                                                             kBundleWindow - now);
     reply_msg.set_retry_after_ms(static_cast<uint32_t>(std::max<int64_t>(retry.count(), 1000)));
     send_worker(peer, encode(std::move(reply_msg)));
     return;
@@ -746,7 +753,8 @@ void Broker::handle_client(const net::Delivery& delivery) {
       } else if (auto st = jobs_.status(request->job_id(), worker_count)) {
         reply(peer, encode(std::move(*st)));
       } else {
-        reply(peer, error_frames("unknown job '" + protocol::printable(request->job_id()) + "'", request->job_id()));
+        reply(peer, error_frames("unknown job '" + protocol::printable(request->job_id()) + "'",
+                                 request->job_id()));
       }
     } else if (msg.as<wire::ListJobs>()) {
       wire::JobList list;
@@ -764,7 +772,8 @@ void Broker::handle_client(const net::Delivery& delivery) {
         out.set_state(*state);
         reply(peer, encode(std::move(out)));
       } else {
-        reply(peer, error_frames("unknown job '" + protocol::printable(cancel->job_id()) + "'", cancel->job_id()));
+        reply(peer, error_frames("unknown job '" + protocol::printable(cancel->job_id()) + "'",
+                                 cancel->job_id()));
       }
     } else if (msg.as<wire::ListWorkers>()) {
       reply(peer, encode(worker_list()));

@@ -88,7 +88,8 @@ std::string storage_refusal(const std::exception& e, const fs::path& root) {
       if (std::string(e.what()).find(text) != std::string::npos) cause = text;
     }
   }
-  if (!cause.empty()) cause[0] = static_cast<char>(std::tolower(static_cast<unsigned char>(cause[0])));
+  if (!cause.empty())
+    cause[0] = static_cast<char>(std::tolower(static_cast<unsigned char>(cause[0])));
   return "the master cannot store the job: " + cause + " (the master's data dir)";
 }
 
@@ -474,7 +475,8 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
   }
   spec.has_reference = !request.reference_exr().empty();
   PreparedJob prepared;
-  if (spec.has_reference) prepared.reference = check_reference_bytes(request.reference_exr(), spec.film);
+  if (spec.has_reference)
+    prepared.reference = check_reference_bytes(request.reference_exr(), spec.film);
   const UnitGrid grid(spec.film, spec.tile_size, spec.settings.spp, spec.pass_spp);
   if (grid.size() > kMaxUnits) {
     throw JobRejected(
@@ -539,10 +541,10 @@ std::string JobManager::admit(PreparedJob prepared) {
       "job {} accepted: '{}', scene {} {}x{}, {}, {}, max depth {}, seed {}; {} tiles of {} x "
       "{} passes of {} spp = {} units; bundle of {} files, {} ({}){}",
       spec.id, spec.name, spec.scene_path, spec.film.width, spec.film.height,
-      describe_stop(spec.stop, spec.settings.spp),
-      integrator_name(spec.settings.integrator), spec.settings.max_depth, spec.settings.seed,
-      grid.tile_count(), spec.tile_size, grid.pass_count(), spec.pass_spp, grid.size(),
-      prepared.bundle_files, human_bytes(prepared.bundle_bytes), hash.substr(0, 12),
+      describe_stop(spec.stop, spec.settings.spp), integrator_name(spec.settings.integrator),
+      spec.settings.max_depth, spec.settings.seed, grid.tile_count(), spec.tile_size,
+      grid.pass_count(), spec.pass_spp, grid.size(), prepared.bundle_files,
+      human_bytes(prepared.bundle_bytes), hash.substr(0, 12),
       spec.has_reference ? "; error measured against its reference image" : "");
   for (const auto& w : prepared.warnings) log_jobs()->warn("job {}: {}", spec.id, w);
   const std::string id = spec.id;
@@ -551,7 +553,7 @@ std::string JobManager::admit(PreparedJob prepared) {
 }
 
 std::optional<wire::WorkUnit> JobManager::next_unit(const WorkerId& worker,
-                                                     const std::string& key) {
+                                                    const std::string& key) {
   const auto now = Clock::now();
   auto ref = scheduler_.lease(worker, now, key);
   if (!ref) {
@@ -615,22 +617,22 @@ MergeOutcome JobManager::on_result(const WorkerId& worker, const wire::UnitResul
   Job& job = it->second;
   const UnitRef ref{id, result.unit_id()};
   // Lines about dropped results are a peer's to cause: a burst per key, then one a second.
-  const auto level = log_budget_.take(key.empty() ? worker : key) ? spdlog::level::info
-                                                                  : spdlog::level::debug;
+  const auto level =
+      log_budget_.take(key.empty() ? worker : key) ? spdlog::level::info : spdlog::level::debug;
   if (!job.merger) {
     if (job.record.state == wire::JOB_DONE) {
-      log_merger()->log(level, "job {} unit {}: duplicate result from {} dropped (the job is done)", id,
-                         result.unit_id(), name_of(worker));
+      log_merger()->log(level, "job {} unit {}: duplicate result from {} dropped (the job is done)",
+                        id, result.unit_id(), name_of(worker));
       return MergeOutcome::kDuplicate;
     }
     log_merger()->log(level, "job {} unit {}: result from {} dropped (the job is {})", id,
-                       result.unit_id(), name_of(worker),
-                       protocol::job_state_name(job.record.state));
+                      result.unit_id(), name_of(worker),
+                      protocol::job_state_name(job.record.state));
     return MergeOutcome::kRejected;
   }
   if (job.finishing) {
     log_merger()->log(level, "job {} unit {}: result from {} dropped (the job's work is done)", id,
-                       result.unit_id(), name_of(worker));
+                      result.unit_id(), name_of(worker));
     return MergeOutcome::kDuplicate;
   }
   auto reject = [&](const std::string& why) {
@@ -642,7 +644,7 @@ MergeOutcome JobManager::on_result(const WorkerId& worker, const wire::UnitResul
   };
   if (job.merger->merged(result.unit_id())) {
     log_merger()->log(level, "job {} unit {}: duplicate result from {} dropped (merged before)", id,
-                       result.unit_id(), name_of(worker));
+                      result.unit_id(), name_of(worker));
     return MergeOutcome::kDuplicate;
   }
   // Only the connection that was leased the unit may return it: another peer's result, even with
@@ -693,9 +695,9 @@ void JobManager::on_round_done(Job& job) {
   const double seconds = elapsed(job);
   record_row(job);
   const ErrorRow& row = job.rows.back();
-  const double eta = estimate_eta(
-      s.stop, static_cast<double>(m.grid().samples_total() - m.samples_merged()),
-      row.samples_per_s, seconds, job.rows);
+  const double eta =
+      estimate_eta(s.stop, static_cast<double>(m.grid().samples_total() - m.samples_merged()),
+                   row.samples_per_s, seconds, job.rows);
   // The per-tile figure: the tile with the largest estimated error, and where it is.
   const TiledErrorEstimate& tiles = job.tracker->estimate();
   const int worst_tile = tiles.worst_tile();
@@ -760,9 +762,10 @@ void JobManager::note_failure(Job& job, const WorkerId& worker, const std::strin
   }
   if (worker_count >= options_.max_worker_failures && !scheduler_.is_blocked(id, who)) {
     scheduler_.block(id, who);
-    log_jobs()->warn("job {}: {} blocked from the job after {} failures (last: {}); it gets "
-                     "other jobs' units",
-                     id, label, worker_count, why);
+    log_jobs()->warn(
+        "job {}: {} blocked from the job after {} failures (last: {}); it gets "
+        "other jobs' units",
+        id, label, worker_count, why);
     fail_if_nobody_can_render(job, Clock::now());
   }
 }
@@ -775,10 +778,9 @@ bool JobManager::fail_if_nobody_can_render(Job& job, Clock::time_point now) {
     return false;
   }
   const std::vector<std::string> connected = options_.connected_workers();
-  const bool all_blocked =
-      !connected.empty() && std::all_of(connected.begin(), connected.end(), [&](const auto& w) {
-        return scheduler_.is_blocked(id, w);
-      });
+  const bool all_blocked = !connected.empty() &&
+                           std::all_of(connected.begin(), connected.end(),
+                                       [&](const auto& w) { return scheduler_.is_blocked(id, w); });
   if (!all_blocked) {
     job.all_blocked_since.reset();
     return false;
@@ -828,7 +830,8 @@ void JobManager::remove(const std::string& id) {
   std::error_code ec;
   fs::remove_all(store_.job_dir(id), ec);
   if (ec) {
-    throw JobRejected(fmt::format("cannot remove {}: {}", store_.job_dir(id).string(), ec.message()));
+    throw JobRejected(
+        fmt::format("cannot remove {}: {}", store_.job_dir(id).string(), ec.message()));
   }
   const std::string hash = job.record.spec.bundle_hash;
   jobs_.erase(it);
@@ -855,9 +858,10 @@ wire::JobState JobManager::retry(const std::string& id) {
     throw JobRejected("job " + id + " cannot be retried: " + job.record.error);
   }
   if (state != wire::JOB_FAILED && state != wire::JOB_CANCELLED) {
-    throw JobRejected(fmt::format("job {} is {}: only a failed or cancelled job can be retried{}",
-                                  id, protocol::job_state_name(state),
-                                  state == wire::JOB_DONE ? " (submit it again to render more)" : ""));
+    throw JobRejected(
+        fmt::format("job {} is {}: only a failed or cancelled job can be retried{}", id,
+                    protocol::job_state_name(state),
+                    state == wire::JOB_DONE ? " (submit it again to render more)" : ""));
   }
   if (!store_.load_bundle(id)) {
     throw JobRejected("job " + id + " cannot be retried: its bundle is missing from the data dir");
@@ -883,7 +887,8 @@ wire::JobState JobManager::retry(const std::string& id) {
 
 std::vector<std::string> JobManager::units_of(const WorkerId& worker) const {
   std::vector<std::string> out;
-  for (const UnitRef& u : scheduler_.leased_units(worker)) out.push_back(fmt::format("{}/{}", u.job, u.unit));
+  for (const UnitRef& u : scheduler_.leased_units(worker))
+    out.push_back(fmt::format("{}/{}", u.job, u.unit));
   return out;
 }
 
@@ -1174,9 +1179,9 @@ wire::JobStatus JobManager::make_status(const Job& job, uint32_t workers_total) 
     if (seconds > 0 && m.samples_merged() > 0) {
       const double rate = static_cast<double>(m.samples_merged()) / seconds;
       st.set_samples_per_second(rate);
-      st.set_eta_seconds(estimate_eta(
-          s.stop, static_cast<double>(grid.samples_total() - m.samples_merged()), rate, seconds,
-          job.rows));
+      st.set_eta_seconds(
+          estimate_eta(s.stop, static_cast<double>(grid.samples_total() - m.samples_merged()), rate,
+                       seconds, job.rows));
     }
   } else {
     st.set_units_done(job.record.units_done);

@@ -179,9 +179,10 @@ struct Agent::Impl {
     } else {
       // No connection takes messages: the master refused this worker's key or security (or a
       // connection is being made again); check_handshake says which.
-      log()->warn("no connection to the master takes messages (it has not let this worker in); "
-                  "message dropped{}, logged at most every {} s",
-                  LogThrottle::suffix(verdict), kDroppedLogInterval.count());
+      log()->warn(
+          "no connection to the master takes messages (it has not let this worker in); "
+          "message dropped{}, logged at most every {} s",
+          LogThrottle::suffix(verdict), kDroppedLogInterval.count());
     }
   }
 
@@ -548,11 +549,12 @@ struct Agent::Impl {
       }
       if (stopping && in_flight.empty()) break;
       if (stopping && Clock::now() >= stop_deadline) {
-        log()->warn("the {} unit{} in hand did not finish within {:g} s of the stop; the master "
-                    "takes {} back",
-                    in_flight.size(), in_flight.size() == 1 ? "" : "s",
-                    static_cast<double>(options.stop_grace.count()) / 1000.0,
-                    in_flight.size() == 1 ? "it" : "them");
+        log()->warn(
+            "the {} unit{} in hand did not finish within {:g} s of the stop; the master "
+            "takes {} back",
+            in_flight.size(), in_flight.size() == 1 ? "" : "s",
+            static_cast<double>(options.stop_grace.count()) / 1000.0,
+            in_flight.size() == 1 ? "it" : "them");
         abandoned = true;
         break;
       }

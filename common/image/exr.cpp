@@ -141,8 +141,9 @@ Image read_exr_file(const fs::path& path, const ExrExpect& expect) {
   if (expect.width != 0) {
     const auto peeked = peek_data_window(path);
     if (!peeked) {
-      fail_read(path, "not an OpenEXR file with a readable header and data window in its first "
-                      "MiB");
+      fail_read(path,
+                "not an OpenEXR file with a readable header and data window in its first "
+                "MiB");
     }
     if (size_mismatch(peeked->first, peeked->second)) refuse_size(peeked->first, peeked->second);
   }

@@ -64,7 +64,8 @@ bool is_storage_error(const std::exception& e) {
 void write_bytes(const fs::path& path, std::string_view bytes) {
   check_fault(path);
   const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) throw std::system_error(errno, std::generic_category(), "cannot create " + path.string());
+  if (fd < 0)
+    throw std::system_error(errno, std::generic_category(), "cannot create " + path.string());
   size_t done = 0;
   while (done < bytes.size()) {
     const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);

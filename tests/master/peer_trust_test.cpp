@@ -121,8 +121,7 @@ TEST(ImplausibleTest, NamesThePixelAndAcceptsTheExtremesSamplesCanReach) {
       << implausible(r);
   r.sum[5] = to_fixed(v) * 4;
   r.sum_sq[5] = to_fixed(v * v) * 2;  // four samples of magnitude v cannot square to 2 v^2
-  EXPECT_NE(implausible(r).find("sum^2 > n * sum of squares"), std::string::npos)
-      << implausible(r);
+  EXPECT_NE(implausible(r).find("sum^2 > n * sum of squares"), std::string::npos) << implausible(r);
   r.sum_sq[5] = to_fixed(v * v) * 4;
   r.nonfinite = 17;
   EXPECT_NE(implausible(r).find("17 non-finite samples of the 16"), std::string::npos);
@@ -378,7 +377,8 @@ class BrokerTrustTest : public ::testing::Test {
 
   MasterOptions options() {
     net::write_key_pair(dir.path() / "workers", "w1", worker_keys);
-    for (const auto& [name, keys] : clients) net::write_key_pair(dir.path() / "clients", name, keys);
+    for (const auto& [name, keys] : clients)
+      net::write_key_pair(dir.path() / "clients", name, keys);
     MasterOptions o;
     o.worker_endpoint = "tcp://127.0.0.1:0";
     o.client_endpoint = "tcp://127.0.0.1:0";
