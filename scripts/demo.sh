@@ -6,8 +6,9 @@
 #
 # The Cornell box is rendered to a target error rather than a fixed spp: it stops at the first of
 # the estimated relative MSE reaching --target-error, --time-limit seconds, or --spp samples per
-# pixel (docs/error.md). --clamp C trades a bias for fewer fireflies (off by default; recorded in the
-# EXR header).
+# pixel (docs/error.md). 4e-3 is a clean 256x256 image: measured on a 2-core machine with two
+# workers, 92 s and 2152 spp on average (tiles stop on their own; the glass sphere's run to --spp). --clamp C trades a bias for fewer fireflies
+# (off by default; recorded in the EXR header).
 #
 # Usage: scripts/demo.sh [--workers N] [--target-error E] [--time-limit S] [--spp N] [--clamp C]
 #                        [--scene PATH]
@@ -15,7 +16,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 workers=2
-target_error=2.5e-4
+target_error=4e-3
 time_limit=120
 spp=4096
 clamp=0
