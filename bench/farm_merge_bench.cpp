@@ -42,9 +42,13 @@ double seconds_since(Clock::time_point t) {
 rayfarm::TileResult fake_result(const rayfarm::TileRect& rect,
                                 const rayfarm::SampleRange& samples) {
   rayfarm::TileResult r(rect, samples);
+  // Sums that samples could have (the master refuses impossible ones): mean m in [0.25, 0.31],
+  // second moment m^2 + 0.01.
+  const double n = samples.count();
   for (size_t i = 0; i < r.sum.size(); ++i) {
-    r.sum[i] = rayfarm::to_fixed(0.25 * samples.count() + static_cast<double>(i % 7));
-    r.sum_sq[i] = rayfarm::to_fixed(0.0625 * samples.count());
+    const double m = 0.25 + 0.01 * static_cast<double>(i % 7);
+    r.sum[i] = rayfarm::to_fixed(m * n);
+    r.sum_sq[i] = rayfarm::to_fixed((m * m + 0.01) * n);
   }
   return r;
 }

@@ -30,25 +30,34 @@ std::string implausible(const TileResult& r) {
            " samples";
   }
   // In fixed-point units (2^-40): a sample v adds trunc(v 2^40) to the sum and trunc(v^2 2^40)
-  // to the sum of squares, each off by less than one unit; |v| <= kMaxSampleValue = 2^32.
-  const long double scale = 1099511627776.0L;  // 2^40
-  const long double nn = static_cast<long double>(n);
-  const long double max_sum = nn * kMaxSampleValue * scale + nn;
-  const long double max_sum_sq = nn * kMaxSampleValue * kMaxSampleValue * scale + nn;
+  // to the sum of squares, each off by less than one unit; |v| <= kMaxSampleValue = 2^32. The
+  // bounds are integers (the sum of squares' saturates where n 2^104 would not fit); the
+  // Cauchy-Schwarz test runs in double with a relative margin of 1e-9, far above double's rounding,
+  // so that no possible result is refused (and an impossible one within 1e-9 of possible is
+  // harmless).
+  const Fixed nn = static_cast<Fixed>(n);
+  const Fixed max_sum = nn * (Fixed{1} << 72) + nn;
+  const Fixed max_sum_sq = n >= (uint64_t{1} << 22) ? static_cast<Fixed>(~UFixed{0} >> 1)
+                                                    : nn * (Fixed{1} << 104) + nn;
+  const double dn = static_cast<double>(n);
+  const double scale = 1099511627776.0;  // 2^40
   for (size_t i = 0; i < r.sum.size(); ++i) {
-    const long double s = static_cast<long double>(r.sum[i]);
-    const long double q = static_cast<long double>(r.sum_sq[i]);
+    const Fixed sum = r.sum[i], sum_sq = r.sum_sq[i];
     const char* problem = nullptr;
-    if (r.sum_sq[i] < 0) {
+    if (sum_sq < 0) {
       problem = "a negative sum of squares";
-    } else if (q > max_sum_sq) {
+    } else if (sum_sq > max_sum_sq) {
       problem = "a sum of squares larger than its samples can reach";
-    } else if (std::fabs(s) > max_sum) {
+    } else if (sum > max_sum || -sum > max_sum) {
       problem = "a sum larger than its samples can reach";
     } else {
-      // (|S| - n)^2 <= n (Q + n) 2^40, with a relative margin for long double's rounding.
-      const long double lhs = std::max(0.0L, std::fabs(s) - nn);
-      if (lhs * lhs > nn * (q + nn) * scale * (1.0L + 1e-12L)) {
+      // (|S| - n)^2 <= n (Q + n) 2^40. Most sums fit 64 bits, whose conversion is cheap.
+      auto to_double = [](Fixed v) {
+        const auto low = static_cast<int64_t>(v);
+        return static_cast<Fixed>(low) == v ? static_cast<double>(low) : static_cast<double>(v);
+      };
+      const double excess = std::max(0.0, std::fabs(to_double(sum)) - dn);
+      if (excess * excess > dn * (to_double(sum_sq) + dn) * scale * (1.0 + 1e-9)) {
         problem = "sum^2 > n * sum of squares (no set of samples has these sums)";
       }
     }
