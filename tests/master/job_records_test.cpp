@@ -18,6 +18,7 @@
 #include "common/protocol/convert.h"
 #include "master/eta.h"
 #include "master/job_manager.h"
+#include "tests/master/job_requests.h"
 #include "tests/support/temp_dir.h"
 
 namespace rayfarm::master {
@@ -32,16 +33,7 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 
 /// The bundled furnace (32x32) with these overrides.
 wire::SubmitJob furnace(uint32_t spp, uint32_t tile, uint32_t pass_spp) {
-  const PackedScene packed =
-      pack_scene(fs::path(RAYFARM_SOURCE_DIR) / "scenes" / "furnace" / "scene.json");
-  wire::SubmitJob request;
-  protocol::bundle_to_wire(packed.bundle, request.mutable_bundle());
-  request.set_scene_path(packed.scene_path);
-  request.set_name("furnace");
-  request.mutable_overrides()->set_spp(spp);
-  request.mutable_overrides()->set_tile_size(tile);
-  request.mutable_overrides()->set_pass_spp(pass_spp);
-  return request;
+  return test_jobs::furnace_job(spp, tile, pass_spp);
 }
 
 /// A result of the right shape for `unit`; sample i of a pixel is worth `value` + i % 2 (so
