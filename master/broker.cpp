@@ -94,11 +94,7 @@ net::Curve curve_for(const MasterOptions& options, const char* domain) {
 struct Broker::Gate {
   net::AllowListPolicy policy;
   std::mutex mutex;  // guards `recent` (the ZAP thread only, but cheap to be sure)
-  struct Recent {
-    std::chrono::steady_clock::time_point logged;
-    uint64_t unlogged = 0;
-  };
-  std::map<std::tuple<std::string, std::string, std::string>, Recent> recent;
+  std::map<std::tuple<std::string, std::string, std::string>, LogThrottle> recent;
   net::ZapHandler handler;
 
   explicit Gate(const MasterSecurity& security)
@@ -114,17 +110,12 @@ struct Broker::Gate {
     const char* role = r.domain == kWorkerDomain ? "worker" : "client";
     std::lock_guard lock(mutex);
     if (recent.size() > 4096) recent.clear();
-    Recent& seen = recent[{r.domain, r.address, r.key}];
-    const auto now = std::chrono::steady_clock::now();
-    if (seen.logged.time_since_epoch().count() != 0 && now - seen.logged < kRefusalLogInterval) {
-      ++seen.unlogged;
-      return {};
+    const LogThrottle::Verdict verdict =
+        recent.try_emplace({r.domain, r.address, r.key}, kRefusalLogInterval).first->second.occur();
+    if (verdict.log) {
+      log()->warn("refused a {} connection from {}: {}{}", role, r.address, d.reason,
+                  LogThrottle::suffix(verdict));
     }
-    log()->warn("refused a {} connection from {}: {}{}", role, r.address, d.reason,
-                seen.unlogged
-                    ? fmt::format(" ({} more refusals of it since the last line)", seen.unlogged)
-                    : "");
-    seen = Recent{now, 0};
     return {};
   }
 };
@@ -605,26 +596,11 @@ bool Broker::may_see(const std::string& owner, const std::string& user) const {
   return !options_.security.private_jobs || may_manage(owner, user);
 }
 
-bool Broker::Complaints::should_log(const std::string& who, uint64_t& unlogged) {
-  if (seen.size() > 4096) seen.clear();
-  Seen& s = seen[who];
-  const auto now = Clock::now();
-  if (s.logged.time_since_epoch().count() != 0 && now - s.logged < kRefusalLogInterval) {
-    ++s.unlogged;
-    return false;
-  }
-  unlogged = s.unlogged;
-  s = Seen{now, 0};
-  return true;
-}
-
 void Broker::complain(const std::string& socket, const std::string& key, const std::string& text) {
-  uint64_t unlogged = 0;
-  if (!complaints_.should_log(socket + '\0' + key, unlogged)) return;
-  log()->warn(
-      "{} socket: {}{}", socket, text,
-      unlogged ? fmt::format(" ({} more such messages with this key since the last line)", unlogged)
-               : "");
+  if (complaints_.size() > 4096) complaints_.clear();
+  const LogThrottle::Verdict verdict =
+      complaints_.try_emplace(socket + '\0' + key, kRefusalLogInterval).first->second.occur();
+  if (verdict.log) log()->warn("{} socket: {}{}", socket, text, LogThrottle::suffix(verdict));
 }
 
 void Broker::send_bundle(const net::PeerId& peer, Worker& w, const std::string& hash) {
@@ -663,7 +639,7 @@ void Broker::send_bundle(const net::PeerId& peer, Worker& w, const std::string& 
     send_worker(peer, encode(std::move(reply_msg)));
     return;
   }
-  w.bundles_sent.emplace(hash, now);
+  w.bundles_sent.insert(hash);
   w.bundle_bytes += bytes;
   *reply_msg.mutable_bundle() = std::move(*bundle);
   log()->debug("bundle {} sent to {}", hash.substr(0, 12), worker_label(peer));

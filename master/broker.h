@@ -19,6 +19,7 @@
 #include "common/net/keys.h"
 #include "common/net/socket.h"
 #include "common/protocol/heartbeat.h"
+#include "common/util/log_throttle.h"
 #include "master/job_manager.h"
 #include "master/job_store.h"
 #include "master/limits.h"
@@ -85,7 +86,7 @@ class Broker {
     uint32_t wants = 0;         // WorkRequests not answered yet
     uint64_t units_sent = 0;
     // Bundles sent to it in the current window (kBundleWindow): when, and the bytes in all.
-    std::map<std::string, Clock::time_point> bundles_sent;
+    std::set<std::string> bundles_sent;
     Clock::time_point bundle_window;
     uint64_t bundle_bytes = 0;
     // For `rayfarm workers`.
@@ -100,18 +101,9 @@ class Broker {
 
   struct Gate;  // the ZAP handler and its allow-lists
 
-  /// Complaints about one peer's messages (garbage, unexpected types), logged at most once per
-  /// interval per socket and key, with the count of those left out.
-  struct Complaints {
-    struct Seen {
-      Clock::time_point logged;
-      uint64_t unlogged = 0;
-    };
-    std::map<std::string, Seen> seen;
-    /// Whether to log now; `unlogged` is then how many were left out since the last line.
-    bool should_log(const std::string& who, uint64_t& unlogged);
-  };
-  Complaints complaints_;
+  /// Complaints about a peer's messages (garbage, unexpected types), per socket and key: logged at
+  /// most once per interval, with the count of those left out.
+  std::map<std::string, LogThrottle> complaints_;
   LogBudget refusal_log_;  // lines about refused submissions, per key
 
   class Submissions;  // checks and stores submissions on a thread of its own

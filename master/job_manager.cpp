@@ -79,17 +79,9 @@ std::string describe_stop(const StopRules& stop, uint32_t spp) {
 /// paths); the master's log has the whole message.
 std::string storage_refusal(const std::exception& e, const fs::path& root) {
   log_jobs()->error("cannot store a submitted job in {}: {}", root.string(), e.what());
-  std::string cause = "an I/O error";
-  if (const auto* system = dynamic_cast<const std::system_error*>(&e)) {
-    cause = system->code().message();
-  } else {
-    for (const int code : {ENOSPC, EDQUOT, EROFS, EIO, EACCES}) {
-      const std::string text = std::generic_category().message(code);
-      if (std::string(e.what()).find(text) != std::string::npos) cause = text;
-    }
-  }
-  if (!cause.empty())
-    cause[0] = static_cast<char>(std::tolower(static_cast<unsigned char>(cause[0])));
+  const int code = storage_error_code(e);
+  std::string cause = code ? std::generic_category().message(code) : "an I/O error";
+  cause[0] = static_cast<char>(std::tolower(static_cast<unsigned char>(cause[0])));
   return "the master cannot store the job: " + cause + " (the master's data dir)";
 }
 
@@ -118,7 +110,6 @@ Image JobManager::check_reference_bytes(const std::string& exr, FilmSize film) c
                                   "reference image"));
   }
   fs::remove_all(scratch, ec);
-  reference.extra.clear();
   return reference;
 }
 
@@ -617,21 +608,24 @@ MergeOutcome JobManager::on_result(const WorkerId& worker, const wire::UnitResul
   Job& job = it->second;
   const UnitRef ref{id, result.unit_id()};
   // Lines about dropped results are a peer's to cause: a burst per key, then one a second.
-  const auto level =
-      log_budget_.take(key.empty() ? worker : key) ? spdlog::level::info : spdlog::level::debug;
+  // (Taken only when a result is dropped: merged results spend nothing.)
+  auto level = [&] {
+    return log_budget_.take(key.empty() ? worker : key) ? spdlog::level::info
+                                                        : spdlog::level::debug;
+  };
   if (!job.merger) {
     if (job.record.state == wire::JOB_DONE) {
-      log_merger()->log(level, "job {} unit {}: duplicate result from {} dropped (the job is done)",
+      log_merger()->log(level(), "job {} unit {}: duplicate result from {} dropped (the job is done)",
                         id, result.unit_id(), name_of(worker));
       return MergeOutcome::kDuplicate;
     }
-    log_merger()->log(level, "job {} unit {}: result from {} dropped (the job is {})", id,
+    log_merger()->log(level(), "job {} unit {}: result from {} dropped (the job is {})", id,
                       result.unit_id(), name_of(worker),
                       protocol::job_state_name(job.record.state));
     return MergeOutcome::kRejected;
   }
   if (job.finishing) {
-    log_merger()->log(level, "job {} unit {}: result from {} dropped (the job's work is done)", id,
+    log_merger()->log(level(), "job {} unit {}: result from {} dropped (the job's work is done)", id,
                       result.unit_id(), name_of(worker));
     return MergeOutcome::kDuplicate;
   }
@@ -643,7 +637,7 @@ MergeOutcome JobManager::on_result(const WorkerId& worker, const wire::UnitResul
     return MergeOutcome::kRejected;
   };
   if (job.merger->merged(result.unit_id())) {
-    log_merger()->log(level, "job {} unit {}: duplicate result from {} dropped (merged before)", id,
+    log_merger()->log(level(), "job {} unit {}: duplicate result from {} dropped (merged before)", id,
                       result.unit_id(), name_of(worker));
     return MergeOutcome::kDuplicate;
   }

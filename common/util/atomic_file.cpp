@@ -49,16 +49,18 @@ void set_write_fault_for_testing(std::function<int(const fs::path&)> fault) {
   g_fault = std::move(fault);
 }
 
-bool is_storage_error(const std::exception& e) {
-  if (const auto* system = dynamic_cast<const std::system_error*>(&e)) {
-    const int code = system->code().value();
-    if (code == ENOSPC || code == EDQUOT || code == EROFS) return true;
-  }
+int storage_error_code(const std::exception& e) {
+  if (const auto* system = dynamic_cast<const std::system_error*>(&e)) return system->code().value();
   const std::string what = e.what();
-  for (const int code : {ENOSPC, EDQUOT, EROFS}) {
-    if (what.find(std::generic_category().message(code)) != std::string::npos) return true;
+  for (const int code : {ENOSPC, EDQUOT, EROFS, EIO, EACCES}) {
+    if (what.find(std::generic_category().message(code)) != std::string::npos) return code;
   }
-  return false;
+  return 0;
+}
+
+bool is_storage_error(const std::exception& e) {
+  const int code = storage_error_code(e);
+  return code == ENOSPC || code == EDQUOT || code == EROFS;
 }
 
 void write_bytes(const fs::path& path, std::string_view bytes) {

@@ -26,8 +26,13 @@ void write_bytes(const std::filesystem::path& path, std::string_view bytes);
 /// with that cause. An empty function removes the hook. Not for production use.
 void set_write_fault_for_testing(std::function<int(const std::filesystem::path&)> fault);
 
-/// Whether `e`, or the system error inside its message, says the storage is full or read-only
-/// (ENOSPC, EDQUOT, EROFS), as opposed to bad data.
+/// The system error behind `e`: its code when it is a std::system_error, else the first of the
+/// storage errors (ENOSPC, EDQUOT, EROFS, EIO, EACCES) whose text its message holds (writers
+/// wrap the system's message in their own); 0 when none.
+int storage_error_code(const std::exception& e);
+
+/// Whether `e` says the storage is full or read-only (ENOSPC, EDQUOT, EROFS), as opposed to bad
+/// data.
 bool is_storage_error(const std::exception& e);
 
 }  // namespace rayfarm
