@@ -451,7 +451,7 @@ struct Agent::Impl {
       on_bundle(*reply);
     } else if (const auto* error = msg.as<wire::Error>()) {
       log()->warn("the master says: {}", error->message());
-      if (error->message().rfind("unknown worker", 0) == 0 && welcomed) {
+      if (error->code() == wire::Error::UNKNOWN_WORKER && welcomed) {
         // The master restarted (or declared us lost) and the connection came back by itself.
         say_hello();
       }
