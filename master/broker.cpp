@@ -384,7 +384,7 @@ void Broker::on_timers() {
   }
   for (const auto& peer : expired) {
     const double silent = std::chrono::duration<double>(now - workers_[peer].heard).count();
-    remove_worker(peer, fmt::format("lost: silent for {:.1f} s", silent));
+    remove_worker(peer, fmt::format("lost: silent for {:.1f} s", silent), Departure::kLost);
   }
   jobs_.tick();
   if (jobs_.has_pending()) dispatch();  // stragglers become due with time alone
@@ -439,13 +439,13 @@ void Broker::register_worker(const net::PeerId& peer, const wire::Hello& hello,
   send_worker(peer, encode(std::move(welcome)));
 }
 
-void Broker::remove_worker(const net::PeerId& peer, const std::string& why) {
+void Broker::remove_worker(const net::PeerId& peer, const std::string& why, Departure departure) {
   auto it = workers_.find(peer);
   if (it == workers_.end()) return;
   const std::string label = worker_label(peer);
   const size_t requeued = jobs_.release_worker(peer);
   workers_.erase(it);
-  const auto level = why.rfind("lost", 0) == 0 ? spdlog::level::warn : spdlog::level::info;
+  const auto level = departure == Departure::kLost ? spdlog::level::warn : spdlog::level::info;
   log()->log(level, "{} {}; {} unit{} requeued; {} worker{} connected", label, why, requeued,
              requeued == 1 ? "" : "s", workers_.size(), workers_.size() == 1 ? "" : "s");
   if (requeued) dispatch();
@@ -467,7 +467,6 @@ void Broker::dispatch() {
         continue;
       }
       --w.wants;
-      ++w.units_sent;
       sent = true;
     }
   }
