@@ -28,8 +28,10 @@ constexpr int kBatch = 256;
 /// Most WorkRequests a worker may have outstanding (a worker renders a few units at once).
 constexpr uint32_t kMaxWants = 4;
 
-net::Frames error_frames(const std::string& message, const std::string& job_id = "") {
+net::Frames error_frames(wire::Error::Code code, const std::string& message,
+                         const std::string& job_id = "") {
   wire::Error e;
+  e.set_code(code);
   e.set_message(message);
   e.set_job_id(job_id);
   return encode(std::move(e));
@@ -382,7 +384,7 @@ void Broker::on_timers() {
   }
   for (const auto& peer : expired) {
     const double silent = std::chrono::duration<double>(now - workers_[peer].heard).count();
-    remove_worker(peer, fmt::format("lost: silent for {:.1f} s", silent));
+    remove_worker(peer, fmt::format("lost: silent for {:.1f} s", silent), Departure::kLost);
   }
   jobs_.tick();
   if (jobs_.has_pending()) dispatch();  // stragglers become due with time alone
@@ -411,7 +413,8 @@ void Broker::register_worker(const net::PeerId& peer, const wire::Hello& hello,
   if (hello.role() != wire::ROLE_WORKER) {
     log()->warn("worker socket: {} said hello as a client; refused", net::peer_label(peer));
     send_worker(
-        peer, error_frames("this is the worker endpoint; clients connect to the client endpoint"));
+        peer, error_frames(wire::Error::WRONG_ENDPOINT,
+                           "this is the worker endpoint; clients connect to the client endpoint"));
     return;
   }
   if (workers_.count(peer)) {
@@ -436,13 +439,13 @@ void Broker::register_worker(const net::PeerId& peer, const wire::Hello& hello,
   send_worker(peer, encode(std::move(welcome)));
 }
 
-void Broker::remove_worker(const net::PeerId& peer, const std::string& why) {
+void Broker::remove_worker(const net::PeerId& peer, const std::string& why, Departure departure) {
   auto it = workers_.find(peer);
   if (it == workers_.end()) return;
   const std::string label = worker_label(peer);
   const size_t requeued = jobs_.release_worker(peer);
   workers_.erase(it);
-  const auto level = why.rfind("lost", 0) == 0 ? spdlog::level::warn : spdlog::level::info;
+  const auto level = departure == Departure::kLost ? spdlog::level::warn : spdlog::level::info;
   log()->log(level, "{} {}; {} unit{} requeued; {} worker{} connected", label, why, requeued,
              requeued == 1 ? "" : "s", workers_.size(), workers_.size() == 1 ? "" : "s");
   if (requeued) dispatch();
@@ -464,7 +467,6 @@ void Broker::dispatch() {
         continue;
       }
       --w.wants;
-      ++w.units_sent;
       sent = true;
     }
   }
@@ -523,7 +525,8 @@ void Broker::handle_worker(const net::Delivery& delivery) {
                             double(result->sample_end() - result->sample_begin());
       }
       if (it == workers_.end()) {
-        send_worker(peer, error_frames("unknown worker: send Hello first"));
+        send_worker(peer,
+                    error_frames(wire::Error::UNKNOWN_WORKER, "unknown worker: send Hello first"));
       }
       dispatch();
       return;
@@ -532,7 +535,8 @@ void Broker::handle_worker(const net::Delivery& delivery) {
       if (msg.as<wire::Goodbye>()) return;
       log()->debug("worker socket: {} from unknown {}; asking it to say hello", msg.type,
                    net::peer_label(peer));
-      send_worker(peer, error_frames("unknown worker: send Hello first"));
+      send_worker(peer,
+                  error_frames(wire::Error::UNKNOWN_WORKER, "unknown worker: send Hello first"));
       return;
     }
     Worker& w = it->second;
@@ -558,7 +562,8 @@ void Broker::handle_worker(const net::Delivery& delivery) {
     } else {
       complain("worker", delivery.user,
                fmt::format("unexpected {} from {}; ignored", msg.type, worker_label(peer)));
-      send_worker(peer, error_frames("unexpected message " + msg.type + " on the worker endpoint"));
+      send_worker(peer, error_frames(wire::Error::BAD_REQUEST,
+                                     "unexpected message " + msg.type + " on the worker endpoint"));
     }
   } catch (const std::exception& e) {
     log()->error("worker socket: failed to handle {} from {}: {}", msg.type, worker_label(peer),
@@ -576,11 +581,13 @@ void Broker::admit_submissions() {
         admitted = true;
       } catch (const std::exception& e) {
         log()->error("job refused ({}) from {}: {}", done.scene, done.label, e.what());
+        out.set_code(wire::Error::REFUSED);
         out.set_error(jobs_.for_clients(e.what()));
       }
     } else {
       log()->log(refusal_log_.take(done.user) ? spdlog::level::warn : spdlog::level::debug,
                  "job refused ({}) from {}: {}", done.scene, done.label, done.error);
+      out.set_code(wire::Error::REFUSED);
       out.set_error(jobs_.for_clients(done.error));
     }
     reply(done.peer, encode(std::move(out)));
@@ -657,7 +664,8 @@ void Broker::handle_client(const net::Delivery& delivery) {
   } catch (const protocol::DecodeError& e) {
     complain("client", delivery.user,
              fmt::format("ignored a bad message from {}: {}", label, e.what()));
-    reply(peer, error_frames(std::string("cannot decode the request: ") + e.what()));
+    reply(peer, error_frames(wire::Error::BAD_REQUEST,
+                             std::string("cannot decode the request: ") + e.what()));
     return;
   }
   if (!msg.version_ok()) {
@@ -674,21 +682,22 @@ void Broker::handle_client(const net::Delivery& delivery) {
     const std::string* owner = jobs_.owner_of(id);
     if (!owner) return false;  // unknown: the handler says so
     if (!may_see(*owner, delivery.user)) {
-      reply(peer, error_frames(not_visible(id), id));
+      reply(peer, error_frames(wire::Error::NOT_FOUND, not_visible(id), id));
       return true;
     }
     if (may_manage(*owner, delivery.user)) return false;
     complain("client", delivery.user,
              fmt::format("{} may not {} job {} of key '{}'; refused", label, action,
                          protocol::printable(id), protocol::printable(*owner)));
-    reply(peer, error_frames(not_owner(id, *owner, action), id));
+    reply(peer, error_frames(wire::Error::FORBIDDEN, not_owner(id, *owner, action), id));
     return true;
   };
   try {
     if (const auto* hello = msg.as<wire::Hello>()) {
       if (hello->role() == wire::ROLE_WORKER) {
         reply(peer,
-              error_frames("this is the client endpoint; workers connect to the worker endpoint"));
+              error_frames(wire::Error::WRONG_ENDPOINT,
+                           "this is the client endpoint; workers connect to the worker endpoint"));
         return;
       }
       wire::Welcome welcome;
@@ -704,11 +713,13 @@ void Broker::handle_client(const net::Delivery& delivery) {
       const SubmissionFigures figures = bundle_figures(*submit);
       std::optional<std::string> refusal =
           check_queue(jobs_.active_jobs() + submissions_->in_flight(), options_.limits);
+      wire::Error::Code code = wire::Error::REFUSED;
       if (!refusal) refusal = check_figures(figures, options_.limits);
       if (!refusal) {
         wire::SubmitJob job;
         job.Swap(submit);
         if (!submissions_->add(peer, label, delivery.user, std::move(job), figures.bundle_bytes)) {
+          code = wire::Error::BUSY;
           refusal = fmt::format(
               "the master is busy checking other submissions (at most {} wait, {} per key, {} "
               "per connection); submit again in a moment",
@@ -719,17 +730,20 @@ void Broker::handle_client(const net::Delivery& delivery) {
         log()->log(refusal_log_.take(delivery.user) ? spdlog::level::warn : spdlog::level::debug,
                    "job refused from {}: {}", label, *refusal);
         wire::SubmitReply out;
+        out.set_code(code);
         out.set_error(*refusal);
         reply(peer, encode(std::move(out)));
       }
     } else if (const auto* request = msg.as<wire::StatusRequest>()) {
       const std::string* owner = jobs_.owner_of(request->job_id());
       if (owner && !may_see(*owner, delivery.user)) {
-        reply(peer, error_frames(not_visible(request->job_id()), request->job_id()));
+        reply(peer, error_frames(wire::Error::NOT_FOUND, not_visible(request->job_id()),
+                                 request->job_id()));
       } else if (auto st = jobs_.status(request->job_id(), worker_count)) {
         reply(peer, encode(std::move(*st)));
       } else {
-        reply(peer, error_frames("unknown job '" + protocol::printable(request->job_id()) + "'",
+        reply(peer, error_frames(wire::Error::NOT_FOUND,
+                                 "unknown job '" + protocol::printable(request->job_id()) + "'",
                                  request->job_id()));
       }
     } else if (msg.as<wire::ListJobs>()) {
@@ -748,7 +762,8 @@ void Broker::handle_client(const net::Delivery& delivery) {
         out.set_state(*state);
         reply(peer, encode(std::move(out)));
       } else {
-        reply(peer, error_frames("unknown job '" + protocol::printable(cancel->job_id()) + "'",
+        reply(peer, error_frames(wire::Error::NOT_FOUND,
+                                 "unknown job '" + protocol::printable(cancel->job_id()) + "'",
                                  cancel->job_id()));
       }
     } else if (msg.as<wire::ListWorkers>()) {
@@ -761,7 +776,9 @@ void Broker::handle_client(const net::Delivery& delivery) {
         out.set_job_id(remove->job_id());
         reply(peer, encode(std::move(out)));
       } catch (const JobRejected& e) {
-        reply(peer, error_frames(jobs_.for_clients(e.what()), remove->job_id()));
+        reply(peer, error_frames(jobs_.owner_of(remove->job_id()) ? wire::Error::REFUSED
+                                                                  : wire::Error::NOT_FOUND,
+                                 jobs_.for_clients(e.what()), remove->job_id()));
       }
     } else if (const auto* retry = msg.as<wire::RetryJob>()) {
       if (refuse_unless_manager(retry->job_id(), "retry")) return;
@@ -772,28 +789,35 @@ void Broker::handle_client(const net::Delivery& delivery) {
         reply(peer, encode(std::move(out)));
         dispatch();
       } catch (const JobRejected& e) {
-        reply(peer, error_frames(jobs_.for_clients(e.what()), retry->job_id()));
+        reply(peer, error_frames(jobs_.owner_of(retry->job_id()) ? wire::Error::REFUSED
+                                                                 : wire::Error::NOT_FOUND,
+                                 jobs_.for_clients(e.what()), retry->job_id()));
       }
     } else if (const auto* fetch = msg.as<wire::FetchImage>()) {
       const std::string* owner = jobs_.owner_of(fetch->job_id());
       if (owner && !may_see(*owner, delivery.user)) {
-        reply(peer, error_frames(not_visible(fetch->job_id()), fetch->job_id()));
+        reply(peer,
+              error_frames(wire::Error::NOT_FOUND, not_visible(fetch->job_id()), fetch->job_id()));
         return;
       }
       try {
         reply(peer, encode(jobs_.image(fetch->job_id())));
       } catch (const JobRejected& e) {
-        reply(peer, error_frames(jobs_.for_clients(e.what()), fetch->job_id()));
+        reply(peer,
+              error_frames(wire::Error::NOT_FOUND, jobs_.for_clients(e.what()), fetch->job_id()));
       }
     } else {
       complain("client", delivery.user,
                fmt::format("unexpected {} from {}; ignored", msg.type, label));
-      reply(peer, error_frames("unexpected message " + msg.type + " on the client endpoint"));
+      reply(peer, error_frames(wire::Error::BAD_REQUEST,
+                               "unexpected message " + msg.type + " on the client endpoint"));
     }
   } catch (const std::exception& e) {
     log()->error("client socket: failed to handle {} from {}: {}", msg.type, label, e.what());
-    reply(peer, error_frames(jobs_.for_clients(
-                    std::string("the master failed to handle the request: ") + e.what())));
+    reply(peer, error_frames(wire::Error::INTERNAL,
+                             jobs_.for_clients(std::string("the master failed to handle the "
+                                                           "request: ") +
+                                               e.what())));
   }
 }
 

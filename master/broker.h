@@ -83,8 +83,7 @@ class Broker {
     Clock::time_point heard;    // its last message
     Clock::time_point expires;  // declared lost when silent until then
     Clock::duration forgiven{};  // time the master was busy, added to expires since `heard`
-    uint32_t wants = 0;         // WorkRequests not answered yet
-    uint64_t units_sent = 0;
+    uint32_t wants = 0;          // WorkRequests not answered yet
     // Bundles sent to it in the current window (kBundleWindow): when, and the bytes in all.
     std::set<std::string> bundles_sent;
     Clock::time_point bundle_window;
@@ -130,7 +129,11 @@ class Broker {
   wire::WorkerList worker_list() const;
   void register_worker(const net::PeerId& peer, const wire::Hello& hello,
                        const std::string& key_name);
-  void remove_worker(const net::PeerId& peer, const std::string& why);
+  /// How a worker went: lost (silent for its liveness window: logged as a warning) or any other
+  /// way (it said goodbye, was refused, or its connection is gone).
+  enum class Departure { kLeft, kLost };
+  void remove_worker(const net::PeerId& peer, const std::string& why,
+                     Departure departure = Departure::kLeft);
   void dispatch();
   void send_worker(const net::PeerId& peer, const net::Frames& frames);
   void reply(const net::PeerId& peer, const net::Frames& frames);
