@@ -13,6 +13,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <optional>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -136,9 +137,9 @@ struct Lights {
   /// Light index registered for the primitive that a ray from `org` along `dir` hits first.
   int32_t light_hit_by(const Vec3& org, const Vec3& dir) const {
     const Ray ray{org, dir};
-    RayHit hit;
-    if (!data.bvh().intersect(ray, hit)) return -2;
-    return data.resolve(ray, hit).light;
+    const std::optional<RayHit> hit = data.bvh().intersect(ray);
+    if (!hit) return -2;
+    return data.resolve(ray, *hit).light;
   }
   int32_t triangle_light(int t) const {
     const float h = 0.5f * setup.square_half;

@@ -1,6 +1,7 @@
 #include "worker/integrators/path_integrator.h"
 
 #include <algorithm>
+#include <optional>
 
 #include "worker/bsdfs/bsdf.h"
 
@@ -66,13 +67,13 @@ Vec3 PathIntegrator::li(Ray ray, Pcg32& rng, PathStats& stats) const {
   Vec3 prev_p;
   for (uint32_t depth = 0;; ++depth) {
     // Find the next vertex; escaped rays see the background.
-    RayHit rh;
     ++rays;
-    if (!data_.bvh().intersect(ray, rh)) {
+    const std::optional<RayHit> rh = data_.bvh().intersect(ray);
+    if (!rh) {
       radiance += beta * background_;
       break;
     }
-    const SurfaceHit hit = data_.resolve(ray, rh);
+    const SurfaceHit hit = data_.resolve(ray, *rh);
     const Material& material = data_.material(hit.material);
     const Vec3 wo = -ray.dir;  // camera and BSDF directions are unit vectors
 
