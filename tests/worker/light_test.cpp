@@ -513,12 +513,12 @@ TEST(LightSetTest, OneSidedEmittersAreDarkBehind) {
   const Material one = emitter("one", Vec3(1.f, 2.f, 3.f), false);
   const Material two = emitter("two", Vec3(1.f, 2.f, 3.f), true);
   const Vec3 n(0.f, 0.f, 1.f);
-  EXPECT_EQ(LightSet::emitted(one, n, {0.f, 0.6f, 0.8f}), one.emission);
-  EXPECT_TRUE(is_black(LightSet::emitted(one, n, {0.f, 0.6f, -0.8f})));
-  EXPECT_EQ(LightSet::emitted(two, n, {0.f, 0.6f, 0.8f}), two.emission);
-  EXPECT_EQ(LightSet::emitted(two, n, {0.f, 0.6f, -0.8f}), two.emission);
+  EXPECT_EQ(emitted_radiance(one, n, {0.f, 0.6f, 0.8f}), one.emission);
+  EXPECT_TRUE(is_black(emitted_radiance(one, n, {0.f, 0.6f, -0.8f})));
+  EXPECT_EQ(emitted_radiance(two, n, {0.f, 0.6f, 0.8f}), two.emission);
+  EXPECT_EQ(emitted_radiance(two, n, {0.f, 0.6f, -0.8f}), two.emission);
   Material grey;
-  EXPECT_TRUE(is_black(LightSet::emitted(grey, n, {0.f, 0.f, 1.f})));
+  EXPECT_TRUE(is_black(emitted_radiance(grey, n, {0.f, 0.f, 1.f})));
 }
 
 TEST(LightSetTest, TwoSidedEmittersShineOnBothSides) {

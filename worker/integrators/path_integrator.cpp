@@ -79,7 +79,7 @@ Vec3 PathIntegrator::li(Ray ray, Pcg32& rng, PathStats& stats) const {
 
     // Emission reached by BSDF sampling, weighted against light sampling.
     if (material.is_emissive()) {
-      const Vec3 le = LightSet::emitted(material, hit.n, wo);
+      const Vec3 le = emitted_radiance(material, hit.n, wo);
       if (!is_black(le)) radiance += beta * le * emission_weight(hit, specular_bounce, bsdf_pdf, prev_p);
     }
     if (depth == plan_.max_depth) {
