@@ -89,8 +89,7 @@ struct SceneSpec {
 Material emitter(const std::string& name, const Vec3& emission, bool two_sided) {
   Material m;
   m.name = name;
-  m.type = MaterialType::kDiffuse;
-  m.albedo = Vec3(0.f);
+  m.kind = DiffuseMaterial{Vec3(0.f)};
   m.emission = emission;
   m.two_sided = two_sided;
   return m;

@@ -7,10 +7,10 @@ namespace rayfarm {
 
 /// A point chosen on a light, as seen from a shading point.
 struct LightSample {
-  Vec3 wi;           ///< unit direction from the shading point to the light
-  Vec3 radiance;     ///< arriving radiance (area lights) or intensity / distance^2 (point lights)
-  Vec3 target;       ///< end of the shadow ray (offset off the light's surface)
-  float pdf = 0.f;   ///< solid-angle density times selection probability; selection only if delta
+  Vec3 wi;          ///< unit direction from the shading point to the light
+  Vec3 radiance;    ///< arriving radiance (area lights) or intensity / distance^2 (point lights)
+  Vec3 target;      ///< end of the shadow ray (offset off the light's surface)
+  float pdf = 0.f;  ///< solid-angle density times selection probability; selection only if delta
   bool delta = false;
 };
 
