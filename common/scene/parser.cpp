@@ -9,7 +9,10 @@
 #include <map>
 #include <string_view>
 
+#include "common/limits.h"
+#include "common/math/wide.h"
 #include "common/scene/obj_loader.h"
+#include "common/util/text.h"
 
 namespace rayfarm {
 namespace fs = std::filesystem;
@@ -18,29 +21,10 @@ namespace {
 
 using Json = nlohmann::ordered_json;  // keeps materials in file order
 
-constexpr std::uintmax_t kMaxSceneFileBytes = std::uintmax_t{64} << 20;
-constexpr int kMaxNesting = 64;
-constexpr double kMaxAbsNumber = 1e30;
-/// Largest coordinate or length of geometry: every point of a scene (a quad's far corner, a
-/// sphere's surface, a thin lens) then stays well inside the range that Embree traces, +-1.8e18.
-constexpr double kMaxCoordinate = 1e17;
-constexpr int64_t kMaxFilmSide = 16384;
-constexpr int64_t kMaxFilmPixels = int64_t{1} << 26;
-constexpr int64_t kMaxSpp = int64_t{1} << 24;
-constexpr int64_t kMaxDepth = 1024;
 constexpr size_t kMaxStringInMessage = 40;
 
 /// Thrown by the parse callback when the nesting limit is reached.
 struct NestingTooDeep {};
-
-/// Printable ASCII only, so that a message never carries the broken bytes it complains about.
-std::string printable(std::string_view text) {
-  std::string out(text);
-  for (char& c : out) {
-    if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) >= 0x7F) c = '?';
-  }
-  return out;
-}
 
 /// "string \"x\"", "number 1.5", "an array": what a value is, for "expected ..., got ...".
 std::string describe(const Json& value) {
@@ -247,24 +231,15 @@ Vec3 read_radiance(const Node& n) {
 }
 
 /// Length of the cross product, in double so that coordinates up to 1e30 cannot overflow.
-double cross_length(const Vec3& a, const Vec3& b) {
-  const double x = double(a.y) * b.z - double(a.z) * b.y;
-  const double y = double(a.z) * b.x - double(a.x) * b.z;
-  const double z = double(a.x) * b.y - double(a.y) * b.x;
-  return std::sqrt(x * x + y * y + z * z);
-}
-
-double length_d(const Vec3& a) {
-  return std::sqrt(double(a.x) * a.x + double(a.y) * a.y + double(a.z) * a.z);
-}
+double cross_length(const Vec3& a, const Vec3& b) { return length(cross(wide(a), wide(b))); }
 
 // ---- the scene -------------------------------------------------------------------------------
 
 /// Fills a Scene from the parsed JSON, one top-level section at a time.
 class SceneReader {
  public:
-  SceneReader(Scene* scene, const Context& context, fs::path folder)
-      : scene_(*scene), context_(context), folder_(std::move(folder)) {}
+  SceneReader(Scene* scene, const Context& context, fs::path folder, const SceneCheck& check)
+      : scene_(*scene), context_(context), folder_(std::move(folder)), check_(check) {}
 
   void read(const Node& root) {
     root.allow_keys(
@@ -272,11 +247,15 @@ class SceneReader {
     if (auto n = root.find("format")) read_format(*n);
     read_camera(root.require("camera"));
     read_film(root.require("film"));
+    if (auto n = root.find("render")) read_render(*n);
+    // The caller's limits come before anything large (a mesh) is read.
+    if (check_) {
+      if (auto refusal = check_(scene_.film, scene_.render)) throw SceneRefused(*refusal);
+    }
     if (auto n = root.find("materials")) read_materials(*n);
     if (auto n = root.find("shapes")) read_shapes(*n);
     if (auto n = root.find("lights")) read_lights(*n);
     if (auto n = root.find("background")) scene_.background = read_radiance(*n);
-    if (auto n = root.find("render")) read_render(*n);
   }
 
  private:
@@ -310,9 +289,9 @@ class SceneReader {
 
   static void check_view(const Node& n, const Camera& c) {
     const Vec3 forward = c.look_at - c.eye;
-    const double distance = length_d(forward);
+    const double distance = length(wide(forward));
     if (distance == 0.0) n.child("look_at").fail("look_at equals eye: no view direction");
-    const double up = length_d(c.up);
+    const double up = length(wide(c.up));
     if (up != 0.0 && cross_length(forward, c.up) > 1e-6 * distance * up) return;
     if (auto given = n.find("up")) given->fail("up is zero or parallel to the view direction");
     n.fail("the default up [0, 1, 0] is parallel to the view direction; give \"up\"");
@@ -546,22 +525,23 @@ class SceneReader {
   Scene& scene_;
   const Context& context_;
   fs::path folder_;
+  const SceneCheck& check_;
   std::map<std::string, uint32_t> material_index_;
 };
 
-/// Parses JSON (comments allowed) with at most kMaxNesting levels of arrays and objects.
+/// Parses JSON (comments allowed) with at most kMaxJsonNesting levels of arrays and objects.
 Json parse_json(const std::string& text, const std::string& file) {
   const Json::parser_callback_t limit = [](int depth, Json::parse_event_t event, Json&) {
     const bool opens =
         event == Json::parse_event_t::object_start || event == Json::parse_event_t::array_start;
-    if (opens && depth >= kMaxNesting) throw NestingTooDeep{};
+    if (opens && depth >= kMaxJsonNesting) throw NestingTooDeep{};
     return true;
   };
   try {
     return Json::parse(text, limit, /*allow_exceptions=*/true, /*ignore_comments=*/true);
   } catch (const NestingTooDeep&) {
     throw SceneError(file + ": invalid JSON: arrays and objects nested more than " +
-                     std::to_string(kMaxNesting) + " levels deep");
+                     std::to_string(kMaxJsonNesting) + " levels deep");
   } catch (const Json::parse_error& e) {
     const std::string what = e.what();
     throw SceneError(file + ": invalid JSON (byte " + std::to_string(e.byte) +
@@ -574,7 +554,7 @@ Json parse_json(const std::string& text, const std::string& file) {
 
 }  // namespace
 
-Scene load_scene(const fs::path& file) {
+Scene load_scene(const fs::path& file, const SceneCheck& check) {
   const std::string name = file.string();
   const Json root = parse_json(read_text_file(file, kMaxSceneFileBytes, name), name);
   Scene scene;
@@ -582,7 +562,7 @@ Scene load_scene(const fs::path& file) {
   const Context context{name, &scene.warnings};
   const Node top(root, context, "");
   top.object();
-  SceneReader(&scene, context, file.parent_path()).read(top);
+  SceneReader(&scene, context, file.parent_path(), check).read(top);
   return scene;
 }
 
