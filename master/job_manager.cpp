@@ -362,7 +362,8 @@ std::string JobManager::submit(const wire::SubmitJob& request, const std::string
 }
 
 JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
-                                            const std::string& owner) const {
+                                            const std::string& owner,
+                                            const SceneCheck& check) const {
   // The bundle and the scene path.
   Bundle bundle;
   try {
@@ -388,7 +389,7 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
   try {
     const fs::path dir = unpack_bundle(bundle, scratch, hash);
     try {
-      scene = load_scene(dir / request.scene_path());
+      scene = load_scene(dir / request.scene_path(), check);
     } catch (const std::exception& e) {
       throw JobRejected(replace_all(e.what(), dir.string() + "/", ""));
     }
