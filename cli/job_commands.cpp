@@ -61,63 +61,54 @@ void add_list(CLI::App& app, int& exit_code) {
   });
 }
 
-void add_cancel(CLI::App& app, int& exit_code) {
+namespace {
+
+/// A command that sends one request about one job and prints the line `say` makes of the reply.
+template <class Request, class Reply>
+void add_job_action(CLI::App& app, int& exit_code, const char* name, const std::string& help,
+                    std::string (*say)(const Reply&)) {
   auto args = std::make_shared<ClientArgs>();
   auto job = std::make_shared<std::string>();
-  CLI::App* cmd =
-      app.add_subcommand("cancel", "Cancel a job; its image keeps the samples merged so far");
+  CLI::App* cmd = app.add_subcommand(name, help);
   cmd->add_option("job", *job, "Job id")->required();
   add_client_options(cmd, *args);
-  cmd->callback([args, job, &exit_code] {
-    exit_code = guarded("cancel", [&] {
+  cmd->callback([args, job, name, say, &exit_code] {
+    exit_code = guarded(name, [&] {
       FarmClient client(*args);
-      wire::CancelJob request;
+      Request request;
       request.set_job_id(*job);
-      const auto reply = client.call<wire::CancelReply>(encode(std::move(request)));
-      std::cout << fmt::format("job {} {}\n", reply.job_id(),
-                               protocol::job_state_name(reply.state()));
+      std::cout << say(client.call<Reply>(encode(std::move(request))));
       return 0;
     });
   });
+}
+
+}  // namespace
+
+void add_cancel(CLI::App& app, int& exit_code) {
+  add_job_action<wire::CancelJob, wire::CancelReply>(
+      app, exit_code, "cancel", "Cancel a job; its image keeps the samples merged so far",
+      [](const wire::CancelReply& reply) {
+        return fmt::format("job {} {}\n", reply.job_id(), protocol::job_state_name(reply.state()));
+      });
 }
 
 void add_remove(CLI::App& app, int& exit_code) {
-  auto args = std::make_shared<ClientArgs>();
-  auto job = std::make_shared<std::string>();
-  CLI::App* cmd = app.add_subcommand(
-      "rm", "Remove a finished (done, failed or cancelled) job and its files from the master");
-  cmd->add_option("job", *job, "Job id")->required();
-  add_client_options(cmd, *args);
-  cmd->callback([args, job, &exit_code] {
-    exit_code = guarded("rm", [&] {
-      FarmClient client(*args);
-      wire::RemoveJob request;
-      request.set_job_id(*job);
-      const auto reply = client.call<wire::RemoveReply>(encode(std::move(request)));
-      std::cout << fmt::format("job {} removed\n", reply.job_id());
-      return 0;
-    });
-  });
+  add_job_action<wire::RemoveJob, wire::RemoveReply>(
+      app, exit_code, "rm",
+      "Remove a finished (done, failed or cancelled) job and its files from the master",
+      [](const wire::RemoveReply& reply) {
+        return fmt::format("job {} removed\n", reply.job_id());
+      });
 }
 
 void add_retry(CLI::App& app, int& exit_code) {
-  auto args = std::make_shared<ClientArgs>();
-  auto job = std::make_shared<std::string>();
-  CLI::App* cmd = app.add_subcommand(
-      "retry", "Run a failed or cancelled job again from its first sample, under the same id");
-  cmd->add_option("job", *job, "Job id")->required();
-  add_client_options(cmd, *args);
-  cmd->callback([args, job, &exit_code] {
-    exit_code = guarded("retry", [&] {
-      FarmClient client(*args);
-      wire::RetryJob request;
-      request.set_job_id(*job);
-      const auto reply = client.call<wire::RetryReply>(encode(std::move(request)));
-      std::cout << fmt::format("job {} {}\n", reply.job_id(),
-                               protocol::job_state_name(reply.state()));
-      return 0;
-    });
-  });
+  add_job_action<wire::RetryJob, wire::RetryReply>(
+      app, exit_code, "retry",
+      "Run a failed or cancelled job again from its first sample, under the same id",
+      [](const wire::RetryReply& reply) {
+        return fmt::format("job {} {}\n", reply.job_id(), protocol::job_state_name(reply.state()));
+      });
 }
 
 }  // namespace rayfarm::cli
