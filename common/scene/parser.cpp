@@ -33,13 +33,13 @@ class SceneReader {
     root.allow_keys(
         {"format", "camera", "film", "materials", "shapes", "lights", "background", "render"});
     if (auto n = root.find("format")) read_format(*n);
-    read_camera(root.require("camera"));
+    // The film and the render settings first: the caller's limits on them come before the rest.
     read_film(root.require("film"));
     if (auto n = root.find("render")) read_render(*n);
-    // The caller's limits come before anything large (a mesh) is read.
     if (check_) {
       if (auto refusal = check_(scene_.film, scene_.render)) throw SceneRefused(*refusal);
     }
+    read_camera(root.require("camera"));
     if (auto n = root.find("materials")) read_materials(*n);
     if (auto n = root.find("shapes")) read_shapes(*n);
     if (auto n = root.find("lights")) read_lights(*n);

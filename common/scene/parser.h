@@ -11,8 +11,8 @@
 namespace rayfarm {
 
 /// A caller's limits on a scene's film and render settings (the master's, for a job): called
-/// once load_scene() has read "film" and "render", before any mesh is loaded; returns the refusal,
-/// or nothing when the scene may load.
+/// once load_scene() has read "film" and "render", before the camera, the materials and the
+/// shapes (so before any mesh is loaded); returns the refusal, or nothing when the scene may load.
 using SceneCheck =
     std::function<std::optional<std::string>(const FilmSize& film, const RenderSettings& render)>;
 
