@@ -13,6 +13,7 @@
 #include "cli/stop_options.h"
 #include "common/image/film_output.h"
 #include "common/image/png.h"
+#include "common/limits.h"
 #include "common/protocol/version.h"
 #include "common/report/error_tracker.h"
 #include "common/scene/parser.h"
@@ -92,7 +93,7 @@ int run_render(const RenderArgs& args) {
 
   LocalRenderOptions options;
   options.threads = args.threads;
-  options.tile_size = args.tile.value_or(64);
+  options.tile_size = args.tile.value_or(kDefaultTileSize);
   options.pass_spp = args.pass_spp.value_or(0);
   options.stop = args.stop.rules();
   check_stop_rules(options.stop);
@@ -209,7 +210,9 @@ void add_render_command(CLI::App& app, int& exit_code) {
   cmd->add_option("--seed", args->seed, "Random seed (default: the scene's)");
   add_clamp_option(cmd, args->clamp);
   cmd->add_option("--threads", args->threads, "Threads (0 = all)")->capture_default_str();
-  cmd->add_option("--tile", args->tile, "Tile size in pixels (default 64); does not change the image");
+  cmd->add_option("--tile", args->tile,
+                  "Tile size in pixels (default " + std::to_string(kDefaultTileSize) +
+                      "); does not change the image");
   cmd->add_option("--pass-spp", args->pass_spp, "Samples per pass (default: automatic); does not change the image");
   add_film_options(cmd, args->film);
   add_stop_options(cmd, args->stop, "Reference EXR: the error against it is measured at every pass");

@@ -3,7 +3,6 @@
 #include "common/util/atomic_file.h"
 
 #include <fcntl.h>
-#include <openssl/evp.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -16,6 +15,8 @@
 #include <system_error>
 
 #include "common/util/log.h"
+#include "common/util/read_file.h"
+#include "common/util/sha256.h"
 
 namespace rayfarm::master {
 namespace fs = std::filesystem;
@@ -28,17 +29,7 @@ constexpr char kMagic[8] = {'R', 'F', 'C', 'K', 'P', 'T', '\r', '\n'};
 constexpr size_t kHeaderSize = 8 + 4 + 8;
 constexpr size_t kDigestSize = 32;
 
-using Digest = std::array<unsigned char, kDigestSize>;
-
-Digest sha256(const char* data, size_t size) {
-  Digest digest{};
-  unsigned int length = 0;
-  if (EVP_Digest(data, size, digest.data(), &length, EVP_sha256(), nullptr) != 1 ||
-      length != kDigestSize) {
-    throw std::runtime_error("SHA-256 failed (OpenSSL)");
-  }
-  return digest;
-}
+using Digest = Sha256Digest;
 
 /// Appends little-endian fields to a byte string.
 class Writer {
@@ -219,15 +210,6 @@ Checkpoint decode_payload(Reader& r) {
   return c;
 }
 
-void sync_path(const fs::path& path, int flags) {
-  const int fd = ::open(path.c_str(), flags | O_CLOEXEC);
-  if (fd < 0) throw std::system_error(errno, std::generic_category(), "cannot open to sync");
-  const int result = ::fsync(fd);
-  const int sync_errno = errno;
-  ::close(fd);
-  if (result != 0) throw std::system_error(sync_errno, std::generic_category(), "fsync failed");
-}
-
 std::shared_ptr<spdlog::logger> log_jobs() { return get_logger("jobs"); }
 
 }  // namespace
@@ -243,7 +225,7 @@ std::string encode_checkpoint(const Checkpoint& checkpoint) {
   encode_payload(checkpoint, w);
   const uint64_t payload = out.size() - kHeaderSize;
   std::memcpy(out.data() + 12, &payload, sizeof payload);
-  const Digest digest = sha256(out.data(), out.size());
+  const Digest digest = sha256(out);
   out.append(reinterpret_cast<const char*>(digest.data()), digest.size());
   return out;
 }
@@ -271,7 +253,7 @@ Checkpoint decode_checkpoint(const std::string& bytes) {
                           std::to_string(bytes.size()) + " bytes, the header announces " +
                           std::to_string(payload + kHeaderSize + kDigestSize));
   }
-  const Digest digest = sha256(bytes.data(), kHeaderSize + payload);
+  const Digest digest = sha256(std::string_view(bytes).substr(0, kHeaderSize + payload));
   if (std::memcmp(digest.data(), bytes.data() + kHeaderSize + payload, kDigestSize) != 0) {
     throw CheckpointError("checksum mismatch (SHA-256): the file is corrupt");
   }
@@ -283,25 +265,13 @@ fs::path checkpoint_path(const fs::path& job_dir, int slot) {
   return job_dir / ("checkpoint-" + std::to_string(slot) + ".bin");
 }
 
-void write_durably(const fs::path& path, const std::string& bytes) {
-  const fs::path temporary = path.parent_path() / (path.filename().string() + ".tmp");
-  try {
-    write_bytes(temporary, bytes);
-    sync_path(temporary, O_RDONLY);
-    fs::rename(temporary, path);
-    sync_path(path.parent_path(), O_RDONLY | O_DIRECTORY);
-  } catch (const std::exception& e) {
-    std::error_code ignored;
-    fs::remove(temporary, ignored);
-    throw std::runtime_error("cannot write " + path.string() + ": " + e.what());
-  }
-}
-
 Checkpoint read_checkpoint(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw CheckpointError(path.string() + ": cannot be opened");
-  std::string bytes{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-  if (in.bad()) throw CheckpointError(path.string() + ": read error");
+  std::string bytes;
+  try {
+    bytes = read_whole_file(path, kNoSizeCap);
+  } catch (const FileReadError& e) {
+    throw CheckpointError(path.string() + ": " + e.what());
+  }
   try {
     return decode_checkpoint(bytes);
   } catch (const CheckpointError& e) {
@@ -405,7 +375,7 @@ void CheckpointWriter::write(Task& task) {
   try {
     const std::string encoded = encode_checkpoint(task.checkpoint);
     bytes = encoded.size();
-    write_durably(checkpoint_path(task.job_dir, slot), encoded);
+    write_file_atomically(checkpoint_path(task.job_dir, slot), encoded, Sync::kFileAndFolder);
     ok = true;
   } catch (const std::exception& e) {
     failure = e.what();

@@ -66,9 +66,6 @@ Checkpoint decode_checkpoint(const std::string& bytes);
 
 /// The file of generation slot `slot` (0 or 1) in a job's folder.
 std::filesystem::path checkpoint_path(const std::filesystem::path& job_dir, int slot);
-/// Writes `bytes` to `path` through a synced temporary file renamed into place, then syncs the
-/// folder. Throws std::runtime_error naming the file.
-void write_durably(const std::filesystem::path& path, const std::string& bytes);
 /// Reads and decodes one file. Throws CheckpointError "FILE: cause".
 Checkpoint read_checkpoint(const std::filesystem::path& path);
 

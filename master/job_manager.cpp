@@ -11,12 +11,14 @@
 
 #include "common/bundle/bundle.h"
 #include "common/image/film_output.h"
+#include "common/limits.h"
 #include "common/net/frames.h"
 #include "common/protocol/codec.h"
 #include "common/protocol/convert.h"
 #include "common/scene/parser.h"
 #include "common/util/atomic_file.h"
 #include "common/util/log.h"
+#include "common/util/text.h"
 
 namespace rayfarm::master {
 namespace fs = std::filesystem;
@@ -24,10 +26,6 @@ namespace protocol = rayfarm::protocol;
 
 namespace {
 
-constexpr uint32_t kDefaultTileSize = 64;
-constexpr uint32_t kMaxTileSize = 4096;
-constexpr uint32_t kMaxSpp = uint32_t{1} << 24;
-constexpr uint32_t kMaxDepth = 1024;
 constexpr uint64_t kMaxUnits = uint64_t{1} << 26;
 /// A worker that returned a result this recently counts as active on the job.
 constexpr std::chrono::seconds kActiveWindow{10};
@@ -43,18 +41,6 @@ std::string replace_all(std::string text, const std::string& from, const std::st
     text.replace(pos, from.size(), to);
   }
   return text;
-}
-
-std::string human_bytes(uint64_t bytes) {
-  if (bytes >= (uint64_t{1} << 20)) return fmt::format("{:.1f} MiB", bytes / 1048576.0);
-  if (bytes >= 1024) return fmt::format("{:.1f} KiB", bytes / 1024.0);
-  return fmt::format("{} B", bytes);
-}
-
-std::string human_rate(double samples_per_second) {
-  if (samples_per_second >= 1e6) return fmt::format("{:.2f} Msamples/s", samples_per_second / 1e6);
-  if (samples_per_second >= 1e3) return fmt::format("{:.1f} ksamples/s", samples_per_second / 1e3);
-  return fmt::format("{:.0f} samples/s", samples_per_second);
 }
 
 bool is_active_state(wire::JobState s) { return s == wire::JOB_QUEUED || s == wire::JOB_RUNNING; }
@@ -362,7 +348,8 @@ std::string JobManager::submit(const wire::SubmitJob& request, const std::string
 }
 
 JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
-                                            const std::string& owner) const {
+                                            const std::string& owner,
+                                            const SceneCheck& check) const {
   // The bundle and the scene path.
   Bundle bundle;
   try {
@@ -388,7 +375,7 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
   try {
     const fs::path dir = unpack_bundle(bundle, scratch, hash);
     try {
-      scene = load_scene(dir / request.scene_path());
+      scene = load_scene(dir / request.scene_path(), check);
     } catch (const std::exception& e) {
       throw JobRejected(replace_all(e.what(), dir.string() + "/", ""));
     }

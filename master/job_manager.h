@@ -16,6 +16,7 @@
 
 #include "common/image/convergence.h"
 #include "common/report/error_tracker.h"
+#include "common/scene/parser.h"
 #include "master/checkpoint.h"
 #include "master/image_writer.h"
 #include "master/job_store.h"
@@ -82,8 +83,11 @@ class JobManager {
   /// Validates a submission for `owner` (the submitting client key's name) and stores it in the
   /// data dir: the slow part of accepting a job (unpacking, loading the scene, reading the
   /// reference, writing and syncing files). Touches nothing but the store: safe on another thread
-  /// than the rest. Throws JobRejected naming the cause.
-  PreparedJob prepare(const wire::SubmitJob& request, const std::string& owner) const;
+  /// than the rest. `check` (the master's limits, scene_check() in limits.h) runs once the scene's
+  /// film and render settings are read, before any mesh is loaded. Throws JobRejected naming the
+  /// cause.
+  PreparedJob prepare(const wire::SubmitJob& request, const std::string& owner,
+                      const SceneCheck& check = {}) const;
   /// Schedules a prepared job; returns its id.
   std::string admit(PreparedJob prepared);
   /// prepare() then admit(): validates and accepts a job; returns its id. Throws JobRejected.

@@ -18,6 +18,7 @@
 
 #include "common/protocol/convert.h"
 #include "common/util/log.h"
+#include "common/util/read_file.h"
 
 namespace rayfarm::master {
 namespace fs = std::filesystem;
@@ -133,14 +134,6 @@ JobRecord from_json(const json& j) {
   return r;
 }
 
-std::optional<std::string> slurp(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return std::nullopt;
-  std::string data{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-  if (in.bad()) return std::nullopt;
-  return data;
-}
-
 /// The record of a job whose job.json cannot be read: its folder's name and what is wrong.
 JobRecord unreadable_record(const std::string& id, const fs::path& file, const std::string& why) {
   JobRecord r;
@@ -218,16 +211,7 @@ void JobStore::save_record(const JobRecord& record) {
 }
 
 void JobStore::sync_job_dir(const std::string& id) {
-  for (const fs::path& dir : {job_dir(id), root_ / "jobs"}) {
-    const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-    if (fd < 0 || ::fsync(fd) != 0) {
-      const int error = errno;
-      if (fd >= 0) ::close(fd);
-      throw std::runtime_error("cannot sync " + dir.string() + ": " +
-                               std::generic_category().message(error));
-    }
-    ::close(fd);
-  }
+  for (const fs::path& dir : {job_dir(id), root_ / "jobs"}) sync_folder(dir);
 }
 
 void JobStore::save_bundle(const std::string& id, const wire::Bundle& bundle) {
@@ -242,7 +226,7 @@ void JobStore::save_reference(const std::string& id, const std::string& exr_byte
 }
 
 std::optional<wire::Bundle> JobStore::load_bundle(const std::string& id) const {
-  auto bytes = slurp(job_dir(id) / "bundle.pb");
+  auto bytes = try_read_whole_file(job_dir(id) / "bundle.pb");
   if (!bytes) return std::nullopt;
   wire::Bundle bundle;
   if (!bundle.ParseFromString(*bytes)) return std::nullopt;
@@ -251,7 +235,7 @@ std::optional<wire::Bundle> JobStore::load_bundle(const std::string& id) const {
 
 std::optional<std::string> JobStore::read_file(const std::string& id,
                                                const std::string& name) const {
-  return slurp(job_dir(id) / name);
+  return try_read_whole_file(job_dir(id) / name);
 }
 
 std::vector<JobRecord> JobStore::load_records() const {
@@ -262,7 +246,7 @@ std::vector<JobRecord> JobStore::load_records() const {
   std::sort(dirs.begin(), dirs.end());
   for (const auto& dir : dirs) {
     const fs::path file = dir / "job.json";
-    auto text = slurp(file);
+    auto text = try_read_whole_file(file);
     if (!text) continue;  // a job dir whose record was never written: a submit that failed
     try {
       JobRecord r = from_json(json::parse(*text));

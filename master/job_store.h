@@ -33,7 +33,7 @@ struct JobSpec {
   std::string scene_path;  ///< the scene file inside the bundle
   RenderSettings settings;
   FilmSize film;
-  uint32_t tile_size = 64;
+  uint32_t tile_size = kDefaultTileSize;
   uint32_t pass_spp = 1;
   StopRules stop;              ///< target error and time limit, besides settings.spp
   bool has_reference = false;  ///< reference.exr is in the job's folder

@@ -75,12 +75,8 @@ void SubmissionQueue::loop() {
               task.user,
               task.bytes};
     try {
-      // The limits come first: past one, nothing is unpacked or loaded.
-      if (auto refusal = check_figures(figures_of(task.job), limits_)) {
-        done.error = *refusal;
-      } else {
-        done.job = jobs_.prepare(task.job, task.user);
-      }
+      // The scene parser checks the limits before it loads any mesh.
+      done.job = jobs_.prepare(task.job, task.user, scene_check(task.job, limits_));
     } catch (const JobRejected& e) {
       done.error = e.what();
     } catch (const std::exception& e) {

@@ -2,18 +2,11 @@
 // Thin-lens perspective camera. Right-handed: the image's right is forward x up; row 0 is the top.
 #include <cmath>
 
+#include "common/math/wide.h"
 #include "common/scene/scene.h"
 #include "worker/embree/bvh.h"
 
 namespace rayfarm {
-
-/// a / |a| computed in double: a float's squared length underflows below ~1e-19 and overflows
-/// above ~1e19, and normalize() would then return NaN or zero.
-inline Vec3 normalize_wide(const Vec3& a) {
-  const double len = std::sqrt(double(a.x) * a.x + double(a.y) * a.y + double(a.z) * a.z);
-  return {static_cast<float>(a.x / len), static_cast<float>(a.y / len),
-          static_cast<float>(a.z / len)};
-}
 
 class CameraModel {
  public:

@@ -85,7 +85,7 @@ struct RenderProgress {
 /// Options of a local render; the farm uses the same tiles, passes and stopping rules.
 struct LocalRenderOptions {
   uint32_t threads = 0;    ///< 0 = all hardware threads
-  uint32_t tile_size = 64;
+  uint32_t tile_size = kDefaultTileSize;
   uint32_t pass_spp = 0;   ///< 0 = default_pass_spp(tile_size, spp)
   StopRules stop;          ///< besides the spp: target error, time limit
   std::function<void(const RenderProgress&, const Film&)> on_progress;  ///< may be empty

@@ -4,6 +4,8 @@
 #include <cstring>
 #include <limits>
 
+#include "common/math/wide.h"
+
 namespace rayfarm {
 namespace {
 
@@ -12,33 +14,21 @@ constexpr float gamma_bound(int n) {
   return (n * eps) / (1.f - n * eps);
 }
 
-/// (b - a) x (c - a) in double.
-void cross_d(const Vec3& a, const Vec3& b, const Vec3& c, double out[3]) {
-  const double e1[3] = {double(b.x) - a.x, double(b.y) - a.y, double(b.z) - a.z};
-  const double e2[3] = {double(c.x) - a.x, double(c.y) - a.y, double(c.z) - a.z};
-  out[0] = e1[1] * e2[2] - e1[2] * e2[1];
-  out[1] = e1[2] * e2[0] - e1[0] * e2[2];
-  out[2] = e1[0] * e2[1] - e1[1] * e2[0];
-}
-
 }  // namespace
 
 bool triangle_normal(const Vec3& a, const Vec3& b, const Vec3& c, Vec3& n) {
-  double ng[3];
-  cross_d(a, b, c, ng);
-  const double len = std::sqrt(ng[0] * ng[0] + ng[1] * ng[1] + ng[2] * ng[2]);
+  const WideVec3 ng = edge_cross(a, b, c);
+  const double len = length(ng);
   if (!(len > 0.0) || !std::isfinite(len)) return false;
-  const Vec3 unit(static_cast<float>(ng[0] / len), static_cast<float>(ng[1] / len),
-                  static_cast<float>(ng[2] / len));
+  const Vec3 unit(static_cast<float>(ng.x / len), static_cast<float>(ng.y / len),
+                  static_cast<float>(ng.z / len));
   if (!(length(unit) > 0.5f)) return false;
   n = unit;
   return true;
 }
 
 double triangle_area(const Vec3& a, const Vec3& b, const Vec3& c) {
-  double ng[3];
-  cross_d(a, b, c, ng);
-  return 0.5 * std::sqrt(ng[0] * ng[0] + ng[1] * ng[1] + ng[2] * ng[2]);
+  return 0.5 * length(edge_cross(a, b, c));
 }
 
 // The factor 4 is a margin for the intersector's own rounding on top of the interpolation's.

@@ -12,6 +12,8 @@
 #include <string_view>
 #include <vector>
 
+#include "common/util/sha256.h"
+
 namespace rayfarm {
 
 /// A bundle that cannot be built, verified or unpacked; the message names the path and cause.
@@ -54,8 +56,6 @@ Bundle make_bundle(std::vector<BundleFile> files);
 std::string canonical_bytes(const Bundle& bundle);
 /// SHA-256 of canonical_bytes(bundle), 64 lowercase hex digits.
 std::string bundle_hash(const Bundle& bundle);
-/// SHA-256 of `bytes`, 64 lowercase hex digits.
-std::string sha256_hex(std::string_view bytes);
 
 /// Loads `scene_file` (throws SceneError on a bad scene) and packs it with every file it
 /// references. The bundle root is the deepest folder holding all of them, so the scene's relative

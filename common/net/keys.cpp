@@ -19,6 +19,8 @@
 
 #include <zmq.h>
 
+#include "common/util/read_file.h"
+
 namespace rayfarm::net {
 namespace fs = std::filesystem;
 
@@ -35,16 +37,15 @@ std::string trim(std::string_view s) {
 }
 
 std::string read_small_file(const fs::path& file) {
-  std::error_code ec;
-  const auto size = fs::file_size(file, ec);
-  if (ec) throw KeyError(file.string() + ": cannot read: " + ec.message());
-  if (size > kMaxKeyFileBytes) {
-    throw KeyError(file.string() + ": " + std::to_string(size) +
-                   " bytes is too large for a key file");
+  try {
+    return read_whole_file(file, kMaxKeyFileBytes);
+  } catch (const FileReadError& e) {
+    if (e.kind() == FileReadError::Kind::kTooLarge) {
+      throw KeyError(file.string() + ": " + std::to_string(e.size()) +
+                     " bytes is too large for a key file");
+    }
+    throw KeyError(file.string() + ": cannot read: " + e.what());
   }
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw KeyError(file.string() + ": cannot open: " + std::strerror(errno));
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
 /// What one key file or list holds.

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "common/limits.h"
 #include "common/net/frames.h"
 
 namespace rayfarm::net {
@@ -24,7 +25,7 @@ class NetError : public std::runtime_error {
 };
 
 /// Largest message (all frames) a socket accepts; a peer sending more is disconnected.
-inline constexpr int64_t kDefaultMaxMessageBytes = int64_t{1} << 30;  // 1 GiB
+using rayfarm::kDefaultMaxMessageBytes;
 
 /// CURVE settings of one socket, keys in Z85 (40 characters). A default Curve is a plain,
 /// unauthenticated socket (what --insecure asks for).

@@ -2,6 +2,8 @@
 
 #include <google/protobuf/descriptor.h>
 
+#include "common/util/text.h"
+
 namespace rayfarm::protocol {
 namespace gp = google::protobuf;
 
@@ -74,14 +76,7 @@ Decoded decode(const net::Frames& frames) {
 }
 
 std::string printable(std::string_view text, size_t limit) {
-  std::string out;
-  for (size_t i = 0; i < text.size() && i < limit; ++i) {
-    const unsigned char c = static_cast<unsigned char>(text[i]);
-    const bool safe = c >= 0x20 && c < 0x7f && c != '"' && c != '\\';
-    out.push_back(safe ? static_cast<char>(c) : '?');
-  }
-  if (text.size() > limit) out += "...";
-  return out;
+  return rayfarm::printable(text, limit, Quotes::kHide);
 }
 
 std::string describe_frames(const net::Frames& frames) {

@@ -13,6 +13,7 @@
 
 #include "common/report/plot.h"
 #include "common/util/atomic_file.h"
+#include "common/util/read_file.h"
 
 namespace rayfarm {
 namespace {
@@ -90,15 +91,14 @@ void write_error_csv(const std::filesystem::path& path, const std::vector<ErrorR
 }
 
 std::vector<ErrorRow> read_error_csv(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    std::error_code ec;
-    const bool exists = std::filesystem::exists(path, ec);
-    throw ErrorLogError(fmt::format("cannot read {}: {}", path.string(),
-                                    exists ? "permission denied or not a file" : "no such file"));
+  std::string text;
+  try {
+    text = read_whole_file(path, kNoSizeCap);
+  } catch (const FileReadError& e) {
+    const bool missing = e.kind() == FileReadError::Kind::kNotFound;
+    throw ErrorLogError(
+        fmt::format("cannot read {}: {}", path.string(), missing ? "no such file" : e.what()));
   }
-  const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-  if (in.bad()) throw ErrorLogError(fmt::format("cannot read {}: read error", path.string()));
   return parse_error_csv(text, path.string());
 }
 

@@ -1,283 +1,51 @@
-// The JSON scene format (docs/scene-format.md). Every value is read through a Node, which knows
-// the file and the JSON pointer of the value, so every message can say where the problem is.
+// The JSON scene format (docs/scene-format.md): the scene's sections, one at a time, each value
+// read through json_reader.h so that every message can say where the problem is.
 #include "common/scene/parser.h"
 
-#include <nlohmann/json.hpp>
-
 #include <cmath>
-#include <initializer_list>
 #include <map>
 #include <string_view>
 #include <variant>
 
+#include "common/limits.h"
+#include "common/math/wide.h"
+#include "common/scene/json_reader.h"
 #include "common/scene/obj_loader.h"
+#include "common/util/text.h"
 
 namespace rayfarm {
 namespace fs = std::filesystem;
 
 namespace {
 
-using Json = nlohmann::ordered_json;  // keeps materials in file order
-
-constexpr std::uintmax_t kMaxSceneFileBytes = std::uintmax_t{64} << 20;
-constexpr int kMaxNesting = 64;
-constexpr double kMaxAbsNumber = 1e30;
-/// Largest coordinate or length of geometry: every point of a scene (a quad's far corner, a
-/// sphere's surface, a thin lens) then stays well inside the range that Embree traces, +-1.8e18.
-constexpr double kMaxCoordinate = 1e17;
-constexpr int64_t kMaxFilmSide = 16384;
-constexpr int64_t kMaxFilmPixels = int64_t{1} << 26;
-constexpr int64_t kMaxSpp = int64_t{1} << 24;
-constexpr int64_t kMaxDepth = 1024;
-constexpr size_t kMaxStringInMessage = 40;
-
-/// Thrown by the parse callback when the nesting limit is reached.
-struct NestingTooDeep {};
-
-/// Printable ASCII only, so that a message never carries the broken bytes it complains about.
-std::string printable(std::string_view text) {
-  std::string out(text);
-  for (char& c : out) {
-    if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) >= 0x7F) c = '?';
-  }
-  return out;
-}
-
-/// "string \"x\"", "number 1.5", "an array": what a value is, for "expected ..., got ...".
-std::string describe(const Json& value) {
-  switch (value.type()) {
-    case Json::value_t::null:
-      return "null";
-    case Json::value_t::boolean:
-      return value.get<bool>() ? "true" : "false";
-    case Json::value_t::object:
-      return "an object";
-    case Json::value_t::array:
-      return "an array";
-    case Json::value_t::string: {
-      const auto& s = value.get_ref<const std::string&>();
-      if (s.size() <= kMaxStringInMessage) return "string " + printable(Json(s).dump());
-      return "string " + printable(Json(s.substr(0, kMaxStringInMessage)).dump()) + "...";
-    }
-    default:
-      return "number " + value.dump();
-  }
-}
-
-/// A string value as written, in quotes ("\"plastic\""); other values as describe() has them.
-std::string as_written(const Json& value) {
-  return value.is_string() ? describe(value).substr(std::string("string ").size())
-                           : describe(value);
-}
-
-std::string escape_pointer_token(const std::string& key) {
-  std::string out;
-  for (char c : key) {
-    if (c == '~')
-      out += "~0";
-    else if (c == '/')
-      out += "~1";
-    else
-      out += c;
-  }
-  return out;
-}
-
-/// The file being read and the warnings found so far.
-struct Context {
-  std::string file;
-  std::vector<std::string>* warnings;
-};
-
-/// A JSON value with its place (file and JSON pointer) for messages.
-class Node {
- public:
-  Node(const Json& value, const Context& context, std::string pointer)
-      : value_(&value), context_(&context), pointer_(std::move(pointer)) {}
-
-  const Json& json() const { return *value_; }
-  std::string where() const {
-    return context_->file + ": " +
-           (pointer_.empty() ? std::string("(top level)") : printable(pointer_));
-  }
-  [[noreturn]] void fail(const std::string& what) const { throw SceneError(where() + ": " + what); }
-  void warn(const std::string& what) const { context_->warnings->push_back(where() + ": " + what); }
-
-  /// This node as an object; fails otherwise.
-  const Json& object() const {
-    if (!value_->is_object()) fail("expected an object, got " + describe(*value_));
-    return *value_;
-  }
-  /// This node as an array; fails otherwise.
-  const Json& array() const {
-    if (!value_->is_array()) fail("expected an array, got " + describe(*value_));
-    return *value_;
-  }
-  Node child(const std::string& key) const {
-    return Node(object().at(key), *context_, pointer_ + "/" + escape_pointer_token(key));
-  }
-  Node child(size_t index) const {
-    return Node(array().at(index), *context_, pointer_ + "/" + std::to_string(index));
-  }
-  std::optional<Node> find(const std::string& key) const {
-    if (!object().contains(key)) return std::nullopt;
-    return child(key);
-  }
-  Node require(const std::string& key) const {
-    if (!object().contains(key)) fail("missing key \"" + key + "\"");
-    return child(key);
-  }
-  /// Warns about every key of this object that is not in `known`.
-  void allow_keys(std::initializer_list<std::string_view> known) const {
-    for (const auto& [key, value] : object().items()) {
-      bool found = false;
-      for (std::string_view k : known) found = found || k == key;
-      if (!found) child(key).warn("unknown key \"" + printable(key) + "\" ignored");
-    }
-  }
-
- private:
-  const Json* value_;
-  const Context* context_;
-  std::string pointer_;
-};
-
-// ---- values ----------------------------------------------------------------------------------
-
-double read_number(const Node& n) {
-  const Json& v = n.json();
-  if (!v.is_number()) n.fail("expected a number, got " + describe(v));
-  const double x = v.get<double>();
-  if (!std::isfinite(x) || std::abs(x) > kMaxAbsNumber) {
-    n.fail("number " + v.dump() + " is out of range (magnitude at most 1e30)");
-  }
-  return x;
-}
-
-float read_float(const Node& n) { return static_cast<float>(read_number(n)); }
-
-float read_positive(const Node& n) {
-  const float x = read_float(n);
-  if (!(x > 0.f)) n.fail("must be positive, got " + n.json().dump());
-  return x;
-}
-
-float read_non_negative(const Node& n) {
-  const float x = read_float(n);
-  if (x < 0.f) n.fail("must not be negative, got " + n.json().dump());
-  return x;
-}
-
-int64_t read_integer(const Node& n, int64_t lo, int64_t hi) {
-  const Json& v = n.json();
-  if (!v.is_number_integer()) n.fail("expected an integer, got " + describe(v));
-  // Non-negative literals parse as unsigned, which may exceed int64_t.
-  const bool fits = !v.is_number_unsigned() || v.get<uint64_t>() <= static_cast<uint64_t>(hi);
-  const bool in_range = fits && v.get<int64_t>() >= lo && v.get<int64_t>() <= hi;
-  if (!in_range) {
-    n.fail("must be an integer from " + std::to_string(lo) + " to " + std::to_string(hi) +
-           ", got " + v.dump());
-  }
-  return v.get<int64_t>();
-}
-
-uint64_t read_unsigned(const Node& n) {
-  const Json& v = n.json();
-  if (!v.is_number_integer() || (!v.is_number_unsigned() && v.get<int64_t>() < 0)) {
-    n.fail("expected an unsigned integer, got " + describe(v));
-  }
-  return v.get<uint64_t>();
-}
-
-bool read_bool(const Node& n) {
-  if (!n.json().is_boolean()) n.fail("expected true or false, got " + describe(n.json()));
-  return n.json().get<bool>();
-}
-
-std::string read_string(const Node& n) {
-  if (!n.json().is_string()) n.fail("expected a string, got " + describe(n.json()));
-  return n.json().get<std::string>();
-}
-
-Vec3 read_vec3(const Node& n) {
-  const Json& v = n.array();
-  if (v.size() != 3)
-    n.fail("expected an array of 3 numbers, got " + std::to_string(v.size()) + " values");
-  return {read_float(n.child(0)), read_float(n.child(1)), read_float(n.child(2))};
-}
-
-/// A number of geometry (a coordinate or a length): magnitude at most kMaxCoordinate.
-float read_coordinate(const Node& n) {
-  const float x = read_float(n);
-  if (std::abs(double(x)) > kMaxCoordinate) {
-    n.fail("coordinate " + n.json().dump() +
-           " is beyond 1e17, the largest that the renderer handles (rays are traced within "
-           "+-1.8e18)");
-  }
-  return x;
-}
-
-/// A point or vector of geometry: 3 numbers of magnitude at most kMaxCoordinate.
-Vec3 read_point(const Node& n) {
-  (void)read_vec3(n);
-  return {read_coordinate(n.child(0)), read_coordinate(n.child(1)), read_coordinate(n.child(2))};
-}
-
-/// A positive length of geometry, at most kMaxCoordinate.
-float read_length(const Node& n) {
-  (void)read_positive(n);
-  return read_coordinate(n);
-}
-
-/// An RGB reflectance: every channel in [0, 1].
-Vec3 read_reflectance(const Node& n) {
-  const Vec3 c = read_vec3(n);
-  for (size_t i = 0; i < 3; ++i) {
-    if (c[int(i)] < 0.f || c[int(i)] > 1.f) {
-      n.child(i).fail("a reflectance must lie in [0, 1], got " + n.child(i).json().dump());
-    }
-  }
-  return c;
-}
-
-/// An RGB radiance or intensity: every channel >= 0.
-Vec3 read_radiance(const Node& n) {
-  const Vec3 c = read_vec3(n);
-  for (size_t i = 0; i < 3; ++i) read_non_negative(n.child(i));
-  return c;
-}
+using namespace scene_json;  // NOLINT(google-build-using-namespace): the JSON readers
 
 /// Length of the cross product, in double so that coordinates up to 1e30 cannot overflow.
-double cross_length(const Vec3& a, const Vec3& b) {
-  const double x = double(a.y) * b.z - double(a.z) * b.y;
-  const double y = double(a.z) * b.x - double(a.x) * b.z;
-  const double z = double(a.x) * b.y - double(a.y) * b.x;
-  return std::sqrt(x * x + y * y + z * z);
-}
-
-double length_d(const Vec3& a) {
-  return std::sqrt(double(a.x) * a.x + double(a.y) * a.y + double(a.z) * a.z);
-}
+double cross_length(const Vec3& a, const Vec3& b) { return length(cross(wide(a), wide(b))); }
 
 // ---- the scene -------------------------------------------------------------------------------
 
 /// Fills a Scene from the parsed JSON, one top-level section at a time.
 class SceneReader {
  public:
-  SceneReader(Scene* scene, const Context& context, fs::path folder)
-      : scene_(*scene), context_(context), folder_(std::move(folder)) {}
+  SceneReader(Scene* scene, const Context& context, fs::path folder, const SceneCheck& check)
+      : scene_(*scene), context_(context), folder_(std::move(folder)), check_(check) {}
 
   void read(const Node& root) {
     root.allow_keys(
         {"format", "camera", "film", "materials", "shapes", "lights", "background", "render"});
     if (auto n = root.find("format")) read_format(*n);
-    read_camera(root.require("camera"));
+    // The film and the render settings first: the caller's limits on them come before the rest.
     read_film(root.require("film"));
+    if (auto n = root.find("render")) read_render(*n);
+    if (check_) {
+      if (auto refusal = check_(scene_.film, scene_.render)) throw SceneRefused(*refusal);
+    }
+    read_camera(root.require("camera"));
     if (auto n = root.find("materials")) read_materials(*n);
     if (auto n = root.find("shapes")) read_shapes(*n);
     if (auto n = root.find("lights")) read_lights(*n);
     if (auto n = root.find("background")) scene_.background = read_radiance(*n);
-    if (auto n = root.find("render")) read_render(*n);
   }
 
  private:
@@ -311,9 +79,9 @@ class SceneReader {
 
   static void check_view(const Node& n, const Camera& c) {
     const Vec3 forward = c.look_at - c.eye;
-    const double distance = length_d(forward);
+    const double distance = length(wide(forward));
     if (distance == 0.0) n.child("look_at").fail("look_at equals eye: no view direction");
-    const double up = length_d(c.up);
+    const double up = length(wide(c.up));
     if (up != 0.0 && cross_length(forward, c.up) > 1e-6 * distance * up) return;
     if (auto given = n.find("up")) given->fail("up is zero or parallel to the view direction");
     n.fail("the default up [0, 1, 0] is parallel to the view direction; give \"up\"");
@@ -572,35 +340,13 @@ class SceneReader {
   Scene& scene_;
   const Context& context_;
   fs::path folder_;
+  const SceneCheck& check_;
   std::map<std::string, uint32_t> material_index_;
 };
 
-/// Parses JSON (comments allowed) with at most kMaxNesting levels of arrays and objects.
-Json parse_json(const std::string& text, const std::string& file) {
-  const Json::parser_callback_t limit = [](int depth, Json::parse_event_t event, Json&) {
-    const bool opens =
-        event == Json::parse_event_t::object_start || event == Json::parse_event_t::array_start;
-    if (opens && depth >= kMaxNesting) throw NestingTooDeep{};
-    return true;
-  };
-  try {
-    return Json::parse(text, limit, /*allow_exceptions=*/true, /*ignore_comments=*/true);
-  } catch (const NestingTooDeep&) {
-    throw SceneError(file + ": invalid JSON: arrays and objects nested more than " +
-                     std::to_string(kMaxNesting) + " levels deep");
-  } catch (const Json::parse_error& e) {
-    const std::string what = e.what();
-    throw SceneError(file + ": invalid JSON (byte " + std::to_string(e.byte) +
-                     "): " + printable(what.substr(what.find(']') + 2)));
-  } catch (const Json::exception& e) {
-    const std::string what = e.what();
-    throw SceneError(file + ": invalid JSON: " + printable(what.substr(what.find(']') + 2)));
-  }
-}
-
 }  // namespace
 
-Scene load_scene(const fs::path& file) {
+Scene load_scene(const fs::path& file, const SceneCheck& check) {
   const std::string name = file.string();
   const Json root = parse_json(read_text_file(file, kMaxSceneFileBytes, name), name);
   Scene scene;
@@ -608,7 +354,7 @@ Scene load_scene(const fs::path& file) {
   const Context context{name, &scene.warnings};
   const Node top(root, context, "");
   top.object();
-  SceneReader(&scene, context, file.parent_path()).read(top);
+  SceneReader(&scene, context, file.parent_path(), check).read(top);
   return scene;
 }
 

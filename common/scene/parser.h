@@ -1,21 +1,29 @@
 #pragma once
 // Reads a JSON scene file (docs/scene-format.md) into a validated Scene.
 #include <filesystem>
-#include <stdexcept>
+#include <functional>
+#include <optional>
 #include <string>
 
 #include "common/scene/scene.h"
+#include "common/scene/scene_files.h"
 
 namespace rayfarm {
 
-/// A user's error in a scene: the message names the file and the JSON path or line,
-/// e.g. "scenes/box.json: /materials/red/albedo/1: expected a number, got \"x\"".
-class SceneError : public std::runtime_error {
+/// A caller's limits on a scene's film and render settings (the master's, for a job): called
+/// once load_scene() has read "film" and "render", before the camera, the materials and the
+/// shapes (so before any mesh is loaded); returns the refusal, or nothing when the scene may load.
+using SceneCheck =
+    std::function<std::optional<std::string>(const FilmSize& film, const RenderSettings& render)>;
+
+/// A scene refused by the caller's SceneCheck; what() is the check's message alone.
+class SceneRefused : public SceneError {
  public:
-  using std::runtime_error::runtime_error;
+  using SceneError::SceneError;
 };
 
-/// Loads, resolves (OBJ meshes, quads, triangles) and validates a scene file. Throws SceneError.
-Scene load_scene(const std::filesystem::path& file);
+/// Loads, resolves (OBJ meshes, quads, triangles) and validates a scene file. Throws SceneError
+/// (SceneRefused when `check` refuses it).
+Scene load_scene(const std::filesystem::path& file, const SceneCheck& check = {});
 
 }  // namespace rayfarm

@@ -8,6 +8,7 @@
 #include <variant>
 #include <vector>
 
+#include "common/limits.h"
 #include "common/math/vec3.h"
 
 namespace rayfarm {
@@ -111,11 +112,11 @@ std::optional<IntegratorType> parse_integrator(const std::string& name);
 
 /// How to render: the scene's defaults, overridden by the command line or the job.
 struct RenderSettings {
-  uint32_t spp = 64;              ///< samples per pixel
+  uint32_t spp = kDefaultSpp;  ///< samples per pixel
   /// Most scattering vertices per path: the surface hits at which light is sampled and a BSDF
   /// direction drawn, the camera ray's hit being the first. Emission found by the last scattered
   /// ray still counts. 1 = direct lighting only; 0 = emitters seen by the camera only.
-  uint32_t max_depth = 16;
+  uint32_t max_depth = kDefaultMaxDepth;
   IntegratorType integrator = IntegratorType::kMis;
   uint64_t seed = 0;              ///< selects the random streams; same seed, same image
   /// When positive, a sample whose largest component exceeds it is scaled down to it: fewer

@@ -84,14 +84,25 @@ void write_bytes(const fs::path& path, std::string_view bytes) {
   }
 }
 
+void sync_folder(const fs::path& dir) {
+  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0 || ::fsync(fd) != 0) {
+    const int error = errno;
+    if (fd >= 0) ::close(fd);
+    throw std::system_error(error, std::generic_category(), "cannot sync " + dir.string());
+  }
+  ::close(fd);
+}
+
 void write_atomically(const fs::path& path,
-                      const std::function<void(const fs::path& temporary)>& write) {
+                      const std::function<void(const fs::path& temporary)>& write, Sync sync) {
   const fs::path temporary = temporary_path(path);
   try {
     check_fault(path);
     write(temporary);
     sync_file(temporary);
     fs::rename(temporary, path);
+    if (sync == Sync::kFileAndFolder) sync_folder(path.parent_path());
   } catch (const std::exception& e) {
     std::error_code ignored;
     fs::remove(temporary, ignored);
@@ -99,8 +110,9 @@ void write_atomically(const fs::path& path,
   }
 }
 
-void write_file_atomically(const fs::path& path, const std::string& bytes) {
-  write_atomically(path, [&](const fs::path& temporary) { write_bytes(temporary, bytes); });
+void write_file_atomically(const fs::path& path, const std::string& bytes, Sync sync) {
+  write_atomically(
+      path, [&](const fs::path& temporary) { write_bytes(temporary, bytes); }, sync);
 }
 
 }  // namespace rayfarm

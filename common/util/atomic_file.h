@@ -8,14 +8,24 @@
 
 namespace rayfarm {
 
+/// What an atomic write syncs: the file (it is never seen half-written), or the file and then
+/// its folder (the rename itself survives a crash too: checkpoints).
+enum class Sync { kFile, kFileAndFolder };
+
 /// Creates `path` atomically: `write` fills a fresh temporary file beside it, which is synced and
-/// renamed over `path`. On any failure the temporary is removed and std::runtime_error says
-/// "cannot write PATH: cause".
+/// renamed over `path` (and the folder synced, with Sync::kFileAndFolder). On any failure the
+/// temporary is removed and std::runtime_error says "cannot write PATH: cause".
 void write_atomically(const std::filesystem::path& path,
-                      const std::function<void(const std::filesystem::path& temporary)>& write);
+                      const std::function<void(const std::filesystem::path& temporary)>& write,
+                      Sync sync = Sync::kFile);
 
 /// Writes `bytes` to `path` atomically (see write_atomically).
-void write_file_atomically(const std::filesystem::path& path, const std::string& bytes);
+void write_file_atomically(const std::filesystem::path& path, const std::string& bytes,
+                           Sync sync = Sync::kFile);
+
+/// Flushes the folder `dir` to the disk, so that the files created, renamed or removed in it
+/// survive a crash. Throws std::system_error "cannot sync DIR: cause".
+void sync_folder(const std::filesystem::path& dir);
 
 /// Creates or truncates `path` and writes `bytes` to it, all of them or a std::system_error with
 /// the cause the system gave (e.g. "No space left on device"). Not atomic by itself.

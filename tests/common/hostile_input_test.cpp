@@ -276,7 +276,7 @@ TEST(HostileObj, BytesThatAreNotUtf8) {
   dir.write("m.mtl", "newmtl caf\xc3\xa9\xf0\x9f\x98\x80\nKd 0.5 0.5 0.5\n");
   const Scene s = load_scene(dir.write("s.json", scene(R"("shapes": [{"type": "mesh", "file": "m.obj"}])")));
   EXPECT_EQ(s.materials.at(0).name, "m.obj:caf\xc3\xa9\xf0\x9f\x98\x80");
-  // usemtl reads one word (as tinyobjloader does) while newmtl names run to the end of the line:
+  // usemtl reads one word (as most OBJ readers do) while newmtl names run to the end of the line:
   // a name with a space cannot be used, and the error names the line.
   expect_obj_error("mtllib m.mtl\n" + tri + "usemtl my name\nf 1 2 3\n", 5,
                    "usemtl \"my\": no material", "newmtl my name\nKd 0.5 0.5 0.5\n");

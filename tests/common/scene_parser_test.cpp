@@ -374,6 +374,24 @@ TEST(SceneParser, MeshMaterialOverridesTheMtl) {
   EXPECT_EQ(scene.referenced.size(), 2u);
 }
 
+TEST(SceneParser, AUsemtlBeforeAnyMtllibGetsTheDefaultMaterial) {
+  TempDir dir;
+  dir.write("m.mtl", "newmtl a\nKd 0.5 0.5 0.5\n");
+  dir.write("m.obj",
+            "usemtl a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nmtllib m.mtl\nusemtl a\nf 1 2 3\n");
+  const fs::path file = dir.write("scene.json", scene_with(R"(
+  "shapes": [{"type": "mesh", "file": "m.obj"}])"));
+  const Scene scene = load_scene(file);
+  ASSERT_EQ(scene.warnings.size(), 1u) << warnings_of(scene);
+  EXPECT_NE(scene.warnings[0].find("m.obj:1: usemtl \"a\" comes before any mtllib"),
+            std::string::npos)
+      << scene.warnings[0];
+  const TriangleMesh& mesh = scene.meshes.at(0);
+  ASSERT_EQ(mesh.triangle_count(), 2u);
+  EXPECT_EQ(scene.materials[mesh.materials[0]].name, "m.obj:default");
+  EXPECT_EQ(scene.materials[mesh.materials[1]].name, "m.obj:a");
+}
+
 // ---- errors in the JSON ----------------------------------------------------------------------
 
 TEST(SceneErrors, UnknownMaterialType) {

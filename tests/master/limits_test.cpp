@@ -1,11 +1,13 @@
-// Limits on submissions, checked before the master loads a scene: the queue, the bundle's size,
-// the film's pixels and the spp (the scene's or the override), and tiles whose results would not
-// fit in a message. Each refusal names the limit, the value and the option that raises it.
+// Limits on submissions: the queue and the bundle's size before the master unpacks a bundle; the
+// film's pixels and the spp (the scene's or the override), and tiles whose results would not fit
+// in a message, checked by the scene parser before it loads any mesh. Each refusal names the
+// limit, the value and the option that raises it.
 #include <gtest/gtest.h>
 
 #include "common/bundle/bundle.h"
 #include "common/protocol/convert.h"
 #include "master/limits.h"
+#include "tests/support/temp_dir.h"
 
 namespace rayfarm::master {
 namespace {
@@ -22,11 +24,36 @@ wire::SubmitJob job(const std::string& scene_text, std::string extra_file = "") 
 std::string scene(uint32_t width, uint32_t height, const std::string& render = "") {
   return "{\"film\": {\"width\": " + std::to_string(width) +
          ", \"height\": " + std::to_string(height) + "}" +
-         (render.empty() ? "" : ", \"render\": " + render) + ", \"camera\": {}}";
+         (render.empty() ? "" : ", \"render\": " + render) +
+         ", \"camera\": {\"eye\": [0, 0, -1], \"look_at\": [0, 0, 0], \"fov_y\": 40}, "
+         "\"materials\": {\"m\": {\"type\": \"diffuse\"}}, "
+         "\"shapes\": [{\"type\": \"mesh\", \"file\": \"missing.obj\", \"material\": \"m\"}]}";
+}
+
+/// What the master's check says of `request`: the scene parser runs it once it has read the film
+/// and the render settings, before the mesh (missing here, so a scene that passes the check
+/// fails on it instead).
+std::optional<std::string> check_submission(const wire::SubmitJob& request, size_t jobs_waiting,
+                                            const Limits& limits) {
+  if (auto refusal = check_queue(jobs_waiting, limits)) return refusal;
+  if (auto refusal = check_figures(bundle_figures(request), limits)) return refusal;
+  testing::TempDir dir;
+  const std::string& text = request.bundle().files(0).data();
+  try {
+    load_scene(dir.write("scene.json", text), scene_check(request, limits));
+  } catch (const SceneRefused& e) {
+    return e.what();
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("missing.obj"), std::string::npos) << e.what();
+  }
+  return std::nullopt;
 }
 
 TEST(Limits, FiguresComeFromTheSceneAndTheOverrides) {
-  const SubmissionFigures f = figures_of(job(scene(640, 480, "{\"spp\": 300}"), "v 0 0 0\n"));
+  RenderSettings render;
+  render.spp = 300;
+  const SubmissionFigures f =
+      figures_of(job(scene(640, 480, "{\"spp\": 300}"), "v 0 0 0\n"), {640, 480}, render);
   EXPECT_EQ(f.width, std::optional<uint64_t>(640));
   EXPECT_EQ(f.height, std::optional<uint64_t>(480));
   EXPECT_EQ(f.spp, std::optional<uint64_t>(300));
@@ -36,17 +63,33 @@ TEST(Limits, FiguresComeFromTheSceneAndTheOverrides) {
   wire::SubmitJob overridden = job(scene(640, 480, "{\"spp\": 300}"));
   overridden.mutable_overrides()->set_spp(7);
   overridden.mutable_overrides()->set_tile_size(16);
-  EXPECT_EQ(figures_of(overridden).spp, std::optional<uint64_t>(7));
-  EXPECT_EQ(figures_of(overridden).tile_size, 16u);
+  overridden.mutable_overrides()->set_width(32);
+  overridden.mutable_overrides()->set_height(24);
+  const SubmissionFigures o = figures_of(overridden, {640, 480}, render);
+  EXPECT_EQ(o.spp, std::optional<uint64_t>(7));
+  EXPECT_EQ(o.tile_size, 16u);
+  EXPECT_EQ(o.width, std::optional<uint64_t>(32));
+  EXPECT_EQ(o.height, std::optional<uint64_t>(24));
 
-  // No render block: the scene format's default spp. Comments are allowed, as in the parser.
-  EXPECT_EQ(figures_of(job("// a comment\n" + scene(8, 8))).spp, std::optional<uint64_t>(64));
-  // What the parser will refuse anyway is left to it: no figure, no refusal here.
-  const SubmissionFigures bad = figures_of(job("{\"film\": {\"width\": -3, \"height\": \"x\"}"));
-  EXPECT_FALSE(bad.width);
-  EXPECT_FALSE(bad.height);
-  EXPECT_FALSE(figures_of(job("not json")).width);
-  EXPECT_FALSE(figures_of(job(std::string(200, '[') + std::string(200, ']'))).width);
+  // Before the scene is read, only the bundle's figures are known.
+  EXPECT_FALSE(bundle_figures(overridden).width);
+  EXPECT_FALSE(bundle_figures(overridden).spp);
+}
+
+TEST(Limits, TheParserChecksTheLimitsBeforeItLoadsAMesh) {
+  Limits limits;
+  limits.max_image_pixels = 100;
+  // No render block: the scene format's default spp; comments are allowed.
+  wire::SubmitJob request = job("// a comment\n" + scene(8, 8));
+  EXPECT_EQ(check_submission(request, 0, limits), std::nullopt);  // the mesh is what fails
+  limits.max_spp = 63;
+  const auto spp = check_submission(request, 0, limits);
+  ASSERT_TRUE(spp);
+  EXPECT_NE(spp->find("64 samples per pixel"), std::string::npos) << *spp;
+  // A scene the parser refuses is refused for that, whatever the limits.
+  testing::TempDir dir;
+  EXPECT_THROW(load_scene(dir.write("scene.json", "not json"), scene_check(request, limits)),
+               SceneError);
 }
 
 TEST(Limits, EachRefusalNamesTheLimitTheValueAndTheOption) {

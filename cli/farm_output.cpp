@@ -1,0 +1,194 @@
+#include "cli/farm_output.h"
+
+#include <cmath>
+#include <iostream>
+
+#include <fmt/format.h>
+
+#include "common/protocol/convert.h"
+#include "common/scene/scene.h"
+#include "common/util/text.h"
+
+namespace rayfarm::cli {
+namespace protocol = rayfarm::protocol;
+
+namespace {
+
+double percent(const wire::JobStatus& st) {
+  return st.units_total()
+             ? 100.0 * static_cast<double>(st.units_done()) / static_cast<double>(st.units_total())
+             : 0.0;
+}
+
+const char* integrator_label(wire::Integrator value) {
+  try {
+    return integrator_name(protocol::integrator_from_wire(value));
+  } catch (const protocol::ProtocolError&) {
+    return "unknown integrator";
+  }
+}
+
+/// A figure for JSON: null when unknown (negative or not finite).
+nlohmann::json figure(double value) {
+  return std::isfinite(value) && value >= 0 ? nlohmann::json(value) : nlohmann::json(nullptr);
+}
+
+}  // namespace
+
+std::string format_duration(double seconds) {
+  if (seconds < 0) return "?";
+  if (seconds < 60) return fmt::format("{:.1f} s", seconds);
+  if (seconds < 3600)
+    return fmt::format("{}m{:02}s", static_cast<int>(seconds) / 60, static_cast<int>(seconds) % 60);
+  return fmt::format("{}h{:02}m", static_cast<int>(seconds) / 3600,
+                     (static_cast<int>(seconds) / 60) % 60);
+}
+
+bool finished(wire::JobState state) {
+  // JOB_STATE_UNSPECIFIED: a job whose record the master cannot read; it will not change.
+  return state == wire::JOB_DONE || state == wire::JOB_FAILED || state == wire::JOB_CANCELLED ||
+         state == wire::JOB_STATE_UNSPECIFIED;
+}
+
+nlohmann::json status_json(const wire::JobStatus& st) {
+  return nlohmann::json{
+      {"job", st.job_id()},
+      {"name", st.name()},
+      {"owner", st.owner()},
+      {"state", protocol::job_state_name(st.state())},
+      {"storage_error",
+       st.storage_error().empty() ? nlohmann::json(nullptr) : nlohmann::json(st.storage_error())},
+      {"error", st.error().empty() ? nlohmann::json(nullptr) : nlohmann::json(st.error())},
+      {"stop_reason",
+       st.stop_reason().empty() ? nlohmann::json(nullptr) : nlohmann::json(st.stop_reason())},
+      {"width", st.width()},
+      {"height", st.height()},
+      {"spp", st.settings().spp()},
+      {"integrator", st.state() == wire::JOB_STATE_UNSPECIFIED
+                         ? nlohmann::json(nullptr)
+                         : nlohmann::json(integrator_label(st.settings().integrator()))},
+      {"max_depth", st.settings().max_depth()},
+      {"seed", st.settings().seed()},
+      {"clamp", st.settings().clamp()},
+      {"tile_size", st.tile_size()},
+      {"pass_spp", st.pass_spp()},
+      {"passes_done", st.passes_done()},
+      {"passes_total", st.passes_total()},
+      {"units_done", st.units_done()},
+      {"units_total", st.units_total()},
+      {"units_leased", st.units_leased()},
+      {"percent", percent(st)},
+      {"spp_done", st.spp_done()},
+      {"spp_mean", st.spp_mean()},
+      {"est_rel_mse", figure(st.est_rel_mse())},
+      {"ref_rel_mse", figure(st.ref_rel_mse())},
+      {"tiles_converged", st.tiles_converged()},
+      {"tiles_total", st.tiles_total()},
+      {"samples_per_second", st.samples_per_second()},
+      {"elapsed_seconds", st.elapsed_seconds()},
+      {"eta_seconds", figure(st.eta_seconds())},
+      {"workers_busy", st.workers_busy()},
+      {"workers_total", st.workers_total()}};
+}
+
+void print_json(const nlohmann::json& j) { std::cout << j.dump() << "\n" << std::flush; }
+
+std::string progress_line(const wire::JobStatus& st) {
+  std::string line = fmt::format(
+      "{} {:<9} pass {}/{}  {}/{} spp  {:5.1f}%", st.job_id(), protocol::job_state_name(st.state()),
+      st.passes_done(), st.passes_total(), st.spp_done(), st.settings().spp(), percent(st));
+  if (st.spp_mean() >= st.spp_done() + 1.0) line += fmt::format(" (mean {:.0f})", st.spp_mean());
+  if (st.est_rel_mse() >= 0) line += fmt::format("  relMSE {:.3g}", st.est_rel_mse());
+  if (st.ref_rel_mse() >= 0) line += fmt::format(" (measured {:.3g})", st.ref_rel_mse());
+  if (st.state() == wire::JOB_RUNNING) {
+    line += fmt::format("  {}  ETA {}  workers {} busy/{}", human_rate(st.samples_per_second()),
+                        format_duration(st.eta_seconds()), st.workers_busy(), st.workers_total());
+  } else if (st.state() == wire::JOB_DONE) {
+    line += fmt::format("  in {} ({})", format_duration(st.elapsed_seconds()), st.stop_reason());
+  }
+  if (!st.storage_error().empty()) line += "  storage: " + st.storage_error();
+  return line;
+}
+
+void print_status(const wire::JobStatus& st) {
+  std::cout << fmt::format("job        {} ({})\n", st.job_id(), st.name());
+  std::cout << fmt::format("state      {}\n", protocol::job_state_name(st.state()));
+  if (!st.owner().empty()) std::cout << fmt::format("owner      key '{}'\n", st.owner());
+  if (!st.storage_error().empty()) {
+    // The master cannot write the job's image, checkpoint or record (a full disk): it says why.
+    std::cout << fmt::format("storage    {}\n", st.storage_error());
+  }
+  if (!st.error().empty()) {
+    // Why it failed; for a cancelled job, who cancelled it.
+    std::cout << fmt::format("{:<10} {}\n",
+                             st.state() == wire::JOB_CANCELLED ? "cancelled" : "error", st.error());
+  }
+  if (st.state() == wire::JOB_STATE_UNSPECIFIED) return;  // nothing else is known
+  std::cout << fmt::format(
+      "image      {}x{}, {} spp, {}, max depth {}, seed {}{}\n", st.width(), st.height(),
+      st.settings().spp(), integrator_label(st.settings().integrator()), st.settings().max_depth(),
+      st.settings().seed(),
+      st.settings().clamp() > 0 ? fmt::format(", clamp {:g} (biased)", st.settings().clamp()) : "");
+  std::cout << fmt::format(
+      "work       tiles of {} px, passes of {} spp: {}/{} units ({:.1f}%), {} leased\n",
+      st.tile_size(), st.pass_spp(), st.units_done(), st.units_total(), percent(st),
+      st.units_leased());
+  std::cout << fmt::format("progress   pass {}/{}, {}/{} spp, {:.1f} spp mean\n", st.passes_done(),
+                           st.passes_total(), st.spp_done(), st.settings().spp(), st.spp_mean());
+  if (st.est_rel_mse() >= 0 || st.ref_rel_mse() >= 0) {
+    std::cout << fmt::format(
+        "relMSE     estimated {}{}\n",
+        st.est_rel_mse() >= 0 ? fmt::format("{:.4g}", st.est_rel_mse()) : "unknown",
+        st.ref_rel_mse() >= 0
+            ? fmt::format(", measured against the reference {:.4g}", st.ref_rel_mse())
+            : "");
+  }
+  if (st.tiles_converged() > 0) {
+    std::cout << fmt::format("tiles      {}/{} converged\n", st.tiles_converged(),
+                             st.tiles_total());
+  }
+  if (!st.stop_reason().empty()) std::cout << fmt::format("stopped    {}\n", st.stop_reason());
+  std::cout << fmt::format("time       {} elapsed, ETA {}, {}\n",
+                           format_duration(st.elapsed_seconds()), format_duration(st.eta_seconds()),
+                           human_rate(st.samples_per_second()));
+  std::cout << fmt::format("workers    {} busy on this job, {} connected\n", st.workers_busy(),
+                           st.workers_total());
+}
+
+void print_table(const wire::JobList& list) {
+  if (list.jobs().empty()) {
+    std::cout << "no jobs\n";
+    return;
+  }
+  std::cout << fmt::format("{:<8} {:<24} {:<12} {:<9} {:>7} {:>11} {:>11} {:>10}\n", "JOB", "NAME",
+                           "OWNER", "STATE", "DONE", "SPP", "SIZE", "ELAPSED");
+  for (const auto& st : list.jobs()) {
+    std::cout << fmt::format(
+        "{:<8} {:<24} {:<12} {:<9} {:>6.1f}% {:>11} {:>11} {:>10}\n", st.job_id(),
+        st.name().substr(0, 24), st.owner().empty() ? "-" : st.owner().substr(0, 12),
+        protocol::job_state_name(st.state()), percent(st),
+        fmt::format("{}/{}", st.spp_done(), st.settings().spp()),
+        fmt::format("{}x{}", st.width(), st.height()), format_duration(st.elapsed_seconds()));
+  }
+  for (const auto& st : list.jobs()) {
+    if (st.state() == wire::JOB_STATE_UNSPECIFIED) {
+      std::cout << fmt::format("{}: {}\n", st.job_id(), st.error());
+    }
+  }
+}
+
+nlohmann::json worker_json(const wire::WorkerInfo& w) {
+  return nlohmann::json{
+      {"id", w.id()},
+      {"name", w.name()},
+      {"key_name", w.key_name().empty() ? nlohmann::json(nullptr) : nlohmann::json(w.key_name())},
+      {"state", w.units().empty() ? "idle" : "busy"},
+      {"threads", w.threads()},
+      {"units", w.units()},
+      {"units_done", w.units_done()},
+      {"samples_per_second", w.samples_per_second()},
+      {"last_seen_seconds", w.last_seen_seconds()},
+      {"build", w.build()}};
+}
+
+}  // namespace rayfarm::cli

@@ -1,0 +1,31 @@
+#pragma once
+// How the farm commands show what the master says: status lines and tables for people, one JSON
+// object per line for scripts (docs/cli.md lists the keys).
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "proto/rayfarm.pb.h"
+
+namespace rayfarm::cli {
+
+/// "12.5 s", "3m07s" or "2h05m"; "?" when negative.
+std::string format_duration(double seconds);
+/// Whether a job in `state` has ended (done, failed, cancelled, or unknown to the master).
+bool finished(wire::JobState state);
+
+/// A job's status as one JSON object.
+nlohmann::json status_json(const wire::JobStatus& st);
+/// A worker as one JSON object.
+nlohmann::json worker_json(const wire::WorkerInfo& w);
+/// Prints `j` on one line of standard output, flushed.
+void print_json(const nlohmann::json& j);
+
+/// The one-line progress of a job, as watch shows it.
+std::string progress_line(const wire::JobStatus& st);
+/// A job's status, several lines, as status shows it.
+void print_status(const wire::JobStatus& st);
+/// The jobs as a table, as list shows them.
+void print_table(const wire::JobList& list);
+
+}  // namespace rayfarm::cli

@@ -1,0 +1,114 @@
+// status, list, cancel, rm and retry: one request about one job (or all of them) and its answer.
+#include <iostream>
+#include <optional>
+#include <string>
+
+#include <fmt/format.h>
+
+#include "cli/farm_client.h"
+#include "cli/farm_commands.h"
+#include "cli/farm_output.h"
+#include "common/protocol/convert.h"
+
+namespace rayfarm::cli {
+using protocol::encode;
+
+void add_status(CLI::App& app, int& exit_code) {
+  auto args = std::make_shared<ClientArgs>();
+  auto job = std::make_shared<std::string>();
+  auto json = std::make_shared<bool>(false);
+  CLI::App* cmd = app.add_subcommand("status", "Show one job in detail, or every job");
+  cmd->add_option("job", *job, "Job id (default: every job)");
+  add_client_options(cmd, *args);
+  cmd->add_flag("--json", *json, "One JSON object (per job, one a line)");
+  cmd->callback([args, job, json, &exit_code] {
+    exit_code = guarded("status", [&] {
+      FarmClient client(*args);
+      if (job->empty()) {
+        const auto list = client.call<wire::JobList>(encode(wire::ListJobs{}));
+        if (*json) {
+          for (const auto& st : list.jobs()) print_json(status_json(st));
+        } else {
+          print_table(list);
+        }
+      } else if (*json) {
+        print_json(status_json(query_status(client, *job)));
+      } else {
+        print_status(query_status(client, *job));
+      }
+      return 0;
+    });
+  });
+}
+
+void add_list(CLI::App& app, int& exit_code) {
+  auto args = std::make_shared<ClientArgs>();
+  auto json = std::make_shared<bool>(false);
+  CLI::App* cmd = app.add_subcommand("list", "List the farm's jobs");
+  add_client_options(cmd, *args);
+  cmd->add_flag("--json", *json, "One JSON object per job, one a line");
+  cmd->callback([args, json, &exit_code] {
+    exit_code = guarded("list", [&] {
+      FarmClient client(*args);
+      const auto list = client.call<wire::JobList>(encode(wire::ListJobs{}));
+      if (*json) {
+        for (const auto& st : list.jobs()) print_json(status_json(st));
+      } else {
+        print_table(list);
+      }
+      return 0;
+    });
+  });
+}
+
+namespace {
+
+/// A command that sends one request about one job and prints the line `say` makes of the reply.
+template <class Request, class Reply>
+void add_job_action(CLI::App& app, int& exit_code, const char* name, const std::string& help,
+                    std::string (*say)(const Reply&)) {
+  auto args = std::make_shared<ClientArgs>();
+  auto job = std::make_shared<std::string>();
+  CLI::App* cmd = app.add_subcommand(name, help);
+  cmd->add_option("job", *job, "Job id")->required();
+  add_client_options(cmd, *args);
+  cmd->callback([args, job, name, say, &exit_code] {
+    exit_code = guarded(name, [&] {
+      FarmClient client(*args);
+      Request request;
+      request.set_job_id(*job);
+      std::cout << say(client.call<Reply>(encode(std::move(request))));
+      return 0;
+    });
+  });
+}
+
+}  // namespace
+
+void add_cancel(CLI::App& app, int& exit_code) {
+  add_job_action<wire::CancelJob, wire::CancelReply>(
+      app, exit_code, "cancel", "Cancel a job; its image keeps the samples merged so far",
+      [](const wire::CancelReply& reply) {
+        return fmt::format("job {} {}\n", reply.job_id(), protocol::job_state_name(reply.state()));
+      });
+}
+
+void add_remove(CLI::App& app, int& exit_code) {
+  add_job_action<wire::RemoveJob, wire::RemoveReply>(
+      app, exit_code, "rm",
+      "Remove a finished (done, failed or cancelled) job and its files from the master",
+      [](const wire::RemoveReply& reply) {
+        return fmt::format("job {} removed\n", reply.job_id());
+      });
+}
+
+void add_retry(CLI::App& app, int& exit_code) {
+  add_job_action<wire::RetryJob, wire::RetryReply>(
+      app, exit_code, "retry",
+      "Run a failed or cancelled job again from its first sample, under the same id",
+      [](const wire::RetryReply& reply) {
+        return fmt::format("job {} {}\n", reply.job_id(), protocol::job_state_name(reply.state()));
+      });
+}
+
+}  // namespace rayfarm::cli

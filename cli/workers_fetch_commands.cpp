@@ -1,0 +1,75 @@
+// workers and fetch: the farm's workers, and a job's image brought home.
+#include <iostream>
+#include <optional>
+#include <string>
+
+#include <fmt/format.h>
+
+#include "cli/farm_client.h"
+#include "cli/farm_commands.h"
+#include "cli/farm_output.h"
+#include "cli/output_path.h"
+#include "common/protocol/convert.h"
+#include "common/util/text.h"
+
+namespace rayfarm::cli {
+namespace fs = std::filesystem;
+using protocol::encode;
+
+void add_workers(CLI::App& app, int& exit_code) {
+  auto args = std::make_shared<ClientArgs>();
+  auto json = std::make_shared<bool>(false);
+  CLI::App* cmd = app.add_subcommand("workers", "List the workers connected to the master");
+  add_client_options(cmd, *args);
+  cmd->add_flag("--json", *json, "One JSON object per worker, one a line");
+  cmd->callback([args, json, &exit_code] {
+    exit_code = guarded("workers", [&] {
+      FarmClient client(*args);
+      const auto list = client.call<wire::WorkerList>(encode(wire::ListWorkers{}));
+      if (*json) {
+        for (const auto& w : list.workers()) print_json(worker_json(w));
+        return 0;
+      }
+      if (list.workers().empty()) {
+        std::cout << "no workers connected\n";
+        return 0;
+      }
+      std::cout << fmt::format("{:<20} {:<16} {:<5} {:>7} {:<16} {:>6} {:>16} {:>9}\n", "NAME",
+                               "KEY", "STATE", "THREADS", "UNIT", "DONE", "RATE", "SEEN");
+      for (const auto& w : list.workers()) {
+        std::string units = w.units().empty() ? "-" : w.units(0);
+        if (w.units_size() > 1) units += fmt::format(" +{}", w.units_size() - 1);
+        std::cout << fmt::format(
+            "{:<20} {:<16} {:<5} {:>7} {:<16} {:>6} {:>16} {:>9}\n", w.name().substr(0, 20),
+            w.key_name().empty() ? "-" : w.key_name().substr(0, 16),
+            w.units().empty() ? "idle" : "busy", w.threads(), units, w.units_done(),
+            human_rate(w.samples_per_second()), format_duration(w.last_seen_seconds()) + " ago");
+      }
+      return 0;
+    });
+  });
+}
+
+void add_fetch(CLI::App& app, int& exit_code) {
+  auto args = std::make_shared<ClientArgs>();
+  auto job = std::make_shared<std::string>();
+  auto output = std::make_shared<std::string>();
+  CLI::App* cmd = app.add_subcommand(
+      "fetch", "Download a job's current or final EXR (and a PNG preview beside it)");
+  cmd->add_option("job", *job, "Job id")->required();
+  cmd->add_option(
+         "-o,--output", *output,
+         "Output: x.exr (and its PNG preview x.png beside it) or x.png (the preview alone)")
+      ->required();
+  add_client_options(cmd, *args);
+  cmd->callback([args, job, output, &exit_code] {
+    exit_code = guarded("fetch", [&] {
+      const OutputFormat format = check_output_path(*output);
+      FarmClient client(*args);
+      std::cout << fetch_image(client, *job, *output, format) << "\n";
+      return 0;
+    });
+  });
+}
+
+}  // namespace rayfarm::cli

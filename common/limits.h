@@ -1,0 +1,62 @@
+#pragma once
+// Every cap and default that more than one part of rayfarm relies on, in one place: what the scene
+// format accepts, what a job may ask for, and the master's default limits (its options raise or
+// lower those). A value used by one file only stays in that file.
+#include <cstddef>
+#include <cstdint>
+
+namespace rayfarm {
+
+// ---- the scene format (docs/scene-format.md) ---------------------------------------------------
+
+/// Largest scene file read, in bytes.
+inline constexpr std::uintmax_t kMaxSceneFileBytes = std::uintmax_t{64} << 20;
+/// Largest OBJ file read, in bytes.
+inline constexpr std::uintmax_t kMaxObjFileBytes = std::uintmax_t{1} << 30;
+/// Largest MTL file read, in bytes.
+inline constexpr std::uintmax_t kMaxMtlFileBytes = std::uintmax_t{16} << 20;
+/// Deepest nesting of JSON arrays and objects read.
+inline constexpr int kMaxJsonNesting = 64;
+/// Largest magnitude of any number in a scene, OBJ or MTL file.
+inline constexpr double kMaxAbsNumber = 1e30;
+/// Largest coordinate or length of geometry: every point of a scene (a quad's far corner, a
+/// sphere's surface, a thin lens) then stays well inside the range that Embree traces, +-1.8e18.
+inline constexpr double kMaxCoordinate = 1e17;
+/// Largest side of a scene's film, in pixels.
+inline constexpr int64_t kMaxFilmSide = 16384;
+/// Most pixels of a scene's film (2^26).
+inline constexpr int64_t kMaxFilmPixels = int64_t{1} << 26;
+
+// ---- rendering
+// -----------------------------------------------------------------------------------
+
+/// Most samples per pixel a scene or a job may ask for.
+inline constexpr uint32_t kMaxSpp = uint32_t{1} << 24;
+/// Most scattering vertices per path a scene or a job may ask for.
+inline constexpr uint32_t kMaxDepth = 1024;
+/// Samples per pixel when the scene does not say.
+inline constexpr uint32_t kDefaultSpp = 64;
+/// Scattering vertices per path when the scene does not say.
+inline constexpr uint32_t kDefaultMaxDepth = 16;
+/// Tile side in pixels when the job or the command line does not choose one (docs/protocol.md).
+inline constexpr uint32_t kDefaultTileSize = 64;
+/// Largest tile side a job may choose.
+inline constexpr uint32_t kMaxTileSize = 4096;
+
+// ---- the master's limits on submissions (master/limits.h; each has a master option)
+// ---------------
+
+/// Largest message a master socket accepts. --max-message-mb
+inline constexpr int64_t kDefaultMaxMessageBytes = int64_t{1} << 30;
+/// Largest scene bundle. --max-bundle-mb
+inline constexpr uint64_t kDefaultMaxBundleBytes = uint64_t{256} << 20;
+/// Most files in a scene bundle. --max-bundle-files
+inline constexpr uint64_t kDefaultMaxBundleFiles = 4096;
+/// Most pixels of a job's image: 33.5 Mpx, 8K UHD (7680x4320) fits. --max-image-pixels
+inline constexpr uint64_t kDefaultMaxImagePixels = uint64_t{1} << 25;
+/// Most samples per pixel of a job. --max-spp
+inline constexpr uint32_t kDefaultMaxJobSpp = 1u << 16;
+/// Most jobs queued or running at once. --max-queued-jobs
+inline constexpr size_t kDefaultMaxQueuedJobs = 100;
+
+}  // namespace rayfarm

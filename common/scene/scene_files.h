@@ -1,0 +1,30 @@
+#pragma once
+// What every scene format reader shares: the error it throws, the rule that keeps every file a
+// scene refers to inside the scene's folder, and bounded file reading.
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+namespace rayfarm {
+
+/// A user's error in a scene: the message names the file and the JSON path or line,
+/// e.g. "scenes/box.json: /materials/red/albedo/1: expected a number, got \"x\"".
+class SceneError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Resolves `reference` (as written in a file) against `base_dir`, both relative to the scene
+/// folder. Returns the lexically normal path relative to the scene folder, or nullopt with `why`
+/// set when the reference is empty, absolute, or leaves the scene folder.
+std::optional<std::filesystem::path> resolve_scene_path(const std::filesystem::path& base_dir,
+                                                        const std::string& reference,
+                                                        std::string* why);
+
+/// Reads a whole text file of at most `max_bytes`; SceneError "DISPLAY: ..." when that fails.
+std::string read_text_file(const std::filesystem::path& file, std::uintmax_t max_bytes,
+                           const std::string& display);
+
+}  // namespace rayfarm

@@ -1,0 +1,121 @@
+#include "common/scene/text_lines.h"
+
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <system_error>
+
+#include "common/limits.h"
+
+namespace rayfarm::scene_text {
+namespace {
+
+constexpr size_t kMaxNameInMessage = 60;
+
+/// Offset of the first byte that does not belong to well-formed UTF-8, or npos.
+size_t invalid_utf8_at(std::string_view s) {
+  size_t i = 0;
+  while (i < s.size()) {
+    const auto lead = static_cast<unsigned char>(s[i]);
+    if (lead < 0x80) {
+      ++i;
+      continue;
+    }
+    size_t length = 0;
+    uint32_t code = 0;
+    uint32_t smallest = 0;
+    if ((lead & 0xE0) == 0xC0) {
+      length = 2, code = lead & 0x1Fu, smallest = 0x80;
+    } else if ((lead & 0xF0) == 0xE0) {
+      length = 3, code = lead & 0x0Fu, smallest = 0x800;
+    } else if ((lead & 0xF8) == 0xF0) {
+      length = 4, code = lead & 0x07u, smallest = 0x10000;
+    } else {
+      return i;
+    }
+    if (i + length > s.size()) return i;
+    for (size_t k = 1; k < length; ++k) {
+      const auto next = static_cast<unsigned char>(s[i + k]);
+      if ((next & 0xC0) != 0x80) return i;
+      code = (code << 6) | (next & 0x3Fu);
+    }
+    if (code < smallest || code > 0x10FFFF || (code >= 0xD800 && code <= 0xDFFF)) return i;
+    i += length;
+  }
+  return std::string_view::npos;
+}
+
+}  // namespace
+
+/// Quotes a name taken from a file, shortened so that a message stays readable.
+std::string in_quotes(std::string_view name) {
+  std::string out = "\"";
+  out.append(name.substr(0, kMaxNameInMessage));
+  if (name.size() > kMaxNameInMessage) out += "...";
+  out += '"';
+  return out;
+}
+
+/// Rejects bytes that no text line may hold: broken UTF-8, NUL, a carriage return mid-line.
+void check_line_bytes(const Where& at, std::string_view line) {
+  if (const size_t bad = invalid_utf8_at(line); bad != std::string_view::npos) {
+    char hex[8];
+    std::snprintf(hex, sizeof hex, "0x%02X", static_cast<unsigned char>(line[bad]));
+    at.fail("invalid UTF-8 byte " + std::string(hex) + " at column " + std::to_string(bad + 1));
+  }
+  if (const size_t nul = line.find('\0'); nul != std::string_view::npos) {
+    at.fail("NUL byte at column " + std::to_string(nul + 1));
+  }
+  if (line.find('\r') != std::string_view::npos) at.fail("carriage return inside a line");
+}
+
+std::vector<std::string_view> split_words(std::string_view line) {
+  std::vector<std::string_view> words;
+  size_t i = 0;
+  while (i < line.size()) {
+    while (i < line.size() && (line[i] == ' ' || line[i] == '\t')) ++i;
+    const size_t start = i;
+    while (i < line.size() && line[i] != ' ' && line[i] != '\t') ++i;
+    if (i > start) words.push_back(line.substr(start, i - start));
+  }
+  return words;
+}
+
+/// The text after the first word, without surrounding blanks ("newmtl my name" -> "my name").
+std::string_view rest_after_keyword(std::string_view line, std::string_view keyword) {
+  std::string_view rest = line.substr(line.find(keyword) + keyword.size());
+  const size_t first = rest.find_first_not_of(" \t");
+  if (first == std::string_view::npos) return {};
+  rest = rest.substr(first);
+  return rest.substr(0, rest.find_last_not_of(" \t") + 1);
+}
+
+/// A finite decimal number no larger than 1e30 in magnitude, or nullopt.
+std::optional<double> parse_number(std::string_view word) {
+  if (!word.empty() && word.front() == '+') word.remove_prefix(1);
+  if (word.empty() || word.front() == '+') return std::nullopt;
+  double value = 0.0;
+  const auto [end, error] = std::from_chars(word.data(), word.data() + word.size(), value);
+  if (error != std::errc() || end != word.data() + word.size()) return std::nullopt;
+  if (!std::isfinite(value) || std::abs(value) > kMaxAbsNumber) return std::nullopt;
+  return value;
+}
+
+/// Checks that words[1..] are `count` numbers (any count in [min, max]).
+void check_numbers(const Where& at, const std::vector<std::string_view>& words, size_t min,
+                   size_t max, const std::string& expected) {
+  const size_t count = words.size() - 1;
+  if (count < min || count > max) {
+    at.fail(std::string(words[0]) + ": expected " + expected + ", got " + std::to_string(count) +
+            " value(s)");
+  }
+  for (size_t i = 1; i < words.size(); ++i) {
+    if (!parse_number(words[i])) {
+      at.fail(std::string(words[0]) + ": " + in_quotes(words[i]) +
+              " is not a finite number of magnitude at most 1e30");
+    }
+  }
+}
+
+}  // namespace rayfarm::scene_text
