@@ -11,13 +11,16 @@
    (default 500). Tests, benchmarks and fuzzers are not held to it.
 
 Prints each cycle (as a chain of modules) and each long file, and exits 1 when there is any,
-0 when the tree is clean, 2 on a usage error.
+0 when the tree is clean, 2 on a usage error. `--self-test` checks the checker on small trees
+made on the spot (a clean one, one with a cycle through a .cpp, one with a long file).
 """
 
 import argparse
 import os
 import re
+import subprocess
 import sys
+import tempfile
 
 SOURCE_DIRS = ("common", "master", "worker", "cli")
 CHECKED_DIRS = SOURCE_DIRS + ("proto", "tests", "bench", "fuzz")
@@ -70,11 +73,45 @@ def find_cycles(graph):
     return cycles
 
 
+def self_test():
+    """Runs this script on three small trees and checks its verdicts; returns the exit code."""
+    trees = {
+        "clean": ({"common/a.h": '#include "common/b.h"\n', "common/a.cpp": '#include "common/a.h"\n',
+                   "common/b.h": "", "master/m.cpp": '#include "common/a.h"\n'}, 0, "0 include cycles"),
+        "cycle": ({"common/a.h": "", "common/a.cpp": '#include "common/b.h"\n',
+                   "common/b.h": "", "common/b.cpp": '#include "a.h"\n'}, 1,
+                  "include cycle: common/a -> common/b -> common/a"),
+        "long": ({"worker/w.cpp": "x\n" * 12, "tests/t.cpp": "x\n" * 50}, 1,
+                 "too long: worker/w.cpp has 12 lines (at most 10)"),
+    }
+    failures = 0
+    for name, (files, want_code, want_text) in trees.items():
+        with tempfile.TemporaryDirectory() as root:
+            os.makedirs(os.path.join(root, "common"), exist_ok=True)
+            for path, text in files.items():
+                os.makedirs(os.path.dirname(os.path.join(root, path)), exist_ok=True)
+                with open(os.path.join(root, path), "w", encoding="utf-8") as f:
+                    f.write(text)
+            run = subprocess.run([sys.executable, __file__, "--root", root, "--max-lines", "10"],
+                                 capture_output=True, text=True, check=False)
+            ok = run.returncode == want_code and want_text in run.stdout
+            if name == "long" and "tests/t.cpp" in run.stdout:
+                ok = False  # tests are not held to the limit
+            print(f"self-test {name}: {'ok' if ok else 'FAILED'} (exit {run.returncode})")
+            if not ok:
+                print(run.stdout + run.stderr)
+                failures += 1
+    return 1 if failures else 0
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--max-lines", type=int, default=500)
     parser.add_argument("--root", default=os.path.join(os.path.dirname(__file__), ".."))
+    parser.add_argument("--self-test", action="store_true")
     args = parser.parse_args()
+    if args.self_test:
+        return self_test()
     root = os.path.abspath(args.root)
     if not os.path.isdir(os.path.join(root, "common")):
         print(f"check-layout: {root} is not a rayfarm tree (no common/)", file=sys.stderr)
