@@ -26,9 +26,9 @@
 #include <string>
 #include <vector>
 
-#include "common/image/convergence.h"
 #include "common/image/fixed.h"
 #include "common/report/error_log.h"
+#include "common/schedule/pass_planner.h"
 #include "master/background_writer.h"
 
 namespace rayfarm::master {

@@ -123,8 +123,7 @@ std::string JobManager::name_of(const WorkerId& worker) const {
 void JobManager::activate(Job& job, std::optional<Image> preloaded) {
   const JobSpec& s = job.record.spec;
   job.merger = std::make_unique<Merger>(UnitGrid(s.film, s.tile_size, s.settings.spp, s.pass_spp));
-  job.planner = std::make_unique<PassPlanner>(split_tiles(s.film, s.tile_size),
-                                              job.merger->grid().pass_count(), s.pass_spp, s.stop);
+  job.planner = std::make_unique<PassPlanner>(job.merger->grid(), s.stop);
   scheduler_.add_job(s.id, job.merger->grid().size(), job.planner->gated());
   if (job.planner->gated()) scheduler_.release(s.id, job.planner->take_released());
   std::optional<Image> reference = std::move(preloaded);
@@ -137,8 +136,7 @@ void JobManager::activate(Job& job, std::optional<Image> preloaded) {
                         s.id, e.what());
     }
   }
-  job.tracker =
-      std::make_unique<ErrorTracker>(split_tiles(s.film, s.tile_size), std::move(reference));
+  job.tracker = std::make_unique<ErrorTracker>(job.merger->grid().tiles(), std::move(reference));
   job.rows.clear();
   job.unit_failures.clear();
   job.worker_failures.clear();
@@ -216,7 +214,6 @@ size_t JobManager::recover() {
 bool JobManager::resume(Job& job) {
   const JobSpec& s = job.record.spec;
   const UnitGrid grid(s.film, s.tile_size, s.settings.spp, s.pass_spp);
-  const std::vector<TileRect> tiles = split_tiles(s.film, s.tile_size);
   // Builds the merged state a checkpoint describes, checking it against the job's settings.
   auto rebuild = [&](const Checkpoint& c, Merger& merger, PassPlanner& planner) {
     if (c.job_id != s.id || c.width != s.film.width || c.height != s.film.height ||
@@ -231,10 +228,10 @@ bool JobManager::resume(Job& job) {
     } catch (const std::invalid_argument& e) {
       throw CheckpointError(std::string("inconsistent: ") + e.what());
     }
-    for (uint32_t t = 0; t < tiles.size(); ++t) {
+    for (uint32_t t = 0; t < grid.tile_count(); ++t) {
       uint32_t merged = 0;
       for (uint32_t p = 0; p < grid.pass_count(); ++p) {
-        const uint64_t unit = uint64_t{p} * tiles.size() + t;
+        const uint64_t unit = grid.id(p, t);
         if (!c.merged[unit]) continue;
         ++merged;
         if (!planner.is_released(unit)) {
@@ -248,13 +245,11 @@ bool JobManager::resume(Job& job) {
             c.planner.tiles[t].merged));
       }
     }
-    if (!(c.elapsed_seconds >= 0) || c.rows.size() > c.planner.tiles.size() * grid.pass_count() + 1) {
+    if (!(c.elapsed_seconds >= 0) || c.rows.size() > grid.size() + 1) {
       throw CheckpointError("inconsistent: bad elapsed time or error rows");
     }
   };
-  auto fresh_planner = [&] {
-    return std::make_unique<PassPlanner>(tiles, grid.pass_count(), s.pass_spp, s.stop);
-  };
+  auto fresh_planner = [&] { return std::make_unique<PassPlanner>(grid, s.stop); };
   std::vector<std::string> problems;
   auto loaded = load_newest_checkpoint(store_.job_dir(s.id), problems, [&](const Checkpoint& c) {
     Merger merger(grid);
@@ -1146,7 +1141,7 @@ wire::JobStatus JobManager::make_status(const Job& job, uint32_t workers_total) 
   st.set_error(job.record.error);
   st.set_eta_seconds(-1.0);
   st.set_stop_reason(job.record.stop_reason);
-  st.set_tiles_total(static_cast<uint32_t>(split_tiles(s.film, s.tile_size).size()));
+  st.set_tiles_total(grid.tile_count());
   st.set_est_rel_mse(job.record.est_rel_mse);
   st.set_ref_rel_mse(job.record.ref_rel_mse);
   st.set_spp_mean(job.record.spp_mean);

@@ -14,8 +14,8 @@
 #include <unordered_map>
 #include <vector>
 
-#include "common/image/convergence.h"
 #include "common/report/error_tracker.h"
+#include "common/schedule/pass_planner.h"
 #include "master/checkpoint.h"
 #include "master/image_writer.h"
 #include "master/job_store.h"

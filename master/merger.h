@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "common/image/film.h"
-#include "master/unit_grid.h"
+#include "common/schedule/unit_grid.h"
 
 namespace rayfarm::master {
 

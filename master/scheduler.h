@@ -1,10 +1,10 @@
 #pragma once
 // Leases units of work to workers that ask for them. Knows nothing of sockets or images: a job is
 // a name and a number of units; a worker is an opaque id. Jobs are served in the order they were
-// added; within a job the lowest-numbered pending unit goes first (pass-major, unit_grid.h). A
-// worker's leases go back to the queue when it is lost, ahead of units never handed out. A gated
-// job (one with a target error, common/image/convergence.h) has only the units its planner has
-// released so far; the others are not pending until released.
+// added; within a job the lowest-numbered pending unit goes first (pass-major,
+// common/schedule/unit_grid.h). A worker's leases go back to the queue when it is lost, ahead of
+// units never handed out. A gated job (one with a target error, common/schedule/pass_planner.h) has
+// only the units its planner has released so far; the others are not pending until released.
 //
 // Failures and slow workers: a worker can be blocked from a job (it keeps failing there) and is
 // then given only other jobs' units. A unit leased for much longer than its job's median unit

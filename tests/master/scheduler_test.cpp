@@ -5,7 +5,6 @@
 #include <gtest/gtest.h>
 
 #include "master/scheduler.h"
-#include "master/unit_grid.h"
 
 namespace rayfarm::master {
 namespace {
@@ -14,23 +13,6 @@ uint64_t lease_unit(Scheduler& s, const WorkerId& w) {
   const auto ref = s.lease(w);
   EXPECT_TRUE(ref.has_value());
   return ref ? ref->unit : ~uint64_t{0};
-}
-
-TEST(UnitGrid, NumbersUnitsPassMajor) {
-  const UnitGrid grid({100, 50}, 64, 10, 4);  // 2 x 1 tiles, passes [0,4) [4,8) [8,10)
-  ASSERT_EQ(grid.tile_count(), 2u);
-  ASSERT_EQ(grid.pass_count(), 3u);
-  ASSERT_EQ(grid.size(), 6u);
-  EXPECT_EQ(grid.unit(0).rect, (TileRect{0, 0, 64, 50}));
-  EXPECT_EQ(grid.unit(1).rect, (TileRect{64, 0, 100, 50}));
-  EXPECT_EQ(grid.unit(1).pass, 0u);
-  EXPECT_EQ(grid.unit(2).pass, 1u);
-  EXPECT_EQ(grid.unit(2).samples, (SampleRange{4, 8}));
-  EXPECT_EQ(grid.unit(5).samples, (SampleRange{8, 10}));
-  uint64_t total = 0;
-  for (uint64_t u = 0; u < grid.size(); ++u) total += grid.samples_in(u);
-  EXPECT_EQ(total, grid.samples_total());
-  EXPECT_EQ(total, 100u * 50u * 10u);
 }
 
 TEST(Scheduler, LeasesLowestFirstAndJobsInOrder) {
