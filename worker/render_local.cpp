@@ -20,6 +20,7 @@ Film render_local(const Renderer& renderer, const LocalRenderOptions& options) {
       options.pass_spp > 0 ? options.pass_spp : default_pass_spp(options.tile_size, settings.spp);
   const UnitGrid grid(size, options.tile_size, settings.spp, pass_spp);
   PassPlanner planner(grid, options.stop);
+  MergedUnits merged(grid);
 
   Film film(size.width, size.height);
   RenderProgress progress;
@@ -35,7 +36,7 @@ Film render_local(const Renderer& renderer, const LocalRenderOptions& options) {
 
   auto report = [&] {
     progress.units_released = planner.units_released();
-    progress.rounds_done = planner.rounds_complete();
+    progress.rounds_done = planner.rounds_complete(merged);
     progress.tiles_converged = planner.tiles_converged();
     progress.seconds = std::chrono::duration<double>(Clock::now() - start).count();
     if (options.on_progress) options.on_progress(progress, film);
@@ -69,8 +70,9 @@ Film render_local(const Renderer& renderer, const LocalRenderOptions& options) {
         TileResult result = renderer.render(unit.rect, unit.samples);
         std::lock_guard lock(film_mutex);
         film.add(result);
-        planner.on_merged(unit.id, film);
-        ++progress.units_done;
+        merged.add(unit.id);
+        planner.on_merged(unit.id, merged, film);
+        progress.units_done = merged.count();
         report();
       });
       if (planner.gated()) {

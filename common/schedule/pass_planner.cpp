@@ -56,12 +56,12 @@ void PassPlanner::close(uint32_t tile, bool converged) {
   if (converged) ++tiles_converged_;
 }
 
-void PassPlanner::on_merged(uint64_t unit, const Film& film) {
+void PassPlanner::on_merged(uint64_t unit, const MergedUnits& merged, const Film& film) {
   const uint32_t tile = grid_.tile_of(unit);
   TileState& s = state_[tile];
-  RAYFARM_CHECK(s.open && s.merged < s.released, "merged a unit the planner did not release");
-  ++s.merged;
-  if (s.merged < s.released) return;  // the tile still has released passes in flight
+  RAYFARM_CHECK(s.open && is_released(unit) && merged.contains(unit),
+                "merged a unit the planner did not release");
+  if (!caught_up(tile, merged)) return;  // the tile still has released passes in flight
 
   if (!gated_) {
     close(tile, false);
@@ -74,16 +74,16 @@ void PassPlanner::on_merged(uint64_t unit, const Film& film) {
       return;
     }
     // Budgets wait until every tile has merged its minimum passes (and nothing more).
-    for (const TileState& other : state_) {
-      if (other.merged < other.released || other.error < 0) return;
+    for (uint32_t t = 0; t < tile_count(); ++t) {
+      if (!caught_up(t, merged) || state_[t].error < 0) return;
     }
     set_budgets();
     for (uint32_t t = 0; t < tile_count(); ++t) decide(t);
     return;
   }
   // Whole passes: decide once every tile has merged what it was given.
-  for (const TileState& other : state_) {
-    if (other.merged < other.released) return;
+  for (uint32_t t = 0; t < tile_count(); ++t) {
+    if (!caught_up(t, merged)) return;
   }
   // The image's figure as the render reports it: the pixel-weighted mean of the tiles'.
   TiledErrorEstimate image(grid_.tiles());
@@ -137,11 +137,10 @@ void PassPlanner::set_budgets() {
 PlannerState PassPlanner::export_state() const {
   PlannerState out;
   out.tiles = state_;
-  out.pending = released_;
   return out;
 }
 
-void PassPlanner::import_state(const PlannerState& state) {
+void PassPlanner::import_state(const PlannerState& state, const MergedUnits& merged) {
   auto fail = [](const std::string& why) { throw std::invalid_argument("planner state: " + why); };
   if (state.tiles.size() != tile_count()) {
     fail(std::to_string(state.tiles.size()) + " tiles, the render has " +
@@ -149,27 +148,26 @@ void PassPlanner::import_state(const PlannerState& state) {
   }
   uint32_t open = 0, converged = 0;
   uint64_t released = 0;
-  for (size_t t = 0; t < state.tiles.size(); ++t) {
+  for (uint32_t t = 0; t < tile_count(); ++t) {
     const TileState& s = state.tiles[t];
     const std::string where = "tile " + std::to_string(t) + ": ";
     if (s.released > pass_count()) fail(where + "more passes released than the render has");
-    if (s.merged > s.released) fail(where + "more passes merged than released");
+    for (uint32_t p = s.released; p < pass_count(); ++p) {
+      if (merged.contains(grid_.id(p, t))) {
+        fail("unit " + std::to_string(grid_.id(p, t)) + " is merged but not released");
+      }
+    }
     if (!gated_ && s.released != pass_count())
       fail(where + "an ungated render releases every pass");
     if (gated_ && s.released < min_passes_) fail(where + "fewer passes released than the minimum");
-    if (!s.open && s.merged != s.released) fail(where + "closed with passes in flight");
+    if (!s.open && merged.in_tile(t) != s.released) fail(where + "closed with passes in flight");
     if (s.converged && s.open) fail(where + "converged but open");
     open += s.open ? 1 : 0;
     converged += s.converged ? 1 : 0;
     released += s.released;
   }
-  for (uint64_t unit : state.pending) {
-    if (unit >= grid_.size() || grid_.pass_of(unit) >= state.tiles[grid_.tile_of(unit)].released) {
-      fail("pending unit " + std::to_string(unit) + " is not released");
-    }
-  }
   state_ = state.tiles;
-  released_ = state.pending;
+  released_.clear();
   tiles_open_ = open;
   tiles_converged_ = converged;
   units_released_ = released;
@@ -180,10 +178,10 @@ StopReason PassPlanner::reason() const {
   return gated_ && tiles_converged_ == tile_count() ? StopReason::kTargetError : StopReason::kSpp;
 }
 
-uint32_t PassPlanner::rounds_complete() const {
+uint32_t PassPlanner::rounds_complete(const MergedUnits& merged) const {
   uint32_t rounds = pass_count();
-  for (const TileState& s : state_) {
-    if (s.open) rounds = std::min(rounds, s.merged);
+  for (uint32_t t = 0; t < tile_count(); ++t) {
+    if (state_[t].open) rounds = std::min(rounds, merged.in_tile(t));
   }
   return rounds;
 }

@@ -14,12 +14,13 @@
 // (`adaptive = false`) the same decision is made for the whole image after each whole pass. See
 // docs/error.md.
 //
-// The planner owns which units are released; who holds a lease is the master's scheduler
-// (master/scheduler.h), and what is merged the merger's.
+// The planner owns which units are released. Which are merged it reads from their owner
+// (merged_units.h); who holds a lease is the master's scheduler (master/scheduler.h).
 #include <cstdint>
 #include <vector>
 
 #include "common/image/film.h"
+#include "common/schedule/merged_units.h"
 #include "common/schedule/stop_rules.h"
 #include "common/schedule/unit_grid.h"
 
@@ -30,7 +31,6 @@ namespace rayfarm {
 struct PlannerState {
   struct Tile {
     uint32_t released = 0;  ///< passes 0..released-1 are released
-    uint32_t merged = 0;    ///< units of this tile merged
     bool open = true;       ///< still needs passes
     bool converged = false;
     double error = -1.0;   ///< estimated relMSE at the last decision; negative before the first
@@ -38,7 +38,6 @@ struct PlannerState {
     bool operator==(const Tile&) const = default;
   };
   std::vector<Tile> tiles;
-  std::vector<uint64_t> pending;  ///< released, not yet taken by take_released()
   bool operator==(const PlannerState&) const = default;
 };
 
@@ -52,15 +51,16 @@ class PassPlanner {
   bool gated() const { return gated_; }
   /// Units released since the last call, ascending.
   std::vector<uint64_t> take_released();
-  /// Unit `unit` was merged into `film`. Releases the tile's next pass, or stops the tile.
-  void on_merged(uint64_t unit, const Film& film);
+  /// Unit `unit` was merged into `film` (and recorded in `merged`). Releases the tile's next
+  /// pass, or stops the tile.
+  void on_merged(uint64_t unit, const MergedUnits& merged, const Film& film);
 
   /// Every needed unit is merged.
   bool finished() const { return tiles_open_ == 0; }
   /// Once finished: kTargetError when every tile met the target, else kSpp.
   StopReason reason() const;
-  /// The most leading rounds in which every open tile merged its pass (rounds pace reports).
-  uint32_t rounds_complete() const;
+  /// The most rounds in which every open tile merged its pass (rounds pace reports).
+  uint32_t rounds_complete(const MergedUnits& merged) const;
   uint32_t tile_count() const { return grid_.tile_count(); }
   uint32_t pass_count() const { return grid_.pass_count(); }
   uint32_t tiles_converged() const { return tiles_converged_; }
@@ -76,12 +76,14 @@ class PassPlanner {
   /// The tile's error budget (adaptive renders); negative until every tile has its minimum.
   double tile_budget(uint32_t tile) const { return state_[tile].budget; }
 
-  /// The decisions so far (per tile: released, merged, open, converged, error).
+  /// The decisions so far (per tile: released, open, converged, error, budget).
   PlannerState export_state() const;
-  /// Replaces the decisions with `state` from a planner of the same tiles, passes and rules.
-  /// Throws std::invalid_argument naming the inconsistency (wrong tile count, more passes merged
-  /// than released, a closed tile with passes in flight, ...); the planner is unchanged then.
-  void import_state(const PlannerState& state);
+  /// Replaces the decisions with `state` from a planner of the same grid and rules, `merged`
+  /// being what was merged under them. Throws std::invalid_argument naming the inconsistency
+  /// (wrong tile count, a unit merged but not released, a closed tile with passes in flight,
+  /// ...); the planner is unchanged then. Nothing is left to take_released() afterwards: the
+  /// units to hand out are those released and not merged.
+  void import_state(const PlannerState& state, const MergedUnits& merged);
 
  private:
   using TileState = PlannerState::Tile;
@@ -97,6 +99,10 @@ class PassPlanner {
 
   void release(uint32_t tile, uint32_t passes);
   void close(uint32_t tile, bool converged);
+  /// Every released pass of `tile` is merged.
+  bool caught_up(uint32_t tile, const MergedUnits& merged) const {
+    return merged.in_tile(tile) == state_[tile].released;
+  }
   /// A tile with every released pass merged: stop it, or release its next pass.
   void decide(uint32_t tile);
   /// Sets every tile's budget from its error after the minimum passes.

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <stdexcept>
 
 #include "common/image/error_estimate.h"
 #include "common/schedule/pass_planner.h"
@@ -54,7 +55,9 @@ struct Strip {
 
 TEST(PassPlanner, WithoutATargetEveryUnitIsNeeded) {
   const Strip strip{{0.1, 0.2}};
-  PassPlanner planner(strip.grid(3, 4), {});
+  const UnitGrid grid = strip.grid(3, 4);
+  PassPlanner planner(grid, {});
+  MergedUnits merged(grid);
   EXPECT_FALSE(planner.gated());
   EXPECT_TRUE(planner.take_released().empty());
   EXPECT_EQ(planner.units_released(), 6u);
@@ -63,11 +66,12 @@ TEST(PassPlanner, WithoutATargetEveryUnitIsNeeded) {
     EXPECT_TRUE(planner.is_released(u));
     EXPECT_FALSE(planner.finished());
     film.add(strip.unit(u, 4));
-    planner.on_merged(u, film);
+    merged.add(u);
+    planner.on_merged(u, merged, film);
   }
   EXPECT_TRUE(planner.finished());
   EXPECT_EQ(planner.reason(), StopReason::kSpp);
-  EXPECT_EQ(planner.rounds_complete(), 3u);
+  EXPECT_EQ(planner.rounds_complete(merged), 3u);
 }
 
 TEST(PassPlanner, QuietTilesStopAndNoisyOnesGoOnOnePassAtATime) {
@@ -76,14 +80,17 @@ TEST(PassPlanner, QuietTilesStopAndNoisyOnesGoOnOnePassAtATime) {
   StopRules rules;
   rules.target_error = 1e-4;
   rules.min_passes = 2;
-  PassPlanner planner(strip.grid(5, 8), rules);
+  const UnitGrid grid = strip.grid(5, 8);
+  PassPlanner planner(grid, rules);
+  MergedUnits merged(grid);
   ASSERT_TRUE(planner.gated());
   EXPECT_EQ(planner.take_released(), (std::vector<uint64_t>{0, 1, 2, 3}));
   EXPECT_FALSE(planner.is_released(4));
   Film film(2, 1);
   auto merge = [&](uint64_t u) {
     film.add(strip.unit(u, 8));
-    planner.on_merged(u, film);
+    merged.add(u);
+    planner.on_merged(u, merged, film);
   };
   merge(2);  // pass 1 of tile 0 before its pass 0: nothing decided yet
   EXPECT_TRUE(planner.take_released().empty());
@@ -107,7 +114,7 @@ TEST(PassPlanner, QuietTilesStopAndNoisyOnesGoOnOnePassAtATime) {
   merge(9);
   EXPECT_TRUE(planner.finished());
   EXPECT_EQ(planner.reason(), StopReason::kSpp);  // tile 1 ran out of passes above the target
-  EXPECT_EQ(planner.rounds_complete(), 5u);
+  EXPECT_EQ(planner.rounds_complete(merged), 5u);
   EXPECT_GT(planner.tile_error(1), rules.target_error);
 }
 
@@ -115,7 +122,9 @@ TEST(PassPlanner, ReachingTheTargetEverywhereIsTheStopReason) {
   const Strip strip{{0.01, 0.02, 0.03}};
   StopRules rules;
   rules.target_error = 1e-3;
-  PassPlanner planner(strip.grid(100, 16), rules);
+  const UnitGrid grid = strip.grid(100, 16);
+  PassPlanner planner(grid, rules);
+  MergedUnits merged(grid);
   EXPECT_EQ(planner.min_passes(), default_min_passes(16));
   EXPECT_EQ(planner.min_passes(), 16u);
   Film film(3, 1);
@@ -124,7 +133,8 @@ TEST(PassPlanner, ReachingTheTargetEverywhereIsTheStopReason) {
     const uint64_t u = ready.back();  // latest first: order must not matter
     ready.pop_back();
     film.add(strip.unit(u, 16));
-    planner.on_merged(u, film);
+    merged.add(u);
+    planner.on_merged(u, merged, film);
     for (uint64_t next : planner.take_released()) ready.push_back(next);
   }
   EXPECT_TRUE(planner.finished());
@@ -139,11 +149,14 @@ TEST(PassPlanner, NoisierTilesGetLargerBudgetsThatAverageToTheTarget) {
   StopRules rules;
   rules.target_error = 1e-5;
   rules.min_passes = 1;
-  PassPlanner planner(strip.grid(1000, 16), rules);
+  const UnitGrid grid = strip.grid(1000, 16);
+  PassPlanner planner(grid, rules);
+  MergedUnits merged(grid);
   Film film(3, 1);
   for (uint64_t u : planner.take_released()) {
     film.add(strip.unit(u, 16));
-    planner.on_merged(u, film);
+    merged.add(u);
+    planner.on_merged(u, merged, film);
   }
   const double b0 = planner.tile_budget(0), b1 = planner.tile_budget(1),
                b2 = planner.tile_budget(2);
@@ -158,16 +171,51 @@ TEST(PassPlanner, WholePassesWaitForTheWholeImage) {
   rules.target_error = 1e-4;
   rules.adaptive = false;
   rules.min_passes = 1;
-  PassPlanner planner(strip.grid(3, 8), rules);
+  const UnitGrid grid = strip.grid(3, 8);
+  PassPlanner planner(grid, rules);
+  MergedUnits merged(grid);
   EXPECT_EQ(planner.take_released(), (std::vector<uint64_t>{0, 1}));
   Film film(2, 1);
   film.add(strip.unit(0, 8));
-  planner.on_merged(0, film);
+  merged.add(0);
+  planner.on_merged(0, merged, film);
   EXPECT_TRUE(planner.take_released().empty()) << "decided before the pass was whole";
   film.add(strip.unit(1, 8));
-  planner.on_merged(1, film);
+  merged.add(1);
+  planner.on_merged(1, merged, film);
   EXPECT_EQ(planner.take_released(), (std::vector<uint64_t>{2, 3}))
       << "the quiet tile goes on with the image";
+}
+
+TEST(PassPlanner, ImportedDecisionsMustAgreeWithWhatIsMerged) {
+  const Strip strip{{0.0, 0.5}};
+  StopRules rules;
+  rules.target_error = 1e-4;
+  rules.min_passes = 2;
+  const UnitGrid grid = strip.grid(5, 8);
+  PassPlanner planner(grid, rules);
+  MergedUnits merged(grid);
+  Film film(2, 1);
+  for (uint64_t u : planner.take_released()) {
+    film.add(strip.unit(u, 8));
+    merged.add(u);
+    planner.on_merged(u, merged, film);
+  }
+  // Tile 0 converged after its two passes; tile 1 was given pass 2 (unit 5).
+  const PlannerState state = planner.export_state();
+  PassPlanner again(grid, rules);
+  again.import_state(state, merged);
+  EXPECT_TRUE(again.take_released().empty()) << "what to hand out is released and not merged";
+  EXPECT_TRUE(again.is_released(5));
+  EXPECT_FALSE(again.is_released(4));
+  EXPECT_EQ(again.tiles_converged(), 1u);
+  EXPECT_EQ(again.rounds_complete(merged), planner.rounds_complete(merged));
+  MergedUnits too_many = merged;
+  too_many.add(4);  // tile 0's pass 2, never released
+  EXPECT_THROW(again.import_state(state, too_many), std::invalid_argument);
+  const MergedUnits too_few(grid);  // tile 0 closed with its passes not merged
+  EXPECT_THROW(again.import_state(state, too_few), std::invalid_argument);
+  EXPECT_EQ(again.tiles_converged(), 1u) << "a refused import changes nothing";
 }
 
 TEST(StopReason, Names) {
