@@ -20,10 +20,9 @@ namespace {
 
 using namespace rayfarm;
 
-uint32_t add(Scene& s, MaterialType type, Vec3 albedo, Vec3 emission = Vec3(0.f)) {
+uint32_t add(Scene& s, Vec3 albedo, Vec3 emission = Vec3(0.f)) {
   Material m;
-  m.type = type;
-  m.albedo = albedo;
+  m.kind = DiffuseMaterial{albedo};
   m.emission = emission;
   s.materials.push_back(m);
   return static_cast<uint32_t>(s.materials.size() - 1);
@@ -44,9 +43,9 @@ Scene room(float side, float le, uint32_t size) {
   s.camera.eye = {0.f, 0.2f, -0.95f};
   s.camera.look_at = {0.f, -0.3f, 1.f};
   s.camera.fov_y_deg = 70.f;
-  const uint32_t wall = add(s, MaterialType::kDiffuse, Vec3(0.5f));
-  const uint32_t red = add(s, MaterialType::kDiffuse, Vec3(0.6f, 0.1f, 0.1f));
-  const uint32_t lamp = add(s, MaterialType::kDiffuse, Vec3(0.f), Vec3(le));
+  const uint32_t wall = add(s, Vec3(0.5f));
+  const uint32_t red = add(s, Vec3(0.6f, 0.1f, 0.1f));
+  const uint32_t lamp = add(s, Vec3(0.f), Vec3(le));
   quad(s, {-1, -1, -1}, {0, 0, 2}, {2, 0, 0}, wall);
   quad(s, {-1, 1, -1}, {2, 0, 0}, {0, 0, 2}, wall);
   quad(s, {-1, -1, 1}, {2, 0, 0}, {0, 2, 0}, wall);

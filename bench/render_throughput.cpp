@@ -19,6 +19,7 @@ int main(int argc, char** argv) {
   uint32_t spp = 4, threads = 2, runs = 5, tile = 64;
   std::optional<uint32_t> max_depth;
   std::optional<std::string> integrator;
+  bool diffuse_only = false;
   app.add_option("scene", scene_path, "Scene file")->required();
   app.add_option("--spp", spp, "Samples per pixel per run")->capture_default_str();
   app.add_option("--threads", threads, "Threads")->capture_default_str();
@@ -26,6 +27,8 @@ int main(int argc, char** argv) {
   app.add_option("--tile", tile, "Tile size")->capture_default_str();
   app.add_option("--max-depth", max_depth, "Override the scene's max_depth");
   app.add_option("--integrator", integrator, "Override the scene's integrator");
+  app.add_flag("--diffuse-only", diffuse_only,
+               "Render with the BSDF that knows only diffuse materials (bench/diffuse_only.sh)");
   CLI11_PARSE(app, argc, argv);
 
   try {
@@ -34,7 +37,9 @@ int main(int argc, char** argv) {
     settings.spp = spp;
     if (max_depth) settings.max_depth = *max_depth;
     if (integrator) settings.integrator = *rayfarm::parse_integrator(*integrator);
-    const rayfarm::Renderer renderer(scene, settings);
+    const rayfarm::Renderer renderer(
+        scene, settings,
+        diffuse_only ? rayfarm::BsdfKinds::kDiffuseOnly : rayfarm::BsdfKinds::kAll);
     std::cout << fmt::format("scene {} {}x{}, {} spp per run, {} threads; {}\n", scene_path,
                              scene.film.width, scene.film.height, spp, threads, renderer.plan());
     rayfarm::LocalRenderOptions options;

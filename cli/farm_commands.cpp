@@ -618,7 +618,7 @@ int run_submit(const SubmitArgs& args) {
         std::chrono::steady_clock::now() + std::chrono::duration<double>(args.client.timeout);
     auto pause = std::chrono::milliseconds{100};
     wire::SubmitReply reply = client.call<wire::SubmitReply>(encode(request));
-    while (reply.error().rfind("the master is busy", 0) == 0 &&
+    while (reply.code() == wire::Error::BUSY &&
            std::chrono::steady_clock::now() + pause < deadline) {
       std::this_thread::sleep_for(pause);
       pause = std::min(pause * 2, std::chrono::milliseconds{2000});

@@ -44,7 +44,7 @@ enc hello Hello 'protocol_version: 1 role: ROLE_WORKER name: "w1" threads: 4 bui
 enc welcome Welcome 'protocol_version: 1 heartbeat_interval_ms: 1000 liveness: 3'
 enc refusal Refusal 'protocol_version: 1 reason: "old" master_version: 1 peer_version: 0'
 enc heartbeat Heartbeat 'protocol_version: 1'
-enc error Error 'protocol_version: 1 message: "boom" job_id: "j1"'
+enc error Error 'protocol_version: 1 message: "boom" job_id: "j1" code: UNKNOWN_WORKER'
 enc goodbye Goodbye 'protocol_version: 1 reason: "SIGTERM"'
 enc work-request WorkRequest 'protocol_version: 1'
 enc work-unit WorkUnit 'protocol_version: 1 job_id: "j1" unit_id: 7 tile { x0: 0 y0: 0 x1: 1 y1: 1 } sample_begin: 0 sample_end: 4 settings { spp: 4 max_depth: 8 integrator: INTEGRATOR_MIS seed: 1 } bundle_hash: "0000000000000000000000000000000000000000000000000000000000000000" scene_path: "scene.json" pass: 0'

@@ -23,9 +23,15 @@ inline void check_scene(const Scene& s) {
   require(s.render.spp >= 1 && s.render.max_depth <= 1024, "render settings");
   for (const Material& m : s.materials) {
     require(is_finite(m.emission) && min_component(m.emission) >= 0.f, "emission");
-    require(min_component(m.albedo) >= 0.f && max_component(m.albedo) <= 1.f, "albedo");
-    require(max_component(m.kd + m.ks) <= 1.f + 1e-6f, "phong energy");
-    require(m.type != MaterialType::kDielectric || (m.ior > 0.f && std::isfinite(m.ior)), "ior");
+    if (const auto* d = std::get_if<DiffuseMaterial>(&m.kind)) {
+      require(min_component(d->albedo) >= 0.f && max_component(d->albedo) <= 1.f, "albedo");
+    }
+    if (const auto* p = std::get_if<PhongMaterial>(&m.kind)) {
+      require(max_component(p->kd + p->ks) <= 1.f + 1e-6f, "phong energy");
+    }
+    if (const auto* d = std::get_if<DielectricMaterial>(&m.kind)) {
+      require(d->ior > 0.f && std::isfinite(d->ior), "ior");
+    }
   }
   for (const TriangleMesh& mesh : s.meshes) {
     require(mesh.indices.size() % 3 == 0, "indices in threes");

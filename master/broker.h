@@ -4,8 +4,10 @@
 // ways every interval; a worker silent for its liveness window is declared lost and its leased
 // units are requeued. Clients send one request at a time and get one reply. Garbage on either
 // socket is logged and ignored; a peer speaking another protocol version gets a Refusal.
-// Both sockets use CURVE: a ZAP handler, bound before them, admits on the worker socket only the
-// keys of the workers' allow-list and on the client socket only those of the clients' list.
+// Both sockets use CURVE: a ZAP handler (access_gate.h), bound before them, admits on the worker
+// socket only the keys of the workers' allow-list and on the client socket only those of the
+// clients' list. The client socket's requests are handled in broker_clients.cpp; submissions are
+// checked on a thread of their own (submission_queue.h).
 // Submissions are checked against the limits (limits.h) before their scene is loaded.
 #include <atomic>
 #include <chrono>
@@ -16,47 +18,16 @@
 #include <set>
 #include <string>
 
-#include "common/net/keys.h"
 #include "common/net/socket.h"
-#include "common/protocol/heartbeat.h"
 #include "common/util/log_throttle.h"
+#include "master/access_gate.h"
 #include "master/job_manager.h"
 #include "master/job_store.h"
-#include "master/limits.h"
 #include "master/log_budget.h"
+#include "master/master_options.h"
+#include "master/submission_queue.h"
 
 namespace rayfarm::master {
-
-/// How the master's sockets are secured.
-struct MasterSecurity {
-  /// The master's key pair. Without one (the default) the sockets are plain, which the broker
-  /// allows only on loopback endpoints: rayfarm-master --insecure.
-  std::optional<net::KeyPair> key;
-  std::filesystem::path worker_keys;  ///< allow-list of worker public keys (file or folder)
-  std::filesystem::path client_keys;  ///< allow-list of client public keys (file or folder)
-  /// Names of client keys (as in the clients' allow-list) that may cancel any job; every other
-  /// key may cancel only the jobs it submitted.
-  std::set<std::string> admin_clients;
-  /// Keys that are neither the owner nor an admin cannot see a job either (status, list, fetch).
-  bool private_jobs = false;
-};
-
-/// ZAP domains of the two sockets: a key admitted in one is not admitted in the other.
-inline constexpr const char* kWorkerDomain = "workers";
-inline constexpr const char* kClientDomain = "clients";
-
-struct MasterOptions {
-  std::string worker_endpoint = "tcp://*:5555";
-  std::string client_endpoint = "tcp://*:5556";
-  std::filesystem::path data_dir = "rayfarm-data";
-  protocol::HeartbeatOptions heartbeat;
-  /// While results arrive, a job's image is rewritten at least this often.
-  std::chrono::milliseconds image_interval{3000};
-  MasterSecurity security;
-  Limits limits;
-  /// Checkpoints, failure limits and stragglers (the broker sets image_interval and worker_name).
-  JobManagerOptions jobs;
-};
 
 class Broker {
  public:
@@ -83,8 +54,7 @@ class Broker {
     Clock::time_point heard;    // its last message
     Clock::time_point expires;  // declared lost when silent until then
     Clock::duration forgiven{};  // time the master was busy, added to expires since `heard`
-    uint32_t wants = 0;         // WorkRequests not answered yet
-    uint64_t units_sent = 0;
+    uint32_t wants = 0;          // WorkRequests not answered yet
     // Bundles sent to it in the current window (kBundleWindow): when, and the bytes in all.
     std::set<std::string> bundles_sent;
     Clock::time_point bundle_window;
@@ -99,27 +69,22 @@ class Broker {
     Clock::time_point working_since, last_result;
   };
 
-  struct Gate;  // the ZAP handler and its allow-lists
-
   /// Complaints about a peer's messages (garbage, unexpected types), per socket and key: logged at
   /// most once per interval, with the count of those left out.
   std::map<std::string, LogThrottle> complaints_;
   LogBudget refusal_log_;  // lines about refused submissions, per key
 
-  class Submissions;  // checks and stores submissions on a thread of its own
-
   MasterOptions options_;
   JobStore store_;
   JobManager jobs_;
-  std::unique_ptr<Submissions> submissions_;  // uses jobs_: destroyed before it
-  std::unique_ptr<Gate> gate_;  // before the sockets: bound first, closed last
+  std::unique_ptr<SubmissionQueue> submissions_;  // uses jobs_: destroyed before it
+  std::unique_ptr<AccessGate> gate_;              // before the sockets: bound first, closed last
   net::Router workers_socket_;
   net::Router clients_socket_;
   std::map<net::PeerId, Worker> workers_;
   Clock::time_point next_heartbeat_;
   Clock::time_point listened_;  // when the sockets were last polled
 
-  static std::unique_ptr<Gate> open_gate(const MasterOptions& options);
   void handle_worker(const net::Delivery& delivery);
   void handle_client(const net::Delivery& delivery);
   void send_bundle(const net::PeerId& peer, Worker& w, const std::string& hash);
@@ -130,7 +95,11 @@ class Broker {
   wire::WorkerList worker_list() const;
   void register_worker(const net::PeerId& peer, const wire::Hello& hello,
                        const std::string& key_name);
-  void remove_worker(const net::PeerId& peer, const std::string& why);
+  /// How a worker went: lost (silent for its liveness window: logged as a warning) or any other
+  /// way (it said goodbye, was refused, or its connection is gone).
+  enum class Departure { kLeft, kLost };
+  void remove_worker(const net::PeerId& peer, const std::string& why,
+                     Departure departure = Departure::kLeft);
   void dispatch();
   void send_worker(const net::PeerId& peer, const net::Frames& frames);
   void reply(const net::PeerId& peer, const net::Frames& frames);

@@ -46,12 +46,14 @@ if command -v ccache > /dev/null; then
 fi
 
 configure_and_build() {  # source dir, build dir
+  local log="$2/bit-identity.log"
+  mkdir -p "$2"
   if [ ! -f "$2/build.ninja" ]; then
-    cmake -S "$1" -B "$2" -G Ninja -DCMAKE_BUILD_TYPE=Release "${launcher[@]}" > "$2.log" 2>&1 ||
-      { echo "bit-identity: configuring $1 failed (see $2.log)" >&2; exit 2; }
+    cmake -S "$1" -B "$2" -G Ninja -DCMAKE_BUILD_TYPE=Release "${launcher[@]}" > "$log" 2>&1 ||
+      { echo "bit-identity: configuring $1 failed (see $log)" >&2; exit 2; }
   fi
-  cmake --build "$2" --target rayfarm --parallel "$(nproc)" >> "$2.log" 2>&1 ||
-    { echo "bit-identity: building $1 failed (see $2.log)" >&2; exit 2; }
+  cmake --build "$2" --target rayfarm --parallel "$(nproc)" >> "$log" 2>&1 ||
+    { echo "bit-identity: building $1 failed (see $log)" >&2; exit 2; }
 }
 
 # The earlier commit, exported as a plain tree (no worktree bookkeeping), built once and kept.
@@ -66,7 +68,6 @@ fi
 echo "building $(git log -1 --format='%h %s' "$sha" | cut -c1-72)"
 configure_and_build "$old_root/src" "$old_root/build"
 echo "building the working tree in $build"
-mkdir -p "$build"
 configure_and_build "$repo_root" "$build"
 
 find_cli() {

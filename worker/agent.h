@@ -2,10 +2,15 @@
 // The worker's loop (the reliable-worker pattern): a DEALER socket to the master, Hello, then one
 // WorkRequest per unit, with at most `units_in_flight` units asked for or in hand. Units render on
 // threads of their own inside one TBB arena of the chosen size, so heartbeats keep flowing while
-// they render. A bundle the worker lacks is fetched from the
-// master and cached; the Renderer of the current job is kept between units. When the master is
-// silent for its liveness window the worker reconnects with exponential back-off. Stopping
-// finishes the unit in hand, returns its result and says goodbye.
+// they render. A bundle the worker lacks is fetched from the master and cached; the Renderer of
+// the current job is kept between units. When the master is silent for its liveness window the
+// worker reconnects with exponential back-off. Stopping finishes the unit in hand, returns its
+// result and says goodbye.
+//
+// The parts: the reactor (agent.cpp) reads the master's messages and decides; the connection
+// (connection.h) holds the socket, the heartbeats, the reconnections and the connection's state;
+// the bundle cache (bundle_cache.h) keeps the scene bundles and the units waiting for one; the
+// unit runner (unit_runner.h) renders units on its threads.
 #include <atomic>
 #include <cstdint>
 #include <chrono>

@@ -5,6 +5,8 @@
 
 #include <mutex>
 #include <set>
+#include <stdexcept>
+#include <variant>
 
 #include <fmt/format.h>
 
@@ -17,30 +19,56 @@
 
 namespace rayfarm {
 
+namespace {
+
+// One integrator per BSDF the renderer can be built with (BsdfKinds), chosen once per job.
+using AnyIntegrator = std::variant<PathIntegratorFor<Bsdf>, PathIntegratorFor<DiffuseOnlyBsdf>>;
+
+AnyIntegrator make_integrator(const SceneData& data, const LightSet& lights,
+                              const RenderSettings& settings, BsdfKinds kinds) {
+  if (kinds == BsdfKinds::kDiffuseOnly) {
+    for (const Material& m : data.scene().materials) {
+      if (!DiffuseOnlyBsdf::supports(m)) {
+        throw std::runtime_error("material '" + m.name + "' is " + material_kind_name(m.kind) +
+                                 ", and this renderer (diffuse only, for benchmarks) renders "
+                                 "diffuse materials only");
+      }
+    }
+    return AnyIntegrator(std::in_place_index<1>, data, lights, settings);
+  }
+  return AnyIntegrator(std::in_place_index<0>, data, lights, settings);
+}
+
+}  // namespace
+
 struct Renderer::Impl {
   RenderSettings settings;
   SceneData data;
   LightSet lights;
-  PathIntegrator integrator;
+  AnyIntegrator integrator;
   CameraModel camera;
   mutable std::mutex stats_mutex;
   mutable RenderStats totals;     // guarded by stats_mutex
   mutable bool reported = false;  // guarded by stats_mutex
 
-  Impl(const Scene& scene, const RenderSettings& s)
-      : settings(s), data(scene), lights(data), integrator(data, lights, s),
+  Impl(const Scene& scene, const RenderSettings& s, BsdfKinds kinds)
+      : settings(s),
+        data(scene),
+        lights(data),
+        integrator(make_integrator(data, lights, s, kinds)),
         camera(scene.camera, scene.film) {}
 
   // Renders samples [begin, end) of one pixel into its fixed-point sums.
-  void render_pixel(uint32_t x, uint32_t y, const SampleRange& samples, Fixed* sum, Fixed* sum_sq,
-                    uint64_t& nonfinite, PathStats& paths) const {
+  template <class Integrator>
+  void render_pixel(const Integrator& path, uint32_t x, uint32_t y, const SampleRange& samples,
+                    Fixed* sum, Fixed* sum_sq, uint64_t& nonfinite, PathStats& paths) const {
     const uint64_t pixel = uint64_t{y} * data.scene().film.width + x;
     for (uint32_t s = samples.begin; s < samples.end; ++s) {
       Pcg32 rng = sample_stream(settings.seed, pixel, s);
       const float jx = rng.next_float(), jy = rng.next_float();
       const float lu = rng.next_float(), lv = rng.next_float();
       const Ray ray = camera.generate(static_cast<float>(x) + jx, static_cast<float>(y) + jy, lu, lv);
-      const Vec3 l = integrator.li(ray, rng, paths);
+      const Vec3 l = path.li(ray, rng, paths);
       // A sample that is NaN, infinite or beyond the accumulator's range never reaches the film.
       if (!is_finite(l) || max_component(abs(l)) > kMaxSampleValue) {
         ++nonfinite;
@@ -56,27 +84,15 @@ struct Renderer::Impl {
       }
     }
   }
+
+  const IntegratorPlan& plan() const {
+    return std::visit([](const auto& path) -> const IntegratorPlan& { return path.plan(); },
+                      integrator);
+  }
 };
 
-namespace {
-
-const Scene& check_build_supports(const Scene& scene) {
-  if (kDiffuseOnlyBuild) {
-    for (const Material& m : scene.materials) {
-      if (m.type != MaterialType::kDiffuse) {
-        throw std::runtime_error("material '" + m.name +
-                                 "' is not diffuse, and this benchmark build (RAYFARM_DIFFUSE_ONLY) "
-                                 "renders diffuse materials only");
-      }
-    }
-  }
-  return scene;
-}
-
-}  // namespace
-
-Renderer::Renderer(const Scene& scene, const RenderSettings& settings)
-    : impl_(std::make_unique<Impl>(check_build_supports(scene), settings)) {}
+Renderer::Renderer(const Scene& scene, const RenderSettings& settings, BsdfKinds kinds)
+    : impl_(std::make_unique<Impl>(scene, settings, kinds)) {}
 
 Renderer::~Renderer() {
   try {
@@ -134,21 +150,27 @@ TileResult Renderer::render(const TileRect& rect, const SampleRange& samples,
   std::mutex totals_mutex;
   uint64_t nonfinite = 0;  // guarded by totals_mutex, as is `paths`
   PathStats paths;
-  tbb::parallel_for(tbb::blocked_range<uint32_t>(rect.y0, rect.y1),
-                    [&](const tbb::blocked_range<uint32_t>& rows) {
-                      uint64_t local_nonfinite = 0;
-                      PathStats local;
-                      for (uint32_t y = rows.begin(); y < rows.end(); ++y) {
-                        for (uint32_t x = rect.x0; x < rect.x1; ++x) {
-                          const size_t i = (size_t{y - rect.y0} * rect.width() + (x - rect.x0)) * 3;
-                          impl_->render_pixel(x, y, samples, &result.sum[i], &result.sum_sq[i],
-                                              local_nonfinite, local);
-                        }
-                      }
-                      std::lock_guard lock(totals_mutex);
-                      nonfinite += local_nonfinite;
-                      paths += local;
-                    });
+  // One dispatch per unit; the integrator's type is fixed inside the loops.
+  std::visit(
+      [&](const auto& path) {
+        tbb::parallel_for(tbb::blocked_range<uint32_t>(rect.y0, rect.y1),
+                          [&](const tbb::blocked_range<uint32_t>& rows) {
+                            uint64_t local_nonfinite = 0;
+                            PathStats local;
+                            for (uint32_t y = rows.begin(); y < rows.end(); ++y) {
+                              for (uint32_t x = rect.x0; x < rect.x1; ++x) {
+                                const size_t i =
+                                    (size_t{y - rect.y0} * rect.width() + (x - rect.x0)) * 3;
+                                impl_->render_pixel(path, x, y, samples, &result.sum[i],
+                                                    &result.sum_sq[i], local_nonfinite, local);
+                              }
+                            }
+                            std::lock_guard lock(totals_mutex);
+                            nonfinite += local_nonfinite;
+                            paths += local;
+                          });
+      },
+      impl_->integrator);
   result.nonfinite = nonfinite;
   result.rays = paths.rays;
   RenderStats unit;
@@ -165,7 +187,7 @@ TileResult Renderer::render(const TileRect& rect, const SampleRange& samples,
 }
 
 std::string Renderer::plan() const {
-  const IntegratorPlan& p = impl_->integrator.plan();
+  const IntegratorPlan& p = impl_->plan();
   std::string out = std::string("integrator ") + integrator_name(p.integrator);
   const size_t area = impl_->lights.area_light_count(), point = impl_->lights.point_light_count();
   if (impl_->lights.empty()) {
@@ -181,10 +203,7 @@ std::string Renderer::plan() const {
     }
   }
   std::set<std::string> kinds;
-  for (const Material& m : impl_->data.scene().materials) {
-    static const char* names[] = {"diffuse", "phong", "mirror", "dielectric"};
-    kinds.insert(names[static_cast<int>(m.type)]);
-  }
+  for (const Material& m : impl_->data.scene().materials) kinds.insert(material_kind_name(m.kind));
   out += "; materials:";
   bool first = true;
   for (const auto& k : kinds) {

@@ -30,10 +30,15 @@ struct RenderStats {
 /// Throughput cut per sample above which the truncation is logged as a warning (0.1%).
 inline constexpr double kTruncationWarningLevel = 1e-3;
 
+/// The material kinds a Renderer's BSDF knows: all of them, or only diffuse, a renderer for
+/// measuring what the other kinds cost a diffuse scene (bench/diffuse_only.sh).
+enum class BsdfKinds : uint8_t { kAll, kDiffuseOnly };
+
 class Renderer {
  public:
-  /// Builds the acceleration structure and light tables. Throws std::runtime_error on failure.
-  Renderer(const Scene& scene, const RenderSettings& settings);
+  /// Builds the acceleration structure and light tables. Throws std::runtime_error on failure,
+  /// and when the scene has a material whose kind `kinds` leaves out.
+  Renderer(const Scene& scene, const RenderSettings& settings, BsdfKinds kinds = BsdfKinds::kAll);
   /// Logs the truncation summary (report_truncation) if nobody has yet.
   ~Renderer();
   Renderer(const Renderer&) = delete;

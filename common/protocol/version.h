@@ -8,7 +8,9 @@ namespace rayfarm::protocol {
 
 // 2: WorkUnit carries the job's film (a job may override the scene's), which a version-1 worker
 // would ignore, rendering the wrong image.
-inline constexpr uint32_t kProtocolVersion = 2;
+// 3: Error (and a refused SubmitReply) carries a code, which peers act on instead of the message
+// text; a version-2 peer would act on text that a version-3 master no longer promises.
+inline constexpr uint32_t kProtocolVersion = 3;
 
 /// Software version of this build, sent in Hello and Welcome for the logs.
 inline constexpr const char* kBuildVersion = "rayfarm 0.2.0";

@@ -438,7 +438,7 @@ Vec3 reflectance(const tinyobj::real_t* v, const char* key, const Where& at,
 }
 
 /// Scales kd and ks down together so that kd + ks <= 1 in every channel.
-void conserve_energy(Material* m, const Where& at, std::vector<std::string>* warnings) {
+void conserve_energy(PhongMaterial* m, const Where& at, std::vector<std::string>* warnings) {
   const float total = max_component(m->kd + m->ks);
   if (total <= 1.f) return;
   m->kd /= total;
@@ -459,23 +459,17 @@ Material to_material(const tinyobj::material_t& mtl, const std::string& name, co
   const int illum = mtl.illum;
   if (illum == 4 || illum == 6 || illum == 7 || (mtl.ior != 1.f && mtl.dissolve < 1.f)) {
     if (!(mtl.ior > 0.f)) at.fail("Ni must be positive for a transparent material");
-    m.type = MaterialType::kDielectric;
-    m.ior = mtl.ior;
     const Vec3 tf = reflectance(mtl.transmittance, "Tf", at, warnings);
-    m.tint = is_black(tf) ? Vec3(1.f) : tf;
+    m.kind = DielectricMaterial{mtl.ior, is_black(tf) ? Vec3(1.f) : tf};
   } else if (illum == 3 || illum == 5) {
-    m.type = MaterialType::kMirror;
-    m.reflectance = ks;
+    m.kind = MirrorMaterial{ks};
   } else if (!is_black(ks)) {
     if (mtl.shininess < 0.f) at.fail("Ns must not be negative");
-    m.type = MaterialType::kPhong;
-    m.kd = kd;
-    m.ks = ks;
-    m.exponent = mtl.shininess;
-    conserve_energy(&m, at, warnings);
+    PhongMaterial phong{kd, ks, mtl.shininess};
+    conserve_energy(&phong, at, warnings);
+    m.kind = phong;
   } else {
-    m.type = MaterialType::kDiffuse;
-    m.albedo = kd;
+    m.kind = DiffuseMaterial{kd};
   }
   return m;
 }

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <variant>
 #include <vector>
 
 #include "common/math/vec3.h"
@@ -29,27 +30,54 @@ struct FilmSize {
   uint32_t height = 0;
 };
 
-enum class MaterialType : uint8_t { kDiffuse, kPhong, kMirror, kDielectric };
+// ---- materials: one parameter struct per kind (docs/scene-format.md) ----
+// Adding a kind: its struct here, one line in MaterialKind, its reader in parser.cpp, and its
+// BSDF in worker/bsdfs/ (one header, one line in the worker's Bsdf).
 
-/// One material; which fields matter depends on `type` (docs/scene-format.md).
+/// Lambertian reflection.
+struct DiffuseMaterial {
+  static constexpr const char* kName = "diffuse";
+  Vec3 albedo{0.8f};  ///< reflectance
+};
+
+/// Normalised Phong: a diffuse and a glossy lobe, kd + ks <= 1 in every channel.
+struct PhongMaterial {
+  static constexpr const char* kName = "phong";
+  Vec3 kd{0.f};          ///< diffuse reflectance
+  Vec3 ks{0.f};          ///< specular reflectance
+  float exponent = 1.f;  ///< specular exponent
+};
+
+/// Perfect specular reflection.
+struct MirrorMaterial {
+  static constexpr const char* kName = "mirror";
+  Vec3 reflectance{1.f};
+};
+
+/// Smooth glass: Fresnel reflection and refraction.
+struct DielectricMaterial {
+  static constexpr const char* kName = "dielectric";
+  float ior = 1.5f;  ///< index of refraction inside / outside
+  Vec3 tint{1.f};    ///< transmission colour
+};
+
+/// Every material kind, in the order the scene format lists them.
+using MaterialKind =
+    std::variant<DiffuseMaterial, PhongMaterial, MirrorMaterial, DielectricMaterial>;
+
+/// Name of a material kind as written in scene files ("diffuse", ...).
+inline const char* material_kind_name(const MaterialKind& kind) {
+  return std::visit([](const auto& k) { return k.kName; }, kind);
+}
+
+/// One material: its kind's parameters, and the emission that any kind may carry.
 struct Material {
   std::string name;
-  MaterialType type = MaterialType::kDiffuse;
-  Vec3 albedo{0.8f};       ///< diffuse: reflectance
-  Vec3 kd{0.f};            ///< phong: diffuse reflectance
-  Vec3 ks{0.f};            ///< phong: specular reflectance
-  float exponent = 1.f;    ///< phong: specular exponent
-  Vec3 reflectance{1.f};   ///< mirror: reflectance
-  float ior = 1.5f;        ///< dielectric: index of refraction inside / outside
-  Vec3 tint{1.f};          ///< dielectric: transmission colour
-  Vec3 emission{0.f};      ///< emitted radiance (any type); non-zero makes an area light
+  MaterialKind kind;       ///< default: diffuse, albedo 0.8
+  Vec3 emission{0.f};      ///< emitted radiance; non-zero makes an area light
   bool two_sided = false;  ///< emission leaves both sides
 
   bool is_emissive() const { return !is_black(emission); }
-  /// Specular (Dirac) materials cannot be sampled by light sampling.
-  bool is_specular() const {
-    return type == MaterialType::kMirror || type == MaterialType::kDielectric;
-  }
 };
 
 /// Triangles with one material index each. The front face is (v1-v0) x (v2-v0).

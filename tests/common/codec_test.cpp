@@ -75,6 +75,34 @@ TEST(Codec, EveryTopLevelMessageCarriesTheVersion) {
   EXPECT_GE(wire_messages, 20);
 }
 
+TEST(Codec, EveryErrorCodeRoundTripsWithItsMessage) {
+  const auto* codes = wire::Error::Code_descriptor();
+  ASSERT_GE(codes->value_count(), 9);
+  for (int i = 0; i < codes->value_count(); ++i) {
+    const auto code = static_cast<wire::Error::Code>(codes->value(i)->number());
+    wire::Error error;
+    error.set_code(code);
+    error.set_message("cause " + codes->value(i)->name());
+    error.set_job_id("j0007");
+    const Decoded d = decode(encode(error));
+    const auto* back = d.as<wire::Error>();
+    ASSERT_NE(back, nullptr) << codes->value(i)->name();
+    EXPECT_EQ(back->code(), code) << codes->value(i)->name();
+    EXPECT_EQ(back->message(), "cause " + codes->value(i)->name());
+    EXPECT_EQ(back->job_id(), "j0007");
+
+    wire::SubmitReply refused;
+    refused.set_code(code);
+    refused.set_error("refused: " + codes->value(i)->name());
+    const Decoded r = decode(encode(refused));
+    ASSERT_NE(r.as<wire::SubmitReply>(), nullptr);
+    EXPECT_EQ(r.as<wire::SubmitReply>()->code(), code) << codes->value(i)->name();
+    EXPECT_EQ(r.as<wire::SubmitReply>()->error(), "refused: " + codes->value(i)->name());
+  }
+  // An Error without a code reads as CODE_UNSPECIFIED, which no peer acts on.
+  EXPECT_EQ(decode(encode(wire::Error{})).as<wire::Error>()->code(), wire::Error::CODE_UNSPECIFIED);
+}
+
 TEST(Codec, WorkUnitAndResultRoundTrip) {
   wire::WorkUnit unit;
   unit.set_job_id("j0001");

@@ -8,6 +8,7 @@
 #include <initializer_list>
 #include <random>
 #include <string>
+#include <variant>
 
 #include "common/scene/parser.h"
 #include "tests/support/temp_dir.h"
@@ -84,6 +85,13 @@ const Material& material_named(const Scene& scene, const std::string& name) {
   return scene.materials.front();
 }
 
+/// m's parameters, which must be of kind K (std::get throws otherwise, failing the test).
+template <class K>
+const K& params(const Material& m) {
+  EXPECT_TRUE(std::holds_alternative<K>(m.kind)) << m.name << " is " << material_kind_name(m.kind);
+  return std::get<K>(m.kind);
+}
+
 std::string warnings_of(const Scene& scene) {
   std::string all;
   for (const std::string& w : scene.warnings) all += w + "\n";
@@ -107,9 +115,8 @@ TEST(SceneBundled, CornellBoxLoadsAsWritten) {
   EXPECT_EQ(scene.render.integrator, IntegratorType::kMis);
   EXPECT_EQ(scene.camera.eye, Vec3(278.f, 273.f, -800.f));
   EXPECT_EQ(scene.camera.fov_y_deg, 37.f);
-  EXPECT_EQ(material_named(scene, "glass").type, MaterialType::kDielectric);
-  EXPECT_EQ(material_named(scene, "glass").ior, 1.5f);
-  EXPECT_EQ(material_named(scene, "mirror").type, MaterialType::kMirror);
+  EXPECT_EQ(params<DielectricMaterial>(material_named(scene, "glass")).ior, 1.5f);
+  EXPECT_TRUE(std::holds_alternative<MirrorMaterial>(material_named(scene, "mirror").kind));
 
   const Vec3 room_center{278.f, 274.4f, 279.6f};
   size_t emitters = 0;
@@ -140,8 +147,9 @@ TEST(SceneBundled, PhongLoadsAsWritten) {
   EXPECT_EQ(scene.film.height, 128u);
   float previous = 0.f;
   for (const Sphere& s : scene.spheres) {
-    const Material& m = scene.materials[s.material];
-    ASSERT_EQ(m.type, MaterialType::kPhong);
+    const MaterialKind& kind = scene.materials[s.material].kind;
+    ASSERT_TRUE(std::holds_alternative<PhongMaterial>(kind));
+    const PhongMaterial& m = std::get<PhongMaterial>(kind);
     EXPECT_GT(m.exponent, previous);
     EXPECT_LE(max_component(m.kd + m.ks), 1.f);
     previous = m.exponent;
@@ -162,8 +170,7 @@ TEST(SceneBundled, FurnaceIsAClosedTwoSidedEmitter) {
   const Sphere& s = scene.spheres[0];
   EXPECT_LT(length(scene.camera.eye - s.center), s.radius) << "the camera is inside";
   const Material& m = scene.materials[s.material];
-  EXPECT_EQ(m.type, MaterialType::kDiffuse);
-  EXPECT_EQ(m.albedo, Vec3(0.5f));
+  EXPECT_EQ(params<DiffuseMaterial>(m).albedo, Vec3(0.5f));
   EXPECT_EQ(m.emission, Vec3(1.f));
   EXPECT_TRUE(m.two_sided) << "the camera sees the sphere's back side";
 }
@@ -180,10 +187,11 @@ TEST(SceneBundled, EmbreeCornellMatchesTheTutorial) {
   EXPECT_EQ(scene.point_lights[0].intensity, Vec3(100000.f));
   ASSERT_EQ(scene.materials.size(), 5u);
   for (const Material& m : scene.materials) {
-    EXPECT_EQ(m.type, MaterialType::kDiffuse) << m.name;
+    EXPECT_TRUE(std::holds_alternative<DiffuseMaterial>(m.kind)) << m.name;
     EXPECT_FALSE(m.is_emissive()) << m.name << ": Ka is not emission";
   }
-  EXPECT_EQ(material_named(scene, "cornell_box.obj:red").albedo, Vec3(1.f, 0.f, 0.f));
+  EXPECT_EQ(params<DiffuseMaterial>(material_named(scene, "cornell_box.obj:red")).albedo,
+            Vec3(1.f, 0.f, 0.f));
   EXPECT_EQ(scene.film.width, 512u);
   EXPECT_EQ(scene.render.integrator, IntegratorType::kNee);
   EXPECT_EQ(scene.render.max_depth, 8u);
@@ -222,9 +230,9 @@ TEST(SceneParser, DefaultsAndOrder) {
   EXPECT_TRUE(scene.warnings.empty()) << warnings_of(scene);
   ASSERT_EQ(scene.materials.size(), 3u);
   EXPECT_EQ(scene.materials[0].name, "z") << "materials keep the file's order";
-  EXPECT_EQ(scene.materials[0].reflectance, Vec3(1.f));
-  EXPECT_EQ(scene.materials[1].ior, 1.5f);
-  EXPECT_EQ(scene.materials[2].albedo, Vec3(0.8f));
+  EXPECT_EQ(params<MirrorMaterial>(scene.materials[0]).reflectance, Vec3(1.f));
+  EXPECT_EQ(params<DielectricMaterial>(scene.materials[1]).ior, 1.5f);
+  EXPECT_EQ(params<DiffuseMaterial>(scene.materials[2]).albedo, Vec3(0.8f));
   EXPECT_EQ(scene.meshes.at(0).materials, std::vector<uint32_t>{2});
   EXPECT_EQ(scene.background, Vec3(0.f));
   EXPECT_EQ(scene.render.spp, 64u);
@@ -328,23 +336,23 @@ f 1 2 3
   ASSERT_EQ(scene.materials.size(), 7u);  // 6 from the MTL and a default for the first face
 
   const Material& lamp = material_named(scene, "models/m.obj:lamp");
-  EXPECT_EQ(lamp.type, MaterialType::kDiffuse);
+  EXPECT_TRUE(std::holds_alternative<DiffuseMaterial>(lamp.kind));
   EXPECT_EQ(lamp.emission, Vec3(4.f, 3.f, 2.f));
-  const Material& glass = material_named(scene, "models/m.obj:glass");
-  EXPECT_EQ(glass.type, MaterialType::kDielectric);
+  const auto& glass = params<DielectricMaterial>(material_named(scene, "models/m.obj:glass"));
   EXPECT_FLOAT_EQ(glass.ior, 1.33f);
   EXPECT_EQ(glass.tint, Vec3(0.9f, 1.f, 0.9f));
-  const Material& chrome = material_named(scene, "models/m.obj:chrome");
-  EXPECT_EQ(chrome.type, MaterialType::kMirror);
+  const auto& chrome = params<MirrorMaterial>(material_named(scene, "models/m.obj:chrome"));
   EXPECT_EQ(chrome.reflectance, Vec3(0.8f));
-  const Material& plastic = material_named(scene, "models/m.obj:plastic");
-  EXPECT_EQ(plastic.type, MaterialType::kPhong);
+  const auto& plastic = params<PhongMaterial>(material_named(scene, "models/m.obj:plastic"));
   EXPECT_EQ(plastic.exponent, 50.f);
   EXPECT_LE(max_component(plastic.kd + plastic.ks), 1.f + 1e-6f);
   EXPECT_FLOAT_EQ(plastic.kd.x / plastic.ks.x, 0.8f / 0.5f) << "scaled together";
-  EXPECT_EQ(material_named(scene, "models/m.obj:clay").albedo, Vec3(0.3f, 0.4f, 0.5f));
-  EXPECT_EQ(material_named(scene, "models/m.obj:water").type, MaterialType::kDielectric);
-  EXPECT_EQ(material_named(scene, "models/m.obj:default").type, MaterialType::kDiffuse);
+  EXPECT_EQ(params<DiffuseMaterial>(material_named(scene, "models/m.obj:clay")).albedo,
+            Vec3(0.3f, 0.4f, 0.5f));
+  EXPECT_TRUE(
+      std::holds_alternative<DielectricMaterial>(material_named(scene, "models/m.obj:water").kind));
+  EXPECT_TRUE(
+      std::holds_alternative<DiffuseMaterial>(material_named(scene, "models/m.obj:default").kind));
 
   const std::vector<std::string> per_triangle{"default", "lamp",    "lamp", "lamp", "glass",
                                               "chrome",  "plastic", "clay", "water"};

@@ -405,6 +405,7 @@ TEST_F(FarmTest, GarbageOnEitherSocketIsLoggedAndIgnored) {
   for (size_t i = 0; i < garbage.size(); ++i) {
     const auto error = client.expect<wire::Error>();
     EXPECT_NE(error.message().find("cannot decode"), std::string::npos) << error.message();
+    EXPECT_EQ(error.code(), wire::Error::BAD_REQUEST) << error.message();
   }
   // Logged once per socket and key, not once per message (a peer cannot flood the log).
   EXPECT_TRUE(wait_until(
@@ -412,7 +413,9 @@ TEST_F(FarmTest, GarbageOnEitherSocketIsLoggedAndIgnored) {
       << master().log();
   // A valid message on the wrong socket is refused by name.
   worker.send(protocol::encode(wire::ListJobs{}));
-  EXPECT_NE(worker.expect<wire::Error>().message().find("unknown worker"), std::string::npos);
+  const auto unknown = worker.expect<wire::Error>();
+  EXPECT_NE(unknown.message().find("unknown worker"), std::string::npos);
+  EXPECT_EQ(unknown.code(), wire::Error::UNKNOWN_WORKER);
 
   // The master still serves: a job renders and matches.
   ASSERT_TRUE(master().running());
@@ -461,6 +464,7 @@ TEST_F(FarmTest, ClientErrorsAreClear) {
   client.send(protocol::encode(request));
   const auto reply = client.expect<wire::SubmitReply>();
   EXPECT_TRUE(reply.job_id().empty());
+  EXPECT_EQ(reply.code(), wire::Error::REFUSED);
   EXPECT_NE(reply.error().find("scene.json"), std::string::npos) << reply.error();
   EXPECT_EQ(reply.error().find(dir().string()), std::string::npos) << reply.error();
 

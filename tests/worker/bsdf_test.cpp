@@ -18,6 +18,7 @@
 #include <map>
 #include <string>
 #include <utility>
+#include <variant>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -202,8 +203,9 @@ void for_each_node(const AngleGrid& grid, double h, F&& f) {
 
 /// Largest quadrature cell for a material: a quarter of the Phong lobe's angular width 1/sqrt(n).
 double quadrature_step(const Material& m) {
-  if (m.type != MaterialType::kPhong) return 0.02;
-  return std::min(0.02, 1.0 / (4.0 * std::sqrt(double(m.exponent))));
+  const auto* phong = std::get_if<PhongMaterial>(&m.kind);
+  if (phong == nullptr) return 0.02;
+  return std::min(0.02, 1.0 / (4.0 * std::sqrt(double(phong->exponent))));
 }
 
 struct HemisphereIntegrals {
@@ -229,8 +231,7 @@ HemisphereIntegrals integrate_hemisphere(const Bsdf& bsdf, const Material& m, co
 Material diffuse(float albedo) {
   Material m;
   m.name = "diffuse";
-  m.type = MaterialType::kDiffuse;
-  m.albedo = Vec3(albedo);
+  m.kind = DiffuseMaterial{Vec3(albedo)};
   return m;
 }
 
@@ -238,19 +239,14 @@ Material phong(const Vec3& kd, const Vec3& ks, float exponent) {
   Material m;
   m.name = "phong n=" + std::to_string(int(exponent)) + " kd.g=" + std::to_string(kd.y) +
            " ks.g=" + std::to_string(ks.y);
-  m.type = MaterialType::kPhong;
-  m.kd = kd;
-  m.ks = ks;
-  m.exponent = exponent;
+  m.kind = PhongMaterial{kd, ks, exponent};
   return m;
 }
 
 Material dielectric(float ior, const Vec3& tint = Vec3(1.f)) {
   Material m;
   m.name = "dielectric ior=" + std::to_string(ior);
-  m.type = MaterialType::kDielectric;
-  m.ior = ior;
-  m.tint = tint;
+  m.kind = DielectricMaterial{ior, tint};
   return m;
 }
 
@@ -463,7 +459,7 @@ TEST(BsdfIntegralTest, PdfIntegratesToOneAndSampleRejectsTheRest) {
       SCOPED_TRACE(m.name + ", wo theta " + std::to_string(theta));
       const Vec3 wo = wo_at(theta);
       const double integral = hemisphere_integrals(index, theta).pdf;
-      if (m.type == MaterialType::kDiffuse || theta == 0.0) {
+      if (std::holds_alternative<DiffuseMaterial>(m.kind) || theta == 0.0) {
         EXPECT_NEAR(integral, 1.0, kQuadratureTolerance);  // the whole lobe is above the horizon
       } else {
         EXPECT_LE(integral, 1.0 + kQuadratureTolerance);
@@ -517,7 +513,9 @@ TEST(BsdfIntegralTest, EnergyIsConserved) {
   for (size_t index = 0; index < materials().size(); ++index) {
     const Material& m = materials()[index];
     const Bsdf bsdf(m);
-    const Vec3 bound = m.type == MaterialType::kDiffuse ? m.albedo : m.kd + m.ks;
+    const auto* diffuse = std::get_if<DiffuseMaterial>(&m.kind);
+    const auto* phong = std::get_if<PhongMaterial>(&m.kind);
+    const Vec3 bound = diffuse != nullptr ? diffuse->albedo : phong->kd + phong->ks;
     for (double theta : kWoThetaDeg) {
       SCOPED_TRACE(m.name + ", wo theta " + std::to_string(theta));
       const Vec3 wo = wo_at(theta);
@@ -535,7 +533,7 @@ TEST(BsdfIntegralTest, EnergyIsConserved) {
         SCOPED_TRACE("channel " + std::to_string(c));
         EXPECT_LE(in.albedo[c], 1.0 + kQuadratureTolerance);
         EXPECT_LE(in.albedo[c], bound[c] + kQuadratureTolerance);
-        if (m.type == MaterialType::kDiffuse || theta == 0.0) {
+        if (std::holds_alternative<DiffuseMaterial>(m.kind) || theta == 0.0) {
           EXPECT_NEAR(in.albedo[c], bound[c], kQuadratureTolerance);
         }
         const double mean = sum[c] / kDraws;
@@ -556,8 +554,9 @@ TEST(BsdfIntegralTest, EnergyIsConserved) {
 AngleGrid chi_square_grid(const Material& m, const Vec3& wo) {
   AngleGrid grid;
   grid.side = wo.z > 0.f ? 1 : -1;
-  if (m.type != MaterialType::kPhong || m.exponent < 100.f) return grid;
-  const double half_width = 4.0 / std::sqrt(double(m.exponent));
+  const auto* phong = std::get_if<PhongMaterial>(&m.kind);
+  if (phong == nullptr || phong->exponent < 100.f) return grid;
+  const double half_width = 4.0 / std::sqrt(double(phong->exponent));
   const double theta_r = std::acos(std::fabs(double(wo.z)));  // mirror direction, at phi = pi
   const double theta_lo = std::max(0.0, theta_r - half_width);
   const double theta_hi = std::min(0.5 * 3.141592653589793, theta_r + half_width);
@@ -617,8 +616,8 @@ TEST(BsdfChiSquareTest, SampledDirectionsFollowPdf) {
 
 TEST(MirrorTest, ReflectsAboutTheNormalWithItsReflectance) {
   Material m;
-  m.type = MaterialType::kMirror;
-  m.reflectance = Vec3(0.9f, 0.5f, 0.25f);
+  const Vec3 reflectance(0.9f, 0.5f, 0.25f);
+  m.kind = MirrorMaterial{reflectance};
   const Bsdf bsdf(m);
   EXPECT_TRUE(bsdf.is_specular());
   Pcg32 rng(61, 1);
@@ -629,7 +628,7 @@ TEST(MirrorTest, ReflectsAboutTheNormalWithItsReflectance) {
     ASSERT_TRUE(draw(bsdf, wo, rng, out));
     EXPECT_TRUE(out.specular);
     EXPECT_EQ(out.wi, Vec3(-wo.x, -wo.y, wo.z));
-    EXPECT_EQ(out.weight, m.reflectance);
+    EXPECT_EQ(out.weight, reflectance);
     EXPECT_EQ(out.pdf, 0.f);
     EXPECT_TRUE(is_black(bsdf.eval(wo, out.wi)));
     EXPECT_EQ(bsdf.pdf(wo, out.wi), 0.f);
@@ -722,7 +721,7 @@ TEST(DielectricTest, IndexOneIsInvisible) {
     // cos_t = sqrt(1 - sin_t^2) with sin_t^2 rounded by up to 2^-24: cos_t moves by up to
     // 2^-24 / (2 cos_t), which grows at grazing incidence.
     ASSERT_NEAR(out.wi.z, -wo.z, 1e-6f + 3e-8f / std::fabs(wo.z));
-    ASSERT_EQ(out.weight, air.tint);
+    ASSERT_EQ(out.weight, std::get<DielectricMaterial>(air.kind).tint);
   }
 }
 

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <random>
+#include <stdexcept>
 
 #include "test_scenes.h"
 #include "worker/renderer.h"
@@ -79,6 +80,20 @@ TEST(Determinism, SeedChangesTheImage) {
   const Film fa = render_with(Renderer(scene, a), 1, 64, 4);
   const Film fb = render_with(Renderer(scene, b), 1, 64, 4);
   EXPECT_FALSE(fa.sum() == fb.sum());
+}
+
+// The benchmark's diffuse-only renderer (bench/diffuse_only.sh) measures the same work: on a
+// diffuse scene it renders the normal renderer's bits, and it refuses any other scene.
+TEST(Determinism, DiffuseOnlyRendererRendersTheSameBits) {
+  const Scene scene = testing::furnace_scene(0.5f, 1.f, 8);
+  RenderSettings settings = scene.render;
+  settings.spp = 4;
+  settings.max_depth = 8;
+  const Film all = render_with(Renderer(scene, settings), 1, 64, 4);
+  const Film diffuse = render_with(Renderer(scene, settings, BsdfKinds::kDiffuseOnly), 1, 64, 4);
+  expect_identical(all, diffuse);
+  EXPECT_THROW(Renderer(testing::small_room_scene(), settings, BsdfKinds::kDiffuseOnly),
+               std::runtime_error);
 }
 
 }  // namespace

@@ -13,6 +13,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <optional>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -88,8 +89,7 @@ struct SceneSpec {
 Material emitter(const std::string& name, const Vec3& emission, bool two_sided) {
   Material m;
   m.name = name;
-  m.type = MaterialType::kDiffuse;
-  m.albedo = Vec3(0.f);
+  m.kind = DiffuseMaterial{Vec3(0.f)};
   m.emission = emission;
   m.two_sided = two_sided;
   return m;
@@ -136,9 +136,9 @@ struct Lights {
   /// Light index registered for the primitive that a ray from `org` along `dir` hits first.
   int32_t light_hit_by(const Vec3& org, const Vec3& dir) const {
     const Ray ray{org, dir};
-    RayHit hit;
-    if (!data.bvh().intersect(ray, hit)) return -2;
-    return data.resolve(ray, hit).light;
+    const std::optional<RayHit> hit = data.bvh().intersect(ray);
+    if (!hit) return -2;
+    return data.resolve(ray, *hit).light;
   }
   int32_t triangle_light(int t) const {
     const float h = 0.5f * setup.square_half;
@@ -512,12 +512,12 @@ TEST(LightSetTest, OneSidedEmittersAreDarkBehind) {
   const Material one = emitter("one", Vec3(1.f, 2.f, 3.f), false);
   const Material two = emitter("two", Vec3(1.f, 2.f, 3.f), true);
   const Vec3 n(0.f, 0.f, 1.f);
-  EXPECT_EQ(LightSet::emitted(one, n, {0.f, 0.6f, 0.8f}), one.emission);
-  EXPECT_TRUE(is_black(LightSet::emitted(one, n, {0.f, 0.6f, -0.8f})));
-  EXPECT_EQ(LightSet::emitted(two, n, {0.f, 0.6f, 0.8f}), two.emission);
-  EXPECT_EQ(LightSet::emitted(two, n, {0.f, 0.6f, -0.8f}), two.emission);
+  EXPECT_EQ(emitted_radiance(one, n, {0.f, 0.6f, 0.8f}), one.emission);
+  EXPECT_TRUE(is_black(emitted_radiance(one, n, {0.f, 0.6f, -0.8f})));
+  EXPECT_EQ(emitted_radiance(two, n, {0.f, 0.6f, 0.8f}), two.emission);
+  EXPECT_EQ(emitted_radiance(two, n, {0.f, 0.6f, -0.8f}), two.emission);
   Material grey;
-  EXPECT_TRUE(is_black(LightSet::emitted(grey, n, {0.f, 0.f, 1.f})));
+  EXPECT_TRUE(is_black(emitted_radiance(grey, n, {0.f, 0.f, 1.f})));
 }
 
 TEST(LightSetTest, TwoSidedEmittersShineOnBothSides) {

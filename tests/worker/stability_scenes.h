@@ -15,8 +15,7 @@ inline uint32_t add_material(Scene& s, Material m) {
 
 inline Material diffuse(Vec3 albedo, Vec3 emission = Vec3(0.f), bool two_sided = false) {
   Material m;
-  m.type = MaterialType::kDiffuse;
-  m.albedo = albedo;
+  m.kind = DiffuseMaterial{albedo};
   m.emission = emission;
   m.two_sided = two_sided;
   return m;
@@ -24,9 +23,7 @@ inline Material diffuse(Vec3 albedo, Vec3 emission = Vec3(0.f), bool two_sided =
 
 inline Material glass(float ior, Vec3 tint = Vec3(1.f)) {
   Material m;
-  m.type = MaterialType::kDielectric;
-  m.ior = ior;
-  m.tint = tint;
+  m.kind = DielectricMaterial{ior, tint};
   return m;
 }
 

@@ -7,6 +7,7 @@
 #include <limits>
 #include <ostream>
 #include <random>
+#include <variant>
 
 #include "common/image/film_output.h"
 #include "mc_stats.h"
@@ -281,13 +282,13 @@ TEST(Caustic, AllIntegratorsAgreeOnLightThroughGlass) {
 TEST(Dielectric, IndexOneSphereIsInvisibleInTheImage) {
   Scene with = testing::small_room_scene(24, 16);
   for (Sphere& sp : with.spheres) {
-    if (with.materials[sp.material].type == MaterialType::kDielectric) {
-      with.materials[sp.material].ior = 1.f;
+    if (auto* glass = std::get_if<DielectricMaterial>(&with.materials[sp.material].kind)) {
+      glass->ior = 1.f;
     }
   }
   Scene without = with;
   std::erase_if(without.spheres, [&](const Sphere& sp) {
-    return without.materials[sp.material].type == MaterialType::kDielectric;
+    return std::holds_alternative<DielectricMaterial>(without.materials[sp.material].kind);
   });
   ASSERT_EQ(without.spheres.size() + 1, with.spheres.size());
   const auto a = testing::render_blocks(with, IntegratorType::kMis, 256, 41, 8);
@@ -567,10 +568,7 @@ TEST(DegenerateGeometry, ExtremeCamerasGiveFiniteUnitRays) {
 TEST(DegenerateGeometry, PhongExponent1e30RendersFinite) {
   Scene s = testing::room_with_light(0.5f, 8.f, 8);
   Material phong;
-  phong.type = MaterialType::kPhong;
-  phong.kd = Vec3(0.3f);
-  phong.ks = Vec3(0.6f);
-  phong.exponent = 1e30f;
+  phong.kind = PhongMaterial{Vec3(0.3f), Vec3(0.6f), 1e30f};
   s.materials[0] = phong;
   s.render.max_depth = 6;
   expect_renders_finite(s, 8, "phong 1e30");

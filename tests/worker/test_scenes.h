@@ -14,8 +14,7 @@ inline Scene furnace_scene(float rho, float le, uint32_t size = 8) {
   s.camera.fov_y_deg = 90.f;
   Material m;
   m.name = "shell";
-  m.type = MaterialType::kDiffuse;
-  m.albedo = Vec3(rho);
+  m.kind = DiffuseMaterial{Vec3(rho)};
   m.emission = Vec3(le);
   m.two_sided = true;
   s.materials.push_back(m);
@@ -32,24 +31,20 @@ inline Scene small_room_scene(uint32_t width = 24, uint32_t height = 16) {
   s.camera.eye = {0.f, 0.f, -3.f};
   s.camera.look_at = {0.f, 0.f, 0.f};
   s.camera.fov_y_deg = 50.f;
-  auto add_material = [&](MaterialType type, Vec3 color, Vec3 emission = Vec3(0.f)) {
+  auto add_material = [&](MaterialKind kind, Vec3 emission = Vec3(0.f)) {
     Material m;
-    m.type = type;
-    m.albedo = color;
-    m.reflectance = color;
-    m.kd = color * 0.6f;
-    m.ks = Vec3(0.3f);
-    m.exponent = 20.f;
+    m.kind = kind;
     m.emission = emission;
     s.materials.push_back(m);
     return static_cast<uint32_t>(s.materials.size() - 1);
   };
-  const uint32_t white = add_material(MaterialType::kDiffuse, Vec3(0.7f));
-  const uint32_t red = add_material(MaterialType::kDiffuse, Vec3(0.7f, 0.1f, 0.1f));
-  const uint32_t phong = add_material(MaterialType::kPhong, Vec3(0.2f, 0.5f, 0.7f));
-  const uint32_t light = add_material(MaterialType::kDiffuse, Vec3(0.f), Vec3(8.f));
-  const uint32_t mirror = add_material(MaterialType::kMirror, Vec3(0.9f));
-  const uint32_t glass = add_material(MaterialType::kDielectric, Vec3(1.f));
+  const uint32_t white = add_material(DiffuseMaterial{Vec3(0.7f)});
+  const uint32_t red = add_material(DiffuseMaterial{Vec3(0.7f, 0.1f, 0.1f)});
+  const uint32_t phong =
+      add_material(PhongMaterial{Vec3(0.2f, 0.5f, 0.7f) * 0.6f, Vec3(0.3f), 20.f});
+  const uint32_t light = add_material(DiffuseMaterial{Vec3(0.f)}, Vec3(8.f));
+  const uint32_t mirror = add_material(MirrorMaterial{Vec3(0.9f)});
+  const uint32_t glass = add_material(DielectricMaterial{});
   TriangleMesh mesh;
   auto quad = [&](Vec3 c, Vec3 e1, Vec3 e2, uint32_t mat) {
     const auto base = static_cast<uint32_t>(mesh.positions.size());

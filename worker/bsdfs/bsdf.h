@@ -1,64 +1,86 @@
 #pragma once
-// Scattering at a surface point, in the local frame of the geometric normal (z up). A tagged
-// struct, not a virtual class: it is built and evaluated per path vertex. Directions point away
-// from the surface. Diffuse and Phong surfaces scatter on both sides (they mirror to wo's side);
-// the dielectric uses z > 0 as outside.
-#include <cmath>
+// Scattering at a path vertex: a variant with one alternative per BSDF kind, each in its own
+// header, dispatched by std::visit (a switch on the variant's index, no virtual call). Built per
+// vertex from the hit's material. Adding a kind: its header here and one line in `Bsdf`.
+#include <cassert>
+#include <type_traits>
+#include <variant>
 
-#include "common/math/vec3.h"
 #include "common/scene/scene.h"
+#include "worker/bsdfs/bsdf_sample.h"
+#include "worker/bsdfs/dielectric.h"
+#include "worker/bsdfs/diffuse.h"
+#include "worker/bsdfs/mirror.h"
+#include "worker/bsdfs/phong.h"
 
 namespace rayfarm {
 
-/// True in the benchmark build that knows only diffuse materials (option RAYFARM_DIFFUSE_ONLY,
-/// bench/diffuse_only.sh): there every material test below is a compile-time constant, which
-/// shows what the other materials cost a diffuse scene in the normal build.
-#ifdef RAYFARM_DIFFUSE_ONLY
-inline constexpr bool kDiffuseOnlyBuild = true;
-#else
-inline constexpr bool kDiffuseOnlyBuild = false;
-#endif
+namespace detail {
+// The first of Kinds built from material parameters P (member `type`; none if no kind is).
+template <class P, class... Kinds>
+struct BsdfKindFor {};
+template <class P, class K, class... Rest>
+struct BsdfKindFor<P, K, Rest...>
+    : std::conditional_t<std::is_same_v<P, typename K::Params>, std::type_identity<K>,
+                         BsdfKindFor<P, Rest...>> {};
+}  // namespace detail
 
-/// A sampled direction and its throughput update f * |cos| / pdf.
-struct BsdfSample {
-  Vec3 wi;
-  Vec3 weight;
-  float pdf = 0.f;        ///< solid-angle density; meaningless (0) for specular samples
-  bool specular = false;  ///< drawn from a Dirac lobe
-};
-
-class Bsdf {
+/// A BSDF that knows the kinds `Kinds`. Each kind has `Params` (the material struct it is built
+/// from), `kSpecular` (every lobe a Dirac delta) and eval / pdf / sample as documented below.
+template <class... Kinds>
+class BsdfOf {
  public:
-  explicit Bsdf(const Material& m) : m_(&m) {}
+  /// True when this BSDF knows m's kind.
+  static bool supports(const Material& m) {
+    return std::visit(
+        [](const auto& params) {
+          return requires {
+            typename detail::BsdfKindFor<std::decay_t<decltype(params)>, Kinds...>::type;
+          };
+        },
+        m.kind);
+  }
+
+  /// The BSDF of material m, whose kind it must know (supports(m)).
+  explicit BsdfOf(const Material& m)
+      : kind_(std::visit(
+            [](const auto& params) -> std::variant<Kinds...> {
+              using P = std::decay_t<decltype(params)>;
+              if constexpr (requires { typename detail::BsdfKindFor<P, Kinds...>::type; }) {
+                using K = typename detail::BsdfKindFor<P, Kinds...>::type;
+                return std::variant<Kinds...>(std::in_place_type<K>, params);
+              } else {
+                assert(!"material kind unknown to this BSDF");
+                __builtin_unreachable();
+              }
+            },
+            m.kind)) {}
 
   /// True when every lobe is a Dirac delta (light sampling cannot help).
-  bool is_specular() const { return !kDiffuseOnlyBuild && m_->is_specular(); }
-  /// f(wo, wi) * |cos(wi)|; zero for specular materials.
-  Vec3 eval(const Vec3& wo, const Vec3& wi) const {
-    if (!kDiffuseOnlyBuild && m_->type != MaterialType::kDiffuse) return eval_other(wo, wi);
-    return wo.z * wi.z > 0.f ? m_->albedo * (std::fabs(wi.z) * kInvPi) : Vec3(0.f);
+  bool is_specular() const {
+    return std::visit([](const auto& k) { return std::decay_t<decltype(k)>::kSpecular; }, kind_);
   }
-  /// Solid-angle density with which sample() draws wi given wo; zero for specular materials.
+  /// f(wo, wi) * |cos(wi)|; zero for specular kinds.
+  Vec3 eval(const Vec3& wo, const Vec3& wi) const {
+    return std::visit([&](const auto& k) { return k.eval(wo, wi); }, kind_);
+  }
+  /// Solid-angle density with which sample() draws wi given wo; zero for specular kinds.
   float pdf(const Vec3& wo, const Vec3& wi) const {
-    if (!kDiffuseOnlyBuild && m_->type != MaterialType::kDiffuse) return pdf_other(wo, wi);
-    return wo.z * wi.z > 0.f ? std::fabs(wi.z) * kInvPi : 0.f;
+    return std::visit([&](const auto& k) { return k.pdf(wo, wi); }, kind_);
   }
   /// Draws wi from three uniform numbers; false when no direction carries energy.
-  bool sample(const Vec3& wo, float u_lobe, float u1, float u2, BsdfSample& out) const;
+  bool sample(const Vec3& wo, float u_lobe, float u1, float u2, BsdfSample& out) const {
+    return std::visit([&](const auto& k) { return k.sample(wo, u_lobe, u1, u2, out); }, kind_);
+  }
 
  private:
-  // The non-diffuse cases; diffuse, the common one, is inline above.
-  Vec3 eval_other(const Vec3& wo, const Vec3& wi) const;
-  float pdf_other(const Vec3& wo, const Vec3& wi) const;
-
-  const Material* m_;
+  std::variant<Kinds...> kind_;
 };
 
-/// Unpolarised Fresnel reflectance of a dielectric interface. cos_i > 0; eta = eta_t / eta_i.
-/// Sets cos_t (> 0) unless there is total internal reflection (then returns 1).
-float fresnel_dielectric(float cos_i, float eta, float& cos_t);
+/// Every BSDF kind: the one the renderer uses.
+using Bsdf = BsdfOf<DiffuseBsdf, PhongBsdf, MirrorBsdf, DielectricBsdf>;
 
-/// Cosine-weighted direction on the upper hemisphere (pdf cos / pi).
-Vec3 sample_cosine_hemisphere(float u1, float u2);
+/// Diffuse only: for measuring what the other kinds cost a diffuse scene (bench/diffuse_only.sh).
+using DiffuseOnlyBsdf = BsdfOf<DiffuseBsdf>;
 
 }  // namespace rayfarm

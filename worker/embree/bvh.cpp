@@ -2,8 +2,11 @@
 
 #include <embree3/rtcore.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -63,29 +66,47 @@ bool to_embree(const Ray& ray, RTCRay& r, float& t_scale) {
   throw std::runtime_error("Embree: " + what + " failed (error " + std::to_string(code) + ")");
 }
 
+// Owning handles: whatever throws while the BVH is built releases what was made so far.
+struct ReleaseDevice {
+  void operator()(RTCDevice d) const { rtcReleaseDevice(d); }
+};
+struct ReleaseScene {
+  void operator()(RTCScene s) const { rtcReleaseScene(s); }
+};
+struct ReleaseGeometry {
+  void operator()(RTCGeometry g) const { rtcReleaseGeometry(g); }
+};
+using DeviceHandle = std::unique_ptr<RTCDeviceTy, ReleaseDevice>;
+using SceneHandle = std::unique_ptr<RTCSceneTy, ReleaseScene>;
+using GeometryHandle = std::unique_ptr<RTCGeometryTy, ReleaseGeometry>;
+
 }  // namespace
 
 struct Bvh::Impl {
-  RTCDevice device = nullptr;
-  RTCScene scene = nullptr;
+  // Declared in this order so that the scene is released before its device.
+  DeviceHandle device;
+  SceneHandle scene;
   uint32_t sphere_id = RTC_INVALID_GEOMETRY_ID;  // Embree's id of the sphere set (after the meshes)
 
-  ~Impl() {
-    if (scene) rtcReleaseScene(scene);
-    if (device) rtcReleaseDevice(device);
+  GeometryHandle new_geometry(RTCGeometryType type, const char* what) {
+    GeometryHandle geometry(rtcNewGeometry(device.get(), type));
+    if (!geometry) fail(device.get(), what);
+    return geometry;
   }
 
   void add_mesh(const Mesh& mesh, uint32_t id) {
-    RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
-    if (!geometry) fail(device, "rtcNewGeometry(triangle)");
+    const GeometryHandle geometry =
+        new_geometry(RTC_GEOMETRY_TYPE_TRIANGLE, "rtcNewGeometry(triangle)");
     const size_t vertex_count = mesh.positions->size();
     const size_t triangle_count = mesh.indices->size() / 3;
     // Embree reads 16 bytes per vertex; the extra float pads the last one.
-    auto* vertices = static_cast<float*>(rtcSetNewGeometryBuffer(
-        geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), vertex_count + 1));
-    auto* indices = static_cast<uint32_t*>(rtcSetNewGeometryBuffer(
-        geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(uint32_t), triangle_count));
-    if (!vertices || !indices) fail(device, "triangle buffer allocation");
+    auto* vertices = static_cast<float*>(
+        rtcSetNewGeometryBuffer(geometry.get(), RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                3 * sizeof(float), vertex_count + 1));
+    auto* indices = static_cast<uint32_t*>(
+        rtcSetNewGeometryBuffer(geometry.get(), RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                3 * sizeof(uint32_t), triangle_count));
+    if (!vertices || !indices) fail(device.get(), "triangle buffer allocation");
     for (size_t i = 0; i < vertex_count; ++i) {
       const Vec3& p = (*mesh.positions)[i];
       vertices[3 * i] = p.x;
@@ -97,11 +118,12 @@ struct Bvh::Impl {
   }
 
   void add_spheres(const std::vector<SphereInput>& spheres, uint32_t id) {
-    RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
-    if (!geometry) fail(device, "rtcNewGeometry(sphere)");
-    auto* points = static_cast<float*>(rtcSetNewGeometryBuffer(
-        geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 4 * sizeof(float), spheres.size()));
-    if (!points) fail(device, "sphere buffer allocation");
+    const GeometryHandle geometry =
+        new_geometry(RTC_GEOMETRY_TYPE_SPHERE_POINT, "rtcNewGeometry(sphere)");
+    auto* points = static_cast<float*>(
+        rtcSetNewGeometryBuffer(geometry.get(), RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4,
+                                4 * sizeof(float), spheres.size()));
+    if (!points) fail(device.get(), "sphere buffer allocation");
     for (size_t i = 0; i < spheres.size(); ++i) {
       points[4 * i] = spheres[i].center.x;
       points[4 * i + 1] = spheres[i].center.y;
@@ -112,22 +134,22 @@ struct Bvh::Impl {
     commit_and_attach(geometry, id);
   }
 
-  void commit_and_attach(RTCGeometry geometry, uint32_t id) {
-    rtcCommitGeometry(geometry);
-    rtcAttachGeometryByID(scene, geometry, id);
-    rtcReleaseGeometry(geometry);
-    if (rtcGetDeviceError(device) != RTC_ERROR_NONE) fail(device, "geometry commit");
+  // The scene holds its own reference to an attached geometry; ours goes with the handle.
+  void commit_and_attach(const GeometryHandle& geometry, uint32_t id) {
+    rtcCommitGeometry(geometry.get());
+    rtcAttachGeometryByID(scene.get(), geometry.get(), id);
+    if (rtcGetDeviceError(device.get()) != RTC_ERROR_NONE) fail(device.get(), "geometry commit");
   }
 };
 
 Bvh::Bvh(const std::vector<Mesh>& meshes, const std::vector<SphereInput>& spheres)
     : impl_(std::make_unique<Impl>()) {
-  impl_->device = rtcNewDevice(nullptr);
+  impl_->device.reset(rtcNewDevice(nullptr));
   if (!impl_->device) throw std::runtime_error("Embree: rtcNewDevice failed");
-  rtcSetDeviceErrorFunction(impl_->device, log_device_error, nullptr);
-  impl_->scene = rtcNewScene(impl_->device);
-  if (!impl_->scene) fail(impl_->device, "rtcNewScene");
-  rtcSetSceneBuildQuality(impl_->scene, RTC_BUILD_QUALITY_HIGH);
+  rtcSetDeviceErrorFunction(impl_->device.get(), log_device_error, nullptr);
+  impl_->scene.reset(rtcNewScene(impl_->device.get()));
+  if (!impl_->scene) fail(impl_->device.get(), "rtcNewScene");
+  rtcSetSceneBuildQuality(impl_->scene.get(), RTC_BUILD_QUALITY_HIGH);
   // Default (non-robust) traversal, as Embree's own tutorials use: robust mode costs ~30% of the
   // traversal time; ray origins are already offset past the hit point's error bound.
   for (uint32_t i = 0; i < meshes.size(); ++i) {
@@ -135,28 +157,31 @@ Bvh::Bvh(const std::vector<Mesh>& meshes, const std::vector<SphereInput>& sphere
   }
   // Embree sizes its geometry table by the largest id: keep ids dense.
   if (!spheres.empty()) impl_->add_spheres(spheres, static_cast<uint32_t>(meshes.size()));
-  rtcCommitScene(impl_->scene);
-  if (rtcGetDeviceError(impl_->device) != RTC_ERROR_NONE) fail(impl_->device, "rtcCommitScene");
+  rtcCommitScene(impl_->scene.get());
+  if (rtcGetDeviceError(impl_->device.get()) != RTC_ERROR_NONE) {
+    fail(impl_->device.get(), "rtcCommitScene");
+  }
 }
 
 Bvh::~Bvh() = default;
 
-bool Bvh::intersect(const Ray& ray, RayHit& hit) const {
+std::optional<RayHit> Bvh::intersect(const Ray& ray) const {
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
   RTCRayHit rh;
   float t_scale = 1.f;
-  if (!to_embree(ray, rh.ray, t_scale)) return false;  // nothing can be found from there
+  if (!to_embree(ray, rh.ray, t_scale)) return std::nullopt;  // nothing can be found from there
   rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
   rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-  rtcIntersect1(impl_->scene, &context, &rh);
-  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
+  rtcIntersect1(impl_->scene.get(), &context, &rh);
+  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::nullopt;
+  RayHit hit;
   hit.t = rh.ray.tfar / t_scale;
   hit.geom = rh.hit.geomID == impl_->sphere_id ? kSphereGeometry : rh.hit.geomID;
   hit.prim = rh.hit.primID;
   hit.u = rh.hit.u;
   hit.v = rh.hit.v;
-  return true;
+  return hit;
 }
 
 bool Bvh::occluded(const Ray& ray) const {
@@ -166,7 +191,7 @@ bool Bvh::occluded(const Ray& ray) const {
   float t_scale = 1.f;
   // A segment that cannot be traced counts as blocked: no light leaks through it.
   if (!to_embree(ray, r, t_scale)) return true;
-  rtcOccluded1(impl_->scene, &context, &r);
+  rtcOccluded1(impl_->scene.get(), &context, &r);
   // An occluded ray comes back with tfar = -inf.
   return r.tfar < 0.f;
 }

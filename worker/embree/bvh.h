@@ -2,6 +2,7 @@
 // The only module that calls Embree. The renderer sees intersect(ray) and occluded(segment).
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "common/math/vec3.h"
@@ -48,7 +49,7 @@ class Bvh {
   Bvh& operator=(const Bvh&) = delete;
 
   /// Closest hit in (tnear, tfar), if any.
-  bool intersect(const Ray& ray, RayHit& hit) const;
+  std::optional<RayHit> intersect(const Ray& ray) const;
   /// True when anything lies in (tnear, tfar) along the ray.
   bool occluded(const Ray& ray) const;
 

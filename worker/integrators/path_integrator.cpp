@@ -1,18 +1,18 @@
 #include "worker/integrators/path_integrator.h"
 
 #include <algorithm>
-
-#include "worker/bsdfs/bsdf.h"
+#include <optional>
 
 namespace rayfarm {
 
-PathIntegrator::PathIntegrator(const SceneData& data, const LightSet& lights,
-                               const RenderSettings& settings)
+template <class BsdfT>
+PathIntegratorFor<BsdfT>::PathIntegratorFor(const SceneData& data, const LightSet& lights,
+                                            const RenderSettings& settings)
     : data_(data), lights_(lights), background_(data.scene().background) {
   plan_.integrator = settings.integrator;
   plan_.max_depth = settings.max_depth;
   bool any_diffuse = false;
-  for (const Material& m : data.scene().materials) any_diffuse |= !m.is_specular();
+  for (const Material& m : data.scene().materials) any_diffuse |= !BsdfT(m).is_specular();
   // Light sampling only where there are lights and surfaces that light sampling can serve.
   plan_.sample_lights = settings.integrator != IntegratorType::kNaive && !lights.empty() && any_diffuse;
   // MIS weights matter only when BSDF rays can also find the sampled emitters (area lights).
@@ -21,8 +21,9 @@ PathIntegrator::PathIntegrator(const SceneData& data, const LightSet& lights,
   plan_.emitters_reachable = lights.area_light_count() > 0 || !is_black(background_);
 }
 
-float PathIntegrator::emission_weight(const SurfaceHit& hit, bool specular_bounce, float bsdf_pdf,
-                                      const Vec3& prev_p) const {
+template <class BsdfT>
+float PathIntegratorFor<BsdfT>::emission_weight(const SurfaceHit& hit, bool specular_bounce,
+                                                float bsdf_pdf, const Vec3& prev_p) const {
   // Emitters seen by the camera or through a specular chain, and emitters that light sampling
   // cannot choose (no area in float, or a negligible share of the power): only BSDF rays find
   // them.
@@ -32,8 +33,10 @@ float PathIntegrator::emission_weight(const SurfaceHit& hit, bool specular_bounc
   return power_heuristic(bsdf_pdf, lights_.pdf(hit.light, prev_p, hit.p, hit.n));
 }
 
-Vec3 PathIntegrator::sample_light(const SurfaceHit& hit, const Vec3& wo_local, const Frame& frame,
-                                  const Bsdf& bsdf, Pcg32& rng, uint64_t& rays) const {
+template <class BsdfT>
+Vec3 PathIntegratorFor<BsdfT>::sample_light(const SurfaceHit& hit, const Vec3& wo_local,
+                                            const Frame& frame, const BsdfT& bsdf, Pcg32& rng,
+                                            uint64_t& rays) const {
   const float u_select = rng.next_float(), u1 = rng.next_float(), u2 = rng.next_float();
   LightSample ls;
   if (!lights_.sample(hit.p, u_select, u1, u2, ls)) return Vec3(0.f);
@@ -50,7 +53,8 @@ Vec3 PathIntegrator::sample_light(const SurfaceHit& hit, const Vec3& wo_local, c
   return f * ls.radiance * (w / ls.pdf);
 }
 
-Vec3 PathIntegrator::li(Ray ray, Pcg32& rng, PathStats& stats) const {
+template <class BsdfT>
+Vec3 PathIntegratorFor<BsdfT>::li(Ray ray, Pcg32& rng, PathStats& stats) const {
   uint64_t& rays = stats.rays;
   // The cap stops a path that could still gather light: count it and the weight it carried.
   const auto truncate = [&stats](const Vec3& throughput) {
@@ -66,19 +70,19 @@ Vec3 PathIntegrator::li(Ray ray, Pcg32& rng, PathStats& stats) const {
   Vec3 prev_p;
   for (uint32_t depth = 0;; ++depth) {
     // Find the next vertex; escaped rays see the background.
-    RayHit rh;
     ++rays;
-    if (!data_.bvh().intersect(ray, rh)) {
+    const std::optional<RayHit> rh = data_.bvh().intersect(ray);
+    if (!rh) {
       radiance += beta * background_;
       break;
     }
-    const SurfaceHit hit = data_.resolve(ray, rh);
+    const SurfaceHit hit = data_.resolve(ray, *rh);
     const Material& material = data_.material(hit.material);
     const Vec3 wo = -ray.dir;  // camera and BSDF directions are unit vectors
 
     // Emission reached by BSDF sampling, weighted against light sampling.
     if (material.is_emissive()) {
-      const Vec3 le = LightSet::emitted(material, hit.n, wo);
+      const Vec3 le = emitted_radiance(material, hit.n, wo);
       if (!is_black(le)) radiance += beta * le * emission_weight(hit, specular_bounce, bsdf_pdf, prev_p);
     }
     if (depth == plan_.max_depth) {
@@ -89,7 +93,7 @@ Vec3 PathIntegrator::li(Ray ray, Pcg32& rng, PathStats& stats) const {
     // Light sampling (NEE / MIS) at non-specular vertices.
     const Frame frame(hit.n);
     const Vec3 wo_local = frame.to_local(wo);
-    const Bsdf bsdf(material);
+    const BsdfT bsdf(material);
     if (plan_.sample_lights && !bsdf.is_specular()) {
       radiance += beta * sample_light(hit, wo_local, frame, bsdf, rng, rays);
     }
@@ -121,5 +125,8 @@ Vec3 PathIntegrator::li(Ray ray, Pcg32& rng, PathStats& stats) const {
   }
   return radiance;
 }
+
+template class PathIntegratorFor<Bsdf>;
+template class PathIntegratorFor<DiffuseOnlyBsdf>;
 
 }  // namespace rayfarm

@@ -39,9 +39,14 @@ struct PathStats {
   }
 };
 
-class PathIntegrator {
+/// The path tracer over the BSDF `BsdfT` (bsdf.h): `Bsdf` knows every material kind; the
+/// renderer instantiates it over `DiffuseOnlyBsdf` only for the benchmark of what the other
+/// kinds cost (bench/diffuse_only.sh). Instantiated in path_integrator.cpp for those two.
+template <class BsdfT>
+class PathIntegratorFor {
  public:
-  PathIntegrator(const SceneData& data, const LightSet& lights, const RenderSettings& settings);
+  /// Every material of `data` must be one that BsdfT supports.
+  PathIntegratorFor(const SceneData& data, const LightSet& lights, const RenderSettings& settings);
 
   /// Radiance arriving along `ray` (one sample); adds what the path did to `stats`.
   Vec3 li(Ray ray, Pcg32& rng, PathStats& stats) const;
@@ -50,7 +55,7 @@ class PathIntegrator {
 
  private:
   Vec3 sample_light(const SurfaceHit& hit, const Vec3& wo_local, const Frame& frame,
-                    const Bsdf& bsdf, Pcg32& rng, uint64_t& rays) const;
+                    const BsdfT& bsdf, Pcg32& rng, uint64_t& rays) const;
   float emission_weight(const SurfaceHit& hit, bool specular_bounce, float bsdf_pdf,
                         const Vec3& prev_p) const;
 
@@ -59,6 +64,10 @@ class PathIntegrator {
   IntegratorPlan plan_;
   Vec3 background_;
 };
+
+using PathIntegrator = PathIntegratorFor<Bsdf>;
+extern template class PathIntegratorFor<Bsdf>;
+extern template class PathIntegratorFor<DiffuseOnlyBsdf>;
 
 /// Power heuristic (beta = 2) weight of a strategy with density a against one with density b.
 inline float power_heuristic(float a, float b) {

@@ -1,0 +1,46 @@
+#pragma once
+// The part of sampling that every area light shares: from a point chosen on the emitter to the
+// sample seen from the shading point, and the density of reaching a point of the emitter.
+#include <cmath>
+
+#include "worker/lights/light_sample.h"
+#include "worker/scene_data.h"
+
+namespace rayfarm {
+
+/// Completes `out` for the point p (front normal n, error bound p_error) chosen uniformly on an
+/// emitter of area `area` and material m, which was selected with probability p_select. False
+/// when the sample carries nothing.
+inline bool finish_area_sample(const Vec3& ref, const Vec3& p, const Vec3& n, float p_error,
+                               float area, const Material& m, float p_select, LightSample& out) {
+  // Distances in double: beyond ~1e19 their squares overflow a float, and the light would
+  // silently never be sampled.
+  const double dx = double(p.x) - ref.x, dy = double(p.y) - ref.y, dz = double(p.z) - ref.z;
+  const double dist2 = dx * dx + dy * dy + dz * dz;
+  if (!(dist2 > 0.0)) return false;
+  const double dist = std::sqrt(dist2);
+  out.wi = Vec3(static_cast<float>(dx / dist), static_cast<float>(dy / dist),
+                static_cast<float>(dz / dist));
+  const float cos_light = std::fabs(dot(n, out.wi));
+  if (!(cos_light > 0.f)) return false;
+  out.radiance = emitted_radiance(m, n, -out.wi);
+  if (is_black(out.radiance)) return false;
+  out.pdf = static_cast<float>(p_select * dist2 / (double(cos_light) * area));
+  out.target = offset_ray_origin(p, p_error, dot(n, out.wi) < 0.f ? n : -n);
+  out.delta = false;
+  return std::isfinite(out.pdf) && out.pdf > 0.f;
+}
+
+/// Solid-angle density of reaching the point p (normal n) of an emitter of area `area`, selected
+/// with probability p_select, from `ref`.
+inline float area_light_pdf(float p_select, float area, const Vec3& ref, const Vec3& p,
+                            const Vec3& n) {
+  const double dx = double(p.x) - ref.x, dy = double(p.y) - ref.y, dz = double(p.z) - ref.z;
+  const double dist2 = dx * dx + dy * dy + dz * dz;
+  if (!(dist2 > 0.0)) return 0.f;
+  const double cos_light = std::fabs(n.x * dx + n.y * dy + n.z * dz) / std::sqrt(dist2);
+  if (!(cos_light > 0.0)) return 0.f;
+  return static_cast<float>(p_select * dist2 / (cos_light * area));
+}
+
+}  // namespace rayfarm

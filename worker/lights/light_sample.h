@@ -1,0 +1,23 @@
+#pragma once
+// What every light kind shares: the sample record and the radiance an emitter leaves.
+#include "common/math/vec3.h"
+#include "common/scene/scene.h"
+
+namespace rayfarm {
+
+/// A point chosen on a light, as seen from a shading point.
+struct LightSample {
+  Vec3 wi;          ///< unit direction from the shading point to the light
+  Vec3 radiance;    ///< arriving radiance (area lights) or intensity / distance^2 (point lights)
+  Vec3 target;      ///< end of the shadow ray (offset off the light's surface)
+  float pdf = 0.f;  ///< solid-angle density times selection probability; selection only if delta
+  bool delta = false;
+};
+
+/// Radiance leaving an emitter of material m at a point with front normal n towards direction w.
+inline Vec3 emitted_radiance(const Material& m, const Vec3& n, const Vec3& w) {
+  if (!m.is_emissive()) return Vec3(0.f);
+  return (m.two_sided || dot(n, w) > 0.f) ? m.emission : Vec3(0.f);
+}
+
+}  // namespace rayfarm
