@@ -4,7 +4,7 @@
 # its estimated relMSE is below the target (per tile, or over whole passes with --no-adaptive);
 # both are then measured against a reference rendered with another seed, so that neither can
 # meet the target by underestimating its error. Adaptive tiles stop at error budgets that average
-# to the target (common/image/convergence.h). Prints every run and the medians; see
+# to the target (common/schedule/pass_planner.h). Prints every run and the medians; see
 # docs/benchmarks.md.
 #
 #   bench/adaptive.sh [BUILD_DIR] [TARGET] [ROUNDS] [SIZE] [THREADS]

@@ -54,7 +54,7 @@ rayfarm::TileResult fake_result(const rayfarm::TileRect& rect,
 }
 
 void bench_in_process(uint32_t size, uint32_t tile, uint32_t spp, uint32_t pass_spp) {
-  const rayfarm::master::UnitGrid grid({size, size}, tile, spp, pass_spp);
+  const rayfarm::UnitGrid grid({size, size}, tile, spp, pass_spp);
   std::vector<rayfarm::net::Frames> messages;
   size_t bytes = 0;
   for (uint64_t u = 0; u < grid.size(); ++u) {

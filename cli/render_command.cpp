@@ -117,6 +117,7 @@ int run_render(const RenderArgs& args) {
                   : "");
   }
   ProgressReporter reporter;
+  std::vector<ErrorRow> rows;  // the error record: a row per round of passes, and the final one
   uint32_t rounds_recorded = 0;
   uint64_t samples_recorded = 0;
   RenderProgress final_progress;
@@ -127,20 +128,21 @@ int run_render(const RenderArgs& args) {
     if (p.rounds_done > rounds_recorded || (last && film.pixel_samples() > samples_recorded)) {
       rounds_recorded = p.rounds_done;
       samples_recorded = film.pixel_samples();
-      row = &tracker.record(film, p.seconds);
+      rows.push_back(tracker.record(film, p.seconds));
+      row = &rows.back();
     }
     reporter.update(p, row);
     final_progress = p;
   };
   const Film film = render_local(renderer, options);
   const double seconds = final_progress.seconds;
-  if (tracker.rows().empty()) {
+  if (rows.empty()) {
     // Only a time limit shorter than the first unit gets here: nothing to estimate or write.
     throw std::runtime_error(fmt::format(
         "the time limit ({:g} s) ended the render before its first unit was done; nothing written",
         options.stop.time_limit_s));
   }
-  const ErrorRow& last = tracker.rows().back();
+  const ErrorRow& last = rows.back();
 
   std::map<std::string, std::string> attributes{
       {"rayfarm:integrator", integrator_name(settings.integrator)},
@@ -157,8 +159,8 @@ int run_render(const RenderArgs& args) {
   } else {
     write_png_preview(args.output, film_to_image(film, attributes));
   }
-  write_error_csv(error_csv_path(args.output), tracker.rows());
-  write_error_plot(error_plot_path(args.output), tracker.rows(),
+  write_error_csv(error_csv_path(args.output), rows);
+  write_error_plot(error_plot_path(args.output), rows,
                    fmt::format("{} ({}, {})", std::filesystem::path(args.scene).filename().string(),
                                integrator_name(settings.integrator),
                                tracker.has_reference() ? "estimated and measured" : "estimated"));

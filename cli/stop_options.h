@@ -6,7 +6,7 @@
 
 #include <CLI/CLI.hpp>
 
-#include "common/image/convergence.h"
+#include "common/schedule/stop_rules.h"
 
 namespace rayfarm::cli {
 

@@ -114,19 +114,16 @@ void encode_payload(const Checkpoint& c, Writer& w) {
   w.array(c.merged);
   w.array(c.sum);
   w.array(c.sum_sq);
-  w.array(c.pixel_spp);
   w.pod(c.nonfinite);
   w.pod(c.rays);
   w.pod(uint64_t{c.planner.tiles.size()});
   for (const PlannerState::Tile& t : c.planner.tiles) {
     w.pod(t.released);
-    w.pod(t.merged);
     w.pod(uint8_t{t.open});
     w.pod(uint8_t{t.converged});
     w.pod(t.error);
     w.pod(t.budget);
   }
-  w.array(c.planner.pending);
   w.pod(uint64_t{c.rows.size()});
   for (const ErrorRow& r : c.rows) {
     w.pod(r.time_s);
@@ -149,7 +146,9 @@ bool read_bool(Reader& r, const char* field) {
   return v == 1;
 }
 
-Checkpoint decode_payload(Reader& r) {
+/// Decodes a payload of `version` (1 or kCheckpointVersion).
+Checkpoint decode_payload(Reader& r, uint32_t version) {
+  const bool v1 = version == 1;
   Checkpoint c;
   c.sequence = r.pod<uint64_t>("sequence");
   c.job_id = r.string("job id");
@@ -162,7 +161,7 @@ Checkpoint decode_payload(Reader& r) {
   c.merged = r.array<uint8_t>("merged units");
   c.sum = r.array<Fixed>("sums");
   c.sum_sq = r.array<Fixed>("sums of squares");
-  c.pixel_spp = r.array<uint32_t>("samples per pixel");
+  if (v1) r.array<uint32_t>("samples per pixel");  // what the merged map says
   c.nonfinite = r.pod<uint64_t>("nonfinite");
   c.rays = r.pod<uint64_t>("rays");
   const uint64_t tiles = r.pod<uint64_t>("planner tiles");
@@ -170,14 +169,14 @@ Checkpoint decode_payload(Reader& r) {
   for (uint64_t i = 0; i < tiles; ++i) {
     PlannerState::Tile t;
     t.released = r.pod<uint32_t>("planner tile");
-    t.merged = r.pod<uint32_t>("planner tile");
+    if (v1) r.pod<uint32_t>("planner tile");  // merged units: what the merged map says
     t.open = read_bool(r, "planner tile");
     t.converged = read_bool(r, "planner tile");
     t.error = r.pod<double>("planner tile");
     t.budget = r.pod<double>("planner tile");
     c.planner.tiles.push_back(t);
   }
-  c.planner.pending = r.array<uint64_t>("planner pending units");
+  if (v1) r.array<uint64_t>("planner pending units");  // always empty
   const uint64_t rows = r.pod<uint64_t>("error rows");
   if (rows > (uint64_t{1} << 32)) r.fail("error rows", "too many");
   for (uint64_t i = 0; i < rows; ++i) {
@@ -199,7 +198,7 @@ Checkpoint decode_payload(Reader& r) {
   if (!r.done()) r.fail("end", "bytes left over after the last field");
   // Sizes that must agree with each other (agreement with the job is the caller's check).
   const uint64_t pixels = uint64_t{c.width} * c.height;
-  if (c.sum.size() != pixels * 3 || c.sum_sq.size() != pixels * 3 || c.pixel_spp.size() != pixels) {
+  if (c.sum.size() != pixels * 3 || c.sum_sq.size() != pixels * 3) {
     throw CheckpointError("malformed payload: the film's arrays do not match its size " +
                           std::to_string(c.width) + "x" + std::to_string(c.height));
   }
@@ -217,7 +216,7 @@ std::shared_ptr<spdlog::logger> log_jobs() { return get_logger("jobs"); }
 std::string encode_checkpoint(const Checkpoint& checkpoint) {
   std::string out;
   out.reserve(kHeaderSize + kDigestSize + checkpoint.sum.size() * sizeof(Fixed) * 2 +
-              checkpoint.pixel_spp.size() * 4 + checkpoint.merged.size() + 4096);
+              checkpoint.merged.size() + 4096);
   out.append(kMagic, sizeof kMagic);
   Writer w(out);
   w.pod(kCheckpointVersion);
@@ -242,9 +241,9 @@ Checkpoint decode_checkpoint(const std::string& bytes) {
   uint64_t payload = 0;
   std::memcpy(&version, bytes.data() + 8, sizeof version);
   std::memcpy(&payload, bytes.data() + 12, sizeof payload);
-  if (version != kCheckpointVersion) {
-    throw CheckpointError("format version " + std::to_string(version) + ", this master reads " +
-                          std::to_string(kCheckpointVersion));
+  if (version != kCheckpointVersion && version != 1) {
+    throw CheckpointError("format version " + std::to_string(version) +
+                          ", this master reads 1 to " + std::to_string(kCheckpointVersion));
   }
   const uint64_t available = bytes.size() - kHeaderSize;
   if (payload > available || available - payload != kDigestSize) {
@@ -258,7 +257,7 @@ Checkpoint decode_checkpoint(const std::string& bytes) {
     throw CheckpointError("checksum mismatch (SHA-256): the file is corrupt");
   }
   Reader r(bytes.data() + kHeaderSize, payload);
-  return decode_payload(r);
+  return decode_payload(r, version);
 }
 
 fs::path checkpoint_path(const fs::path& job_dir, int slot) {
@@ -347,11 +346,6 @@ std::string CheckpointWriter::failure(const std::string& job_id) const {
   return it == failures_.end() ? std::string() : it->second;
 }
 
-CheckpointWriter::Stats CheckpointWriter::stats() const {
-  std::lock_guard lock(mutex_);
-  return stats_;
-}
-
 void CheckpointWriter::write(Task& task) {
   const std::string& id = task.checkpoint.job_id;
   if (task.remove) {
@@ -395,15 +389,7 @@ void CheckpointWriter::write(Task& task) {
   } else {
     failures_[id] = failure;
   }
-  if (ok) {
-    newest_slot_[id] = slot;
-    ++stats_.written;
-    stats_.bytes_last = bytes;
-    stats_.seconds_last = seconds;
-    stats_.seconds_max = std::max(stats_.seconds_max, seconds);
-  } else {
-    ++stats_.failed;
-  }
+  if (ok) newest_slot_[id] = slot;
 }
 
 }  // namespace rayfarm::master

@@ -26,14 +26,16 @@
 #include <string>
 #include <vector>
 
-#include "common/image/convergence.h"
 #include "common/image/fixed.h"
 #include "common/report/error_log.h"
+#include "common/schedule/pass_planner.h"
 #include "master/background_writer.h"
 
 namespace rayfarm::master {
 
-inline constexpr uint32_t kCheckpointVersion = 1;
+/// Version 2 dropped what the merged map already says (samples per pixel, per-tile merged counts)
+/// and the planner's always-empty pending list; version 1 files are still read.
+inline constexpr uint32_t kCheckpointVersion = 2;
 
 /// The merged state of one running job.
 struct Checkpoint {
@@ -44,7 +46,6 @@ struct Checkpoint {
   double elapsed_seconds = 0.0;     ///< rendering time so far (from the first unit handed out)
   std::vector<uint8_t> merged;      ///< one byte per unit, 1 when merged
   std::vector<Fixed> sum, sum_sq;   ///< the film's sums, RGB per pixel, row-major
-  std::vector<uint32_t> pixel_spp;  ///< samples merged per pixel
   uint64_t nonfinite = 0, rays = 0;
   PlannerState planner;
   std::vector<ErrorRow> rows;  ///< the error record (error.csv) so far
@@ -60,8 +61,8 @@ class CheckpointError : public std::runtime_error {
 
 /// The bytes of a checkpoint file.
 std::string encode_checkpoint(const Checkpoint& checkpoint);
-/// Parses a checkpoint file's bytes. Throws CheckpointError: truncated, checksum mismatch,
-/// unknown version, malformed payload.
+/// Parses a checkpoint file's bytes (this version or version 1). Throws CheckpointError:
+/// truncated, checksum mismatch, unknown version, malformed payload.
 Checkpoint decode_checkpoint(const std::string& bytes);
 
 /// The file of generation slot `slot` (0 or 1) in a job's folder.
@@ -88,14 +89,6 @@ void remove_checkpoints(const std::filesystem::path& job_dir);
 /// goes to the slot that does not hold the job's newest checkpoint.
 class CheckpointWriter {
  public:
-  struct Stats {
-    uint64_t written = 0;
-    uint64_t failed = 0;
-    uint64_t bytes_last = 0;
-    double seconds_last = 0.0;  ///< encode + checksum + write + sync + rename of the last one
-    double seconds_max = 0.0;
-  };
-
   /// Queues `checkpoint` for the job whose folder is `job_dir`.
   void submit(const std::filesystem::path& job_dir, Checkpoint checkpoint);
   /// The job's newest checkpoint is in slot `slot` (it was loaded from there).
@@ -105,7 +98,6 @@ class CheckpointWriter {
   /// Drops the job's queued checkpoint and queues the deletion of both files (after a checkpoint
   /// of the job being written, if any), without waiting.
   void forget(const std::string& job_id, const std::filesystem::path& job_dir);
-  Stats stats() const;
   /// Why the job's latest checkpoint could not be written; "" when it was (or none was tried).
   std::string failure(const std::string& job_id) const;
 
@@ -115,10 +107,9 @@ class CheckpointWriter {
     Checkpoint checkpoint;
     bool remove = false;  // delete the job's checkpoints instead
   };
-  mutable std::mutex mutex_;  // guards newest_slot_ and stats_
+  mutable std::mutex mutex_;  // guards newest_slot_ and failures_
   std::map<std::string, int> newest_slot_;
   std::map<std::string, std::string> failures_;  // job id -> why its latest checkpoint failed
-  Stats stats_;
   BackgroundWriter<Task> tasks_{[this](Task& task) { write(task); }};  // last: uses the above
 
   void write(Task& task);

@@ -9,8 +9,8 @@
 #include <cstddef>
 #include <vector>
 
-#include "common/image/convergence.h"
 #include "common/report/error_log.h"
+#include "common/schedule/stop_rules.h"
 
 namespace rayfarm::master {
 

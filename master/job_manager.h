@@ -3,6 +3,11 @@
 // its units through the Scheduler, merging results through a Merger per job, writing the
 // progressive image and the job's record through the JobStore, and answering status queries.
 // The broker (broker.h) calls it from its one thread; nothing here is thread-safe.
+//
+// One facade, one file per concept: job_admission.cpp (what submit checks), job_recovery.cpp
+// (checkpoints, and resuming from them), job_status.cpp (what status and list report),
+// job_finish.cpp (how a job ends, on disk) and job_manager.cpp (the lifecycle between: leases,
+// results, failures, cancel, retry). A running job's parts are one ActiveJob (active_job.h).
 #include <chrono>
 #include <cstdint>
 #include <functional>
@@ -14,8 +19,7 @@
 #include <unordered_map>
 #include <vector>
 
-#include "common/image/convergence.h"
-#include "common/report/error_tracker.h"
+#include "master/active_job.h"
 #include "common/scene/parser.h"
 #include "master/checkpoint.h"
 #include "master/image_writer.h"
@@ -148,46 +152,14 @@ class JobManager {
   size_t active_jobs() const;
   /// A message for clients: the data dir's path replaced by "<data dir>".
   std::string for_clients(const std::string& text) const;
-  /// Figures of the checkpoint writer (how many, how long the last took).
-  CheckpointWriter::Stats checkpoint_stats() const { return checkpoints_.stats(); }
 
  private:
   struct Job {
     JobRecord record;
-    std::unique_ptr<Merger> merger;  // while queued or running
-    std::unique_ptr<PassPlanner> planner;   // which units the stopping rules still need
-    std::unique_ptr<ErrorTracker> tracker;  // computes the error rows
-    std::vector<ErrorRow> rows;             // error against time, one row per round of passes
-    uint32_t rounds_recorded = 0;
-    uint64_t samples_recorded = 0;  // pixel samples behind the last error row
-    bool started = false;
-    Clock::time_point start_time;
-    Clock::time_point last_write;
-    bool dirty = false;  // merged since the last image write
-    // Failures: per unit, the keys (or workers, without keys) it failed under and their
-    // messages; per key, how many.
-    std::map<uint64_t, std::map<std::string, std::string>> unit_failures;
-    std::map<std::string, int> worker_failures;
-    std::optional<Clock::time_point> all_blocked_since;  // every connected worker is blocked
-    // Who was leased each unit not merged yet, connection and key (a lost worker's late result is
-    // still its own; a peer that takes over its connection id with another key is not).
-    std::unordered_map<uint64_t, std::vector<std::pair<WorkerId, std::string>>> lease_history;
-    // Checkpoints.
-    uint64_t checkpoint_sequence = 0;
-    bool checkpoint_due = false;  // merged since the last checkpoint
-    Clock::time_point last_checkpoint;
-    std::map<WorkerId, Clock::time_point> contributors;  // last result from each worker
-    // Storage. A job whose work is over is reported finished only once its final image and
-    // record are on disk; until then `finishing` says how it will end, it stays running, keeps
-    // its checkpoints and retries with back-off. `storage_error` says why the job's image,
-    // checkpoint or record cannot be written now ("" when all is well).
-    struct Finishing {
-      wire::JobState state = wire::JOB_DONE;
-      std::string error;
-      StopReason reason = StopReason::kSpp;
-      double elapsed = 0.0;
-    };
-    std::optional<Finishing> finishing;
+    std::unique_ptr<ActiveJob> active;  // exactly while queued or running
+    uint64_t checkpoint_sequence = 0;   // of its newest checkpoint (they outlive a retry's start)
+    // Storage: `storage_error` says why the job's image, checkpoint or record cannot be written
+    // now ("" when all is well); it is tried again at storage_retry.
     bool record_unsaved = false;  // the job's record could not be saved: retried
     std::string storage_error;
     Clock::time_point storage_retry;
@@ -203,10 +175,16 @@ class JobManager {
   std::map<std::string, Job> jobs_;
   std::map<std::string, std::string> bundle_owner_;  // bundle hash -> a job that has it
 
-  /// Gives the job its merger, planner and error tracker; `reference` when already read.
+  /// Makes the job active (queued, nothing merged) and hands its released units to the
+  /// scheduler; `reference` when already read.
   void activate(Job& job, std::optional<Image> reference = std::nullopt);
-  /// Brings a freshly activated job to the state of its newest usable checkpoint; false when it
-  /// has none (it starts from the beginning). Logs what it used and what it could not.
+  /// The job's parts, nothing merged; its reference image is read from the store unless given.
+  std::unique_ptr<ActiveJob> make_active(const JobSpec& spec, std::optional<Image> reference);
+  /// Gives the scheduler the units of an active job that are released and not merged.
+  void schedule(Job& job);
+  /// Brings a job made active but not scheduled to the state of its newest usable checkpoint;
+  /// false when it has none (it starts from the beginning). Logs what it used and what it could
+  /// not.
   bool resume(Job& job);
   /// Queues a checkpoint of the job's merged state.
   void checkpoint(Job& job);
@@ -216,7 +194,6 @@ class JobManager {
   /// Fails the job when every connected worker has been blocked from it for blocked_grace; true
   /// when it did.
   bool fail_if_nobody_can_render(Job& job, Clock::time_point now);
-  void record_row(Job& job);
   /// The reference image in `exr`; throws JobRejected unless it is a readable EXR of the film's
   /// size.
   Image check_reference_bytes(const std::string& exr, FilmSize film) const;
@@ -233,9 +210,10 @@ class JobManager {
   /// The final image and record of a job whose work is over; "" when both are on disk, else why.
   std::string store_final(Job& job, const JobRecord& final_record, bool image);
 
-  double elapsed(const Job& job) const;
+  /// Seconds of rendering: the record's once the job is over.
+  static double elapsed(const Job& job);
   wire::JobStatus make_status(const Job& job, uint32_t workers_total) const;
-  uint32_t workers_active(const Job& job) const;
+  static uint32_t workers_active(const ActiveJob& job);
   std::string name_of(const WorkerId& worker) const;
 };
 

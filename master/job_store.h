@@ -19,8 +19,8 @@
 #include <string>
 #include <vector>
 
-#include "common/image/convergence.h"
 #include "common/scene/scene.h"
+#include "common/schedule/stop_rules.h"
 #include "proto/rayfarm.pb.h"
 
 namespace rayfarm::master {

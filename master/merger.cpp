@@ -17,8 +17,7 @@ std::string describe(const TileRect& r, const SampleRange& s) {
 Merger::Merger(UnitGrid grid)
     : grid_(std::move(grid)),
       film_(grid_.film().width, grid_.film().height),
-      merged_(grid_.size(), false),
-      merged_per_pass_(grid_.pass_count(), 0),
+      merged_(grid_),
       tile_spp_(grid_.tile_count(), 0) {}
 
 MergeOutcome Merger::add(uint64_t unit, const TileResult& result, std::string* why) {
@@ -30,7 +29,7 @@ MergeOutcome Merger::add(uint64_t unit, const TileResult& result, std::string* w
     return reject("unit " + std::to_string(unit) + " does not exist (the job has " +
                   std::to_string(grid_.size()) + " units)");
   }
-  if (merged_[unit]) return MergeOutcome::kDuplicate;
+  if (merged_.contains(unit)) return MergeOutcome::kDuplicate;
   const UnitGrid::Unit expected = grid_.unit(unit);
   if (!(result.rect == expected.rect) || !(result.samples == expected.samples)) {
     return reject("unit " + std::to_string(unit) + " is " +
@@ -47,56 +46,37 @@ MergeOutcome Merger::add(uint64_t unit, const TileResult& result, std::string* w
     return reject("unit " + std::to_string(unit) + ": impossible sums: " + problem);
   }
   film_.add(result);
-  merged_[unit] = true;
-  ++merged_count_;
-  ++merged_per_pass_[expected.pass];
-  tile_spp_[grid_.tile_of(unit)] += expected.samples.count();
+  merged_.add(unit);
+  tile_spp_[expected.tile] += expected.samples.count();
   samples_merged_ += uint64_t{expected.rect.pixel_count()} * expected.samples.count();
   return MergeOutcome::kMerged;
 }
 
-std::vector<uint8_t> Merger::merged_map() const {
-  return std::vector<uint8_t>(merged_.begin(), merged_.end());
-}
-
 void Merger::restore(const std::vector<uint8_t>& merged, const std::vector<Fixed>& sum,
-                     const std::vector<Fixed>& sum_sq, const std::vector<uint32_t>& pixel_spp,
-                     uint64_t nonfinite, uint64_t rays) {
+                     const std::vector<Fixed>& sum_sq, uint64_t nonfinite, uint64_t rays) {
   auto fail = [](const std::string& why) { throw std::invalid_argument(why); };
   const FilmSize size = grid_.film();
   const size_t pixels = size_t{size.width} * size.height;
-  if (merged.size() != grid_.size()) {
-    fail(std::to_string(merged.size()) + " units in the merged map, the job has " +
-         std::to_string(grid_.size()));
-  }
-  if (sum.size() != pixels * 3 || sum_sq.size() != pixels * 3 || pixel_spp.size() != pixels) {
+  MergedUnits units = MergedUnits::from_bytes(grid_, merged);
+  if (sum.size() != pixels * 3 || sum_sq.size() != pixels * 3) {
     fail("the sums do not match the film's size");
   }
-  const uint32_t tiles = grid_.tile_count();
-  std::vector<uint32_t> tile_spp(tiles, 0);
-  std::vector<uint32_t> per_pass(grid_.pass_count(), 0);
-  uint64_t count = 0, samples = 0;
-  for (uint64_t unit = 0; unit < merged.size(); ++unit) {
-    if (!merged[unit]) continue;
+  std::vector<uint32_t> tile_spp(grid_.tile_count(), 0);
+  uint64_t samples = 0;
+  for (uint64_t unit = 0; unit < grid_.size(); ++unit) {
+    if (!units.contains(unit)) continue;
     const UnitGrid::Unit u = grid_.unit(unit);
-    tile_spp[unit % tiles] += u.samples.count();
-    ++per_pass[u.pass];
-    ++count;
+    tile_spp[u.tile] += u.samples.count();
     samples += uint64_t{u.rect.pixel_count()} * u.samples.count();
   }
   Film film(size.width, size.height);
   bool totals_added = false;
-  for (uint32_t t = 0; t < tiles; ++t) {
-    const TileRect rect = grid_.unit(t).rect;
+  for (uint32_t t = 0; t < grid_.tile_count(); ++t) {
+    const TileRect rect = grid_.tile(t);
     TileResult r(rect, {0, tile_spp[t]});
     for (uint32_t y = rect.y0; y < rect.y1; ++y) {
       for (uint32_t x = rect.x0; x < rect.x1; ++x) {
         const size_t p = size_t{y} * size.width + x;
-        if (pixel_spp[p] != tile_spp[t]) {
-          fail("pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") has " +
-               std::to_string(pixel_spp[p]) + " samples, its merged units give " +
-               std::to_string(tile_spp[t]));
-        }
         const size_t src = (size_t{y - rect.y0} * rect.width() + (x - rect.x0)) * 3;
         for (int c = 0; c < 3; ++c) {
           r.sum[src + c] = sum[p * 3 + c];
@@ -118,22 +98,13 @@ void Merger::restore(const std::vector<uint8_t>& merged, const std::vector<Fixed
   }
   if (!totals_added && (nonfinite != 0 || rays != 0)) fail("rays counted but no unit merged");
   film_ = std::move(film);
-  merged_.assign(merged.begin(), merged.end());
-  merged_per_pass_ = std::move(per_pass);
+  merged_ = std::move(units);
   tile_spp_ = std::move(tile_spp);
-  merged_count_ = count;
   samples_merged_ = samples;
 }
 
 uint32_t Merger::min_spp() const {
   return tile_spp_.empty() ? 0 : *std::min_element(tile_spp_.begin(), tile_spp_.end());
-}
-
-uint32_t Merger::passes_complete() const {
-  uint32_t passes = 0;
-  while (passes < merged_per_pass_.size() && merged_per_pass_[passes] == grid_.tile_count())
-    ++passes;
-  return passes;
 }
 
 }  // namespace rayfarm::master

@@ -1,14 +1,16 @@
 #pragma once
 // Merges the results of one job into its Film, each unit exactly once. A result is checked against
 // the unit it claims to be (tile, sample range, sizes) before Film::add, which CHECKs; a second
-// result for a merged unit is a duplicate and is dropped. The film's fixed-point sums make the
-// image independent of the order of arrival (common/image/film.h).
+// result for a merged unit is a duplicate and is dropped. The merger owns which units are merged
+// (merged_units()): the planner and the job manager read it from here. The film's fixed-point sums
+// make the image independent of the order of arrival (common/image/film.h).
 #include <cstdint>
 #include <string>
 #include <vector>
 
 #include "common/image/film.h"
-#include "master/unit_grid.h"
+#include "common/schedule/merged_units.h"
+#include "common/schedule/unit_grid.h"
 
 namespace rayfarm::master {
 
@@ -26,11 +28,11 @@ class Merger {
   /// Merges `result` as unit `unit`. On kRejected, `why` (when given) names the mismatch.
   MergeOutcome add(uint64_t unit, const TileResult& result, std::string* why = nullptr);
 
-  bool merged(uint64_t unit) const { return unit < merged_.size() && merged_[unit]; }
-  uint64_t merged_count() const { return merged_count_; }
-  bool complete() const { return merged_count_ == grid_.size(); }
-  /// Passes merged over the whole image, counting from pass 0 without a gap.
-  uint32_t passes_complete() const;
+  bool merged(uint64_t unit) const { return merged_.contains(unit); }
+  uint64_t merged_count() const { return merged_.count(); }
+  bool complete() const { return merged_.all(); }
+  /// The units merged so far.
+  const MergedUnits& merged_units() const { return merged_; }
   /// Pixel samples merged so far.
   uint64_t samples_merged() const { return samples_merged_; }
   /// Fewest samples of any pixel: the film's min_spp(), from the tiles (O(tiles), not O(pixels);
@@ -38,24 +40,18 @@ class Merger {
   uint32_t min_spp() const;
   const Film& film() const { return film_; }
   const UnitGrid& grid() const { return grid_; }
-  /// One byte per unit, 1 when merged (for a checkpoint).
-  std::vector<uint8_t> merged_map() const;
-
-  /// Replaces what is merged with a checkpoint's state: the merged units and the film's sums.
-  /// The film is rebuilt tile by tile, so each tile's samples per pixel must be exactly the
-  /// samples of its merged units, and a tile with none must have zero sums. Throws
+  /// Replaces what is merged with a checkpoint's state: the merged units (one byte per unit,
+  /// MergedUnits::to_bytes) and the film's sums. The film is rebuilt tile by tile, each pixel
+  /// with the samples of its tile's merged units; a tile with none must have zero sums. Throws
   /// std::invalid_argument naming the inconsistency; the merger is unchanged then.
   void restore(const std::vector<uint8_t>& merged, const std::vector<Fixed>& sum,
-               const std::vector<Fixed>& sum_sq, const std::vector<uint32_t>& pixel_spp,
-               uint64_t nonfinite, uint64_t rays);
+               const std::vector<Fixed>& sum_sq, uint64_t nonfinite, uint64_t rays);
 
  private:
   UnitGrid grid_;
   Film film_;
-  std::vector<bool> merged_;
-  std::vector<uint32_t> merged_per_pass_;
+  MergedUnits merged_;
   std::vector<uint32_t> tile_spp_;  // samples per pixel merged in each tile
-  uint64_t merged_count_ = 0;
   uint64_t samples_merged_ = 0;
 };
 

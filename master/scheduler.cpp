@@ -12,28 +12,40 @@ constexpr size_t kDurationWindow = 64;
 
 }  // namespace
 
-void Scheduler::add_job(const std::string& job, uint64_t unit_count, bool gated) {
+void Scheduler::add_job(const std::string& job) {
   RAYFARM_CHECK(jobs_.count(job) == 0, "job added twice to the scheduler");
-  Job j;
-  j.total = unit_count;
-  j.gated = gated;
-  j.released = gated ? 0 : unit_count;
-  if (gated) j.was_released.assign(unit_count, false);
-  j.done.assign(unit_count, false);
-  jobs_.emplace(job, std::move(j));
+  jobs_.emplace(job, Job{});
   order_.push_back(job);
 }
 
 void Scheduler::release(const std::string& job, const std::vector<uint64_t>& units) {
   auto it = jobs_.find(job);
-  if (it == jobs_.end() || !it->second.gated) return;
-  Job& j = it->second;
-  for (uint64_t u : units) {
-    if (u >= j.total || j.was_released[u]) continue;
-    j.was_released[u] = true;
-    ++j.released;
-    if (!j.done[u]) j.ready.insert(u);
+  if (it == jobs_.end()) return;
+  it->second.ready.insert(units.begin(), units.end());
+}
+
+void Scheduler::release_all(const std::string& job, uint64_t unit_count) {
+  auto it = jobs_.find(job);
+  if (it == jobs_.end()) return;
+  RAYFARM_CHECK(it->second.fresh_end == 0, "every unit of a job released twice");
+  it->second.next_fresh = 0;
+  it->second.fresh_end = unit_count;
+}
+
+std::optional<uint64_t> Scheduler::take_pending(Job& j) {
+  if (!j.requeued.empty()) {
+    const uint64_t unit = *j.requeued.begin();
+    j.requeued.erase(j.requeued.begin());
+    return unit;
   }
+  const bool fresh = j.next_fresh < j.fresh_end;
+  if (!j.ready.empty() && (!fresh || *j.ready.begin() < j.next_fresh)) {
+    const uint64_t unit = *j.ready.begin();
+    j.ready.erase(j.ready.begin());
+    return unit;
+  }
+  if (fresh) return j.next_fresh++;
+  return std::nullopt;
 }
 
 void Scheduler::remove_job(const std::string& job) {
@@ -52,19 +64,7 @@ std::optional<UnitRef> Scheduler::lease(const WorkerId& worker, Clock::time_poin
   for (const auto& name : order_) {
     Job& j = jobs_.at(name);
     if (j.blocked.count(who)) continue;
-    std::optional<uint64_t> unit;
-    if (!j.requeued.empty()) {
-      unit = *j.requeued.begin();
-      j.requeued.erase(j.requeued.begin());
-    } else if (j.gated) {
-      if (!j.ready.empty()) {
-        unit = *j.ready.begin();
-        j.ready.erase(j.ready.begin());
-      }
-    } else {
-      while (j.next_fresh < j.total && j.done[j.next_fresh]) ++j.next_fresh;
-      if (j.next_fresh < j.total) unit = j.next_fresh++;
-    }
+    const std::optional<uint64_t> unit = take_pending(j);
     if (!unit) continue;
     j.leased[*unit] = {Job::Holder{worker, now}};
     by_worker_[worker].insert(UnitRef{name, *unit});
@@ -147,8 +147,9 @@ bool Scheduler::complete(const UnitRef& unit, const std::optional<WorkerId>& by,
   auto it = jobs_.find(unit.job);
   if (it == jobs_.end()) return false;
   Job& j = it->second;
-  if (unit.unit >= j.total || j.done[unit.unit]) return false;
+  bool held = false;
   if (auto l = j.leased.find(unit.unit); l != j.leased.end()) {
+    held = true;
     for (const auto& h : l->second) {
       if (by && h.worker == *by) {
         j.durations.push_back(std::chrono::duration<double>(now - h.since).count());
@@ -158,11 +159,9 @@ bool Scheduler::complete(const UnitRef& unit, const std::optional<WorkerId>& by,
     }
     j.leased.erase(l);
   }
-  j.requeued.erase(unit.unit);
-  j.ready.erase(unit.unit);
-  j.done[unit.unit] = true;
-  ++j.done_count;
-  return true;
+  held = j.requeued.erase(unit.unit) > 0 || held;
+  held = j.ready.erase(unit.unit) > 0 || held;
+  return held;
 }
 
 bool Scheduler::requeue(const UnitRef& unit) {
@@ -233,37 +232,9 @@ bool Scheduler::holds(const UnitRef& unit, const WorkerId& worker) const {
   return w != by_worker_.end() && w->second.count(unit) != 0;
 }
 
-double Scheduler::median_seconds(const std::string& job) const {
-  auto it = jobs_.find(job);
-  return it == jobs_.end() ? 0.0 : median(it->second.durations);
-}
-
-std::optional<WorkerId> Scheduler::holder(const UnitRef& unit) const {
-  auto it = jobs_.find(unit.job);
-  if (it == jobs_.end()) return std::nullopt;
-  auto l = it->second.leased.find(unit.unit);
-  if (l == it->second.leased.end() || l->second.empty()) return std::nullopt;
-  return l->second.front().worker;
-}
-
-std::vector<WorkerId> Scheduler::holders(const UnitRef& unit) const {
-  std::vector<WorkerId> out;
-  auto it = jobs_.find(unit.job);
-  if (it == jobs_.end()) return out;
-  auto l = it->second.leased.find(unit.unit);
-  if (l == it->second.leased.end()) return out;
-  for (const auto& h : l->second) out.push_back(h.worker);
-  return out;
-}
-
-bool Scheduler::is_done(const UnitRef& unit) const {
-  auto it = jobs_.find(unit.job);
-  return it != jobs_.end() && unit.unit < it->second.total && it->second.done[unit.unit];
-}
-
 bool Scheduler::has_pending() const {
   for (const auto& [name, j] : jobs_) {
-    if (j.done_count + j.leased.size() < j.released) return true;
+    if (!j.requeued.empty() || !j.ready.empty() || j.next_fresh < j.fresh_end) return true;
   }
   return false;
 }
@@ -273,21 +244,13 @@ Scheduler::Counts Scheduler::counts(const std::string& job) const {
   auto it = jobs_.find(job);
   if (it == jobs_.end()) return c;
   const Job& j = it->second;
-  c.total = j.released;
-  c.done = j.done_count;
   c.leased = j.leased.size();
-  c.pending = j.released > j.done_count + c.leased ? j.released - j.done_count - c.leased : 0;
   std::set<WorkerId> workers;
   for (const auto& [unit, holders] : j.leased) {
     for (const auto& h : holders) workers.insert(h.worker);
   }
   c.workers = static_cast<uint32_t>(workers.size());
   return c;
-}
-
-size_t Scheduler::leases_of(const WorkerId& worker) const {
-  auto w = by_worker_.find(worker);
-  return w == by_worker_.end() ? 0 : w->second.size();
 }
 
 std::vector<UnitRef> Scheduler::leased_units(const WorkerId& worker) const {

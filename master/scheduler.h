@@ -1,10 +1,12 @@
 #pragma once
 // Leases units of work to workers that ask for them. Knows nothing of sockets or images: a job is
-// a name and a number of units; a worker is an opaque id. Jobs are served in the order they were
-// added; within a job the lowest-numbered pending unit goes first (pass-major, unit_grid.h). A
-// worker's leases go back to the queue when it is lost, ahead of units never handed out. A gated
-// job (one with a target error, common/image/convergence.h) has only the units its planner has
-// released so far; the others are not pending until released.
+// a name and the units released to it; a worker is an opaque id. The scheduler owns leases and
+// the queue of units waiting for one, nothing else: which units are released is the pass
+// planner's (common/schedule/pass_planner.h), which are merged the merger's, and the job manager
+// releases a unit here once, when it is released and not merged. Jobs are served in the order
+// they were added; within a job the lowest-numbered pending unit goes first (pass-major,
+// common/schedule/unit_grid.h). A worker's leases go back to the queue when it is lost, ahead of
+// units never handed out.
 //
 // Failures and slow workers: a worker can be blocked from a job (it keeps failing there) and is
 // then given only other jobs' units. A unit leased for much longer than its job's median unit
@@ -54,18 +56,18 @@ class Scheduler {
   };
 
   struct Counts {
-    uint64_t total = 0, pending = 0, leased = 0, done = 0;  ///< total: released so far
+    uint64_t leased = 0;   ///< units leased now
     uint32_t workers = 0;  ///< distinct workers holding leases of the job
   };
 
-  /// Adds a job of `unit_count` units, all pending, or (gated) none pending until released.
-  /// A job id already present is a CHECK.
-  void add_job(const std::string& job, uint64_t unit_count, bool gated = false);
-  /// Makes units of a gated job pending. Units out of range or released before are ignored.
+  /// Adds a job with no unit pending yet. A job id already present is a CHECK.
+  void add_job(const std::string& job);
+  /// Makes `units` of the job pending. Each unit is released once (the caller's planner decides).
   void release(const std::string& job, const std::vector<uint64_t>& units);
+  /// Makes units [0, unit_count) of the job pending: a job that needs every unit, held in O(1).
+  void release_all(const std::string& job, uint64_t unit_count);
   /// Forgets a job (finished or cancelled) and its leases.
   void remove_job(const std::string& job);
-  bool has_job(const std::string& job) const { return jobs_.count(job) != 0; }
 
   /// Leases the next pending unit of a job `worker` is not blocked from; nullopt when none.
   /// `key` names the identity blocks apply to (the worker's key, shared by every connection made
@@ -80,9 +82,10 @@ class Scheduler {
                                                 const std::string& key = {});
   /// Some leased unit is a straggler that no second worker holds yet.
   bool has_straggler(const StragglerPolicy& policy, Clock::time_point now = Clock::now()) const;
-  /// Marks a unit done, whoever held it and even when it was back in the queue; every lease of
-  /// it ends. `by`, when it held a lease, gives the unit's duration to the job's median. Returns
-  /// false when the job is unknown, the unit out of range, or the unit already done.
+  /// The unit is merged, whoever held it and even when it was back in the queue: every lease of
+  /// it ends and it leaves the queue for good. `by`, when it held a lease, gives the unit's
+  /// duration to the job's median. Returns false when the unit was neither leased nor queued
+  /// (an unknown job, or a unit completed before).
   bool complete(const UnitRef& unit, const std::optional<WorkerId>& by = std::nullopt,
                 Clock::time_point now = Clock::now());
   /// Puts a leased unit back in the queue, dropping every lease of it. False when not leased.
@@ -100,37 +103,23 @@ class Scheduler {
   bool is_blocked(const std::string& job, const std::string& who) const;
   /// Whether `worker` holds a lease of `unit` now.
   bool holds(const UnitRef& unit, const WorkerId& worker) const;
-  /// The job's median unit duration so far (lease to result), in seconds; 0 when none is done.
-  double median_seconds(const std::string& job) const;
-
-  /// The first worker holding `unit`, when it is leased.
-  std::optional<WorkerId> holder(const UnitRef& unit) const;
-  /// Every worker holding `unit` (two while a straggler runs twice).
-  std::vector<WorkerId> holders(const UnitRef& unit) const;
-  bool is_done(const UnitRef& unit) const;
+  /// Some unit of some job waits for a lease.
   bool has_pending() const;
   Counts counts(const std::string& job) const;
-  /// Units leased to `worker`.
-  size_t leases_of(const WorkerId& worker) const;
   /// The units leased to `worker`, in order.
   std::vector<UnitRef> leased_units(const WorkerId& worker) const;
 
  private:
   struct Job {
-    uint64_t total = 0;
-    bool gated = false;
-    uint64_t released = 0;  // gated: units released so far
-    std::vector<bool> was_released;
-    std::set<uint64_t> ready;  // gated: released, never handed out
-    uint64_t done_count = 0;
-    uint64_t next_fresh = 0;      // units below it were handed out at least once
-    std::set<uint64_t> requeued;  // units handed out, taken back, not done
+    // Released, never handed out: the units of `ready` and those of [next_fresh, fresh_end).
+    std::set<uint64_t> ready;
+    uint64_t next_fresh = 0, fresh_end = 0;
+    std::set<uint64_t> requeued;  // units handed out, taken back, not merged
     struct Holder {
       WorkerId worker;
       Clock::time_point since;
     };
     std::map<uint64_t, std::vector<Holder>> leased;  // one holder, two for a straggler
-    std::vector<bool> done;
     std::set<std::string> blocked;  // workers or keys
     std::deque<double> durations;  // seconds of the latest units done
   };
@@ -139,6 +128,9 @@ class Scheduler {
   std::map<WorkerId, std::set<UnitRef>> by_worker_;  // leases per worker
 
   void drop_lease(const WorkerId& worker, const UnitRef& unit);
+  /// The next unit of `j` to lease (requeued first, then the lowest fresh one), taken out of the
+  /// queue; nullopt when none is pending.
+  static std::optional<uint64_t> take_pending(Job& j);
   static double median(const std::deque<double>& values);
   /// The threshold past which a lease of `j` is a straggler; nullopt when the policy is off or
   /// the median is not trusted yet.

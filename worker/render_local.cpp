@@ -6,6 +6,8 @@
 #include <chrono>
 #include <mutex>
 
+#include "common/schedule/pass_planner.h"
+#include "common/schedule/unit_grid.h"
 #include "worker/renderer.h"
 
 namespace rayfarm {
@@ -16,16 +18,15 @@ Film render_local(const Renderer& renderer, const LocalRenderOptions& options) {
   const FilmSize size = renderer.film();
   const uint32_t pass_spp =
       options.pass_spp > 0 ? options.pass_spp : default_pass_spp(options.tile_size, settings.spp);
-  const std::vector<TileRect> tiles = split_tiles(size, options.tile_size);
-  const std::vector<SampleRange> passes = split_passes(settings.spp, pass_spp);
-  const uint64_t tile_count = tiles.size();
-  PassPlanner planner(tiles, static_cast<uint32_t>(passes.size()), pass_spp, options.stop);
+  const UnitGrid grid(size, options.tile_size, settings.spp, pass_spp);
+  PassPlanner planner(grid, options.stop);
+  MergedUnits merged(grid);
 
   Film film(size.width, size.height);
   RenderProgress progress;
-  progress.units_total = tile_count * passes.size();
-  progress.passes_total = static_cast<uint32_t>(passes.size());
-  progress.tiles_total = static_cast<uint32_t>(tile_count);
+  progress.units_total = grid.size();
+  progress.passes_total = grid.pass_count();
+  progress.tiles_total = grid.tile_count();
   const auto start = Clock::now();
   const bool limited = options.stop.time_limit_s > 0;
   const auto deadline =
@@ -35,7 +36,7 @@ Film render_local(const Renderer& renderer, const LocalRenderOptions& options) {
 
   auto report = [&] {
     progress.units_released = planner.units_released();
-    progress.rounds_done = planner.rounds_complete();
+    progress.rounds_done = planner.rounds_complete(merged);
     progress.tiles_converged = planner.tiles_converged();
     progress.seconds = std::chrono::duration<double>(Clock::now() - start).count();
     if (options.on_progress) options.on_progress(progress, film);
@@ -55,9 +56,9 @@ Film render_local(const Renderer& renderer, const LocalRenderOptions& options) {
   }
   arena.execute([&] {
     while (!ready.empty() && !out_of_time) {
-      const uint64_t pass = ready.front() / tile_count;
+      const uint32_t pass = grid.pass_of(ready.front());
       const auto end = std::find_if(ready.begin(), ready.end(),
-                                    [&](uint64_t u) { return u / tile_count != pass; });
+                                    [&](uint64_t u) { return grid.pass_of(u) != pass; });
       const std::vector<uint64_t> wave(ready.begin(), end);
       ready.erase(ready.begin(), end);
       tbb::parallel_for(size_t{0}, wave.size(), [&](size_t i) {
@@ -65,12 +66,13 @@ Film render_local(const Renderer& renderer, const LocalRenderOptions& options) {
           out_of_time = true;
           return;
         }
-        const uint64_t unit = wave[i];
-        TileResult result = renderer.render(tiles[unit % tile_count], passes[unit / tile_count]);
+        const UnitGrid::Unit unit = grid.unit(wave[i]);
+        TileResult result = renderer.render(unit.rect, unit.samples);
         std::lock_guard lock(film_mutex);
         film.add(result);
-        planner.on_merged(unit, film);
-        ++progress.units_done;
+        merged.add(unit.id);
+        planner.on_merged(unit.id, merged, film);
+        progress.units_done = merged.count();
         report();
       });
       if (planner.gated()) {

@@ -6,9 +6,9 @@
 #include <memory>
 #include <string>
 
-#include "common/image/convergence.h"
 #include "common/image/film.h"
 #include "common/scene/scene.h"
+#include "common/schedule/stop_rules.h"
 
 namespace rayfarm {
 
@@ -91,7 +91,7 @@ struct LocalRenderOptions {
   std::function<void(const RenderProgress&, const Film&)> on_progress;  ///< may be empty
 };
 
-/// Renders the image on this machine: every unit the stopping rules need (convergence.h), pass
+/// Renders the image on this machine: every unit the stopping rules need (pass_planner.h), pass
 /// by pass. With a target error (and no time limit) the image equals the farm's bit for bit.
 Film render_local(const Renderer& renderer, const LocalRenderOptions& options);
 

@@ -82,7 +82,7 @@ ErrorEstimate estimate_error(const Film& film, const TileRect& rect_in) {
   long double rel = 0, mse = 0;
   for (uint32_t y = rect.y0; y < rect.y1; ++y) {
     // The 3x3 neighbourhood within `rect`: a tile's estimate is a function of the tile's own
-    // samples (convergence.h relies on it). A firefly is one pixel: it cannot move the median.
+    // samples (the pass planner relies on it). A firefly is one pixel: it cannot move the median.
     const uint32_t ny0 = y > rect.y0 ? y - 1 : y, ny1 = std::min(y + 1, rect.y1 - 1);
     for (uint32_t x = rect.x0; x < rect.x1; ++x) {
       const uint32_t nx0 = x > rect.x0 ? x - 1 : x, nx1 = std::min(x + 1, rect.x1 - 1);

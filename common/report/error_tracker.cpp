@@ -21,7 +21,7 @@ Image load_reference(const std::filesystem::path& path, FilmSize film) {
   return reference;
 }
 
-const ErrorRow& ErrorTracker::record(const Film& film, double seconds, bool tiles_current) {
+ErrorRow ErrorTracker::record(const Film& film, double seconds, bool tiles_current) {
   if (!tiles_current) estimate_.update_all(film);
   ErrorRow row;
   const uint64_t samples = std::accumulate(film.spp().begin(), film.spp().end(), uint64_t{0});
@@ -43,8 +43,7 @@ const ErrorRow& ErrorTracker::record(const Film& film, double seconds, bool tile
     row.ref_mae = diff.mae;
     row.ref_max = diff.max_abs;
   }
-  rows_.push_back(row);
-  return rows_.back();
+  return row;
 }
 
 }  // namespace rayfarm

@@ -29,10 +29,9 @@ class ErrorTracker {
   void update_tile(const Film& film, uint32_t tile) { estimate_.update(film, tile); }
   /// Every tile of `film` changed (a film restored from a checkpoint).
   void estimate_all(const Film& film) { estimate_.update_all(film); }
-  /// Appends the row for `film` `seconds` after the render started, and returns it. Every tile's
-  /// estimate is recomputed first unless `tiles_current` says update_tile saw every change.
-  const ErrorRow& record(const Film& film, double seconds, bool tiles_current = false);
-  const std::vector<ErrorRow>& rows() const { return rows_; }
+  /// The row for `film` `seconds` after the render started (the caller keeps the record). Every
+  /// tile's estimate is recomputed first unless `tiles_current` says update_tile saw every change.
+  ErrorRow record(const Film& film, double seconds, bool tiles_current = false);
   bool has_reference() const { return reference_.has_value(); }
   /// The estimates behind the last row, tile by tile.
   const TiledErrorEstimate& estimate() const { return estimate_; }
@@ -40,7 +39,6 @@ class ErrorTracker {
  private:
   TiledErrorEstimate estimate_;
   std::optional<Image> reference_;
-  std::vector<ErrorRow> rows_;
 };
 
 }  // namespace rayfarm

@@ -1,14 +1,12 @@
-// The error estimate from a film's own samples, and the planner that stops tiles under a target
-// error. The variance comes from exact fixed-point sums; it is checked against a two-pass
-// computation in long double, on a stiff case where the naive one-pass formula in double loses
-// digits, and for independence from the order of merging.
+// The error estimate from a film's own samples. The variance comes from exact fixed-point sums; it
+// is checked against a two-pass computation in long double, on a stiff case where the naive
+// one-pass formula in double loses digits, and for independence from the order of merging.
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <random>
 
-#include "common/image/convergence.h"
 #include "common/image/error_estimate.h"
 
 namespace rayfarm {
@@ -235,170 +233,6 @@ TEST(TiledErrorEstimate, TheWholeIsThePixelWeightedMeanOfTheTilesAndFollowsUpdat
   TiledErrorEstimate one(split_tiles(size, 16));
   one.update_all(film);
   EXPECT_EQ(one.whole().rel_mse, estimate_error(film).rel_mse);
-}
-
-// ---------------------------------------------------------------------------------------------
-// The planner
-
-/// A film of `tiles` 1x1 tiles side by side; tile t's samples alternate mean +- spread[t].
-struct Strip {
-  std::vector<double> spread;
-  std::vector<TileRect> tiles() const {
-    std::vector<TileRect> out;
-    for (uint32_t t = 0; t < spread.size(); ++t) out.push_back({t, 0, t + 1, 1});
-    return out;
-  }
-  TileResult unit(uint64_t unit, uint32_t pass_spp) const {
-    const uint32_t tile = unit % spread.size(), pass = unit / spread.size();
-    TileResult r({tile, 0, tile + 1, 1}, {pass * pass_spp, (pass + 1) * pass_spp});
-    for (uint32_t s = 0; s < pass_spp; ++s) {
-      const double x = 1.0 + (s % 2 ? spread[tile] : -spread[tile]);
-      for (int c = 0; c < 3; ++c) r.sum[c] += to_fixed(x), r.sum_sq[c] += to_fixed(x * x);
-    }
-    return r;
-  }
-};
-
-TEST(PassPlanner, WithoutATargetEveryUnitIsNeeded) {
-  const Strip strip{{0.1, 0.2}};
-  PassPlanner planner(strip.tiles(), 3, 4, {});
-  EXPECT_FALSE(planner.gated());
-  EXPECT_TRUE(planner.take_released().empty());
-  EXPECT_EQ(planner.units_released(), 6u);
-  Film film(2, 1);
-  for (uint64_t u = 0; u < 6; ++u) {
-    EXPECT_TRUE(planner.is_released(u));
-    EXPECT_FALSE(planner.finished());
-    film.add(strip.unit(u, 4));
-    planner.on_merged(u, film);
-  }
-  EXPECT_TRUE(planner.finished());
-  EXPECT_EQ(planner.reason(), StopReason::kSpp);
-  EXPECT_EQ(planner.rounds_complete(), 3u);
-}
-
-TEST(PassPlanner, QuietTilesStopAndNoisyOnesGoOnOnePassAtATime) {
-  // Tile 0 is constant (converges after the minimum), tile 1 never reaches the target.
-  const Strip strip{{0.0, 0.5}};
-  StopRules rules;
-  rules.target_error = 1e-4;
-  rules.min_passes = 2;
-  PassPlanner planner(strip.tiles(), 5, 8, rules);
-  ASSERT_TRUE(planner.gated());
-  EXPECT_EQ(planner.take_released(), (std::vector<uint64_t>{0, 1, 2, 3}));
-  EXPECT_FALSE(planner.is_released(4));
-  Film film(2, 1);
-  auto merge = [&](uint64_t u) {
-    film.add(strip.unit(u, 8));
-    planner.on_merged(u, film);
-  };
-  merge(2);  // pass 1 of tile 0 before its pass 0: nothing decided yet
-  EXPECT_TRUE(planner.take_released().empty());
-  merge(0);  // tile 0 has its minimum; budgets wait for every tile's
-  EXPECT_TRUE(planner.take_released().empty());
-  EXPECT_EQ(planner.tiles_converged(), 0u);
-  EXPECT_LT(planner.tile_budget(0), 0.0);
-  merge(1);
-  merge(3);  // every tile has its minimum: tile 0 (no variance) stops, tile 1 gets pass 2
-  EXPECT_EQ(planner.tiles_converged(), 1u);
-  EXPECT_EQ(planner.take_released(), (std::vector<uint64_t>{5}));
-  // Budgets go as the root of the error and average to the target: 0 for the constant tile,
-  // twice the target for the other.
-  EXPECT_EQ(planner.tile_budget(0), 0.0);
-  EXPECT_DOUBLE_EQ(planner.tile_budget(1), 2 * rules.target_error);
-  merge(5);
-  EXPECT_EQ(planner.take_released(), (std::vector<uint64_t>{7}));
-  merge(7);
-  EXPECT_EQ(planner.take_released(), (std::vector<uint64_t>{9}));
-  EXPECT_FALSE(planner.finished());
-  merge(9);
-  EXPECT_TRUE(planner.finished());
-  EXPECT_EQ(planner.reason(), StopReason::kSpp);  // tile 1 ran out of passes above the target
-  EXPECT_EQ(planner.rounds_complete(), 5u);
-  EXPECT_GT(planner.tile_error(1), rules.target_error);
-}
-
-TEST(PassPlanner, ReachingTheTargetEverywhereIsTheStopReason) {
-  const Strip strip{{0.01, 0.02, 0.03}};
-  StopRules rules;
-  rules.target_error = 1e-3;
-  PassPlanner planner(strip.tiles(), 100, 16, rules);
-  EXPECT_EQ(planner.min_passes(), default_min_passes(16));
-  EXPECT_EQ(planner.min_passes(), 16u);
-  Film film(3, 1);
-  std::vector<uint64_t> ready = planner.take_released();
-  while (!ready.empty()) {
-    const uint64_t u = ready.back();  // latest first: order must not matter
-    ready.pop_back();
-    film.add(strip.unit(u, 16));
-    planner.on_merged(u, film);
-    for (uint64_t next : planner.take_released()) ready.push_back(next);
-  }
-  EXPECT_TRUE(planner.finished());
-  EXPECT_EQ(planner.reason(), StopReason::kTargetError);
-  EXPECT_EQ(planner.tiles_converged(), 3u);
-  EXPECT_LE(estimate_error(film).rel_mse, rules.target_error);
-  EXPECT_EQ(film.max_spp(), 256u) << "the minimum passes were already enough";
-}
-
-TEST(PassPlanner, NoisierTilesGetLargerBudgetsThatAverageToTheTarget) {
-  const Strip strip{{0.01, 0.04, 0.16}};  // errors 1 : 16 : 256
-  StopRules rules;
-  rules.target_error = 1e-5;
-  rules.min_passes = 1;
-  PassPlanner planner(strip.tiles(), 1000, 16, rules);
-  Film film(3, 1);
-  for (uint64_t u : planner.take_released()) {
-    film.add(strip.unit(u, 16));
-    planner.on_merged(u, film);
-  }
-  const double b0 = planner.tile_budget(0), b1 = planner.tile_budget(1), b2 = planner.tile_budget(2);
-  EXPECT_NEAR(b1 / b0, 4.0, 1e-3);  // sqrt of 16, up to the error's denominator
-  EXPECT_NEAR(b2 / b0, 16.0, 2e-2);
-  EXPECT_NEAR((b0 + b1 + b2) / 3, rules.target_error, 1e-12);
-}
-
-TEST(PassPlanner, WholePassesWaitForTheWholeImage) {
-  const Strip strip{{0.0, 0.5}};
-  StopRules rules;
-  rules.target_error = 1e-4;
-  rules.adaptive = false;
-  rules.min_passes = 1;
-  PassPlanner planner(strip.tiles(), 3, 8, rules);
-  EXPECT_EQ(planner.take_released(), (std::vector<uint64_t>{0, 1}));
-  Film film(2, 1);
-  film.add(strip.unit(0, 8));
-  planner.on_merged(0, film);
-  EXPECT_TRUE(planner.take_released().empty()) << "decided before the pass was whole";
-  film.add(strip.unit(1, 8));
-  planner.on_merged(1, film);
-  EXPECT_EQ(planner.take_released(), (std::vector<uint64_t>{2, 3}))
-      << "the quiet tile goes on with the image";
-}
-
-TEST(StopReason, Names) {
-  EXPECT_STREQ(stop_reason_name(StopReason::kTargetError), "target error");
-  EXPECT_STREQ(stop_reason_name(StopReason::kTimeLimit), "time limit");
-  EXPECT_STREQ(stop_reason_name(StopReason::kSpp), "spp");
-}
-
-TEST(StopRules, OutOfRangeRulesAreRefusedByName) {
-  const auto message = [](StopRules rules) -> std::string {
-    try {
-      check_stop_rules(rules);
-    } catch (const std::invalid_argument& e) {
-      return e.what();
-    }
-    return "";
-  };
-  EXPECT_EQ(message({}), "");
-  EXPECT_EQ(message({1e-3, 1e9}), "");
-  EXPECT_EQ(message({1e6, 0}), "target error must be in [0, 1e6), got 1e+06");
-  EXPECT_EQ(message({-1, 0}), "target error must be in [0, 1e6), got -1");
-  EXPECT_EQ(message({NAN, 0}), "target error must be in [0, 1e6), got nan");
-  // Beyond 1e9 s the deadline would overflow the clock's nanoseconds.
-  EXPECT_EQ(message({0, 1e12}), "time limit must be in [0, 1e9] s, got 1e+12");
-  EXPECT_EQ(message({0, INFINITY}), "time limit must be in [0, 1e9] s, got inf");
 }
 
 }  // namespace

@@ -88,15 +88,17 @@ TEST(Merger, AnyOrderOfArrivalGivesTheSameBits) {
   }
 }
 
-TEST(Merger, CountsPassesCompleteFromPassZero) {
+TEST(Merger, OwnsWhichUnitsAreMergedTileByTile) {
   Merger m(kGrid);
-  EXPECT_EQ(m.passes_complete(), 0u);
   for (uint64_t u = 6; u < 12; ++u) m.add(u, fake_result(kGrid, u));  // all of pass 1
-  EXPECT_EQ(m.passes_complete(), 0u);                                 // pass 0 still missing
   for (uint64_t u = 0; u < 5; ++u) m.add(u, fake_result(kGrid, u));
-  EXPECT_EQ(m.passes_complete(), 0u);
+  const MergedUnits& merged = m.merged_units();
+  EXPECT_EQ(merged.count(), 11u);
+  EXPECT_EQ(merged.in_tile(0), 2u);
+  EXPECT_EQ(merged.in_tile(5), 1u) << "tile 5 has pass 1, not pass 0";
+  EXPECT_FALSE(merged.contains(5));
   m.add(5, fake_result(kGrid, 5));
-  EXPECT_EQ(m.passes_complete(), 2u);
+  EXPECT_EQ(merged.in_tile(5), 2u);
   EXPECT_EQ(m.samples_merged(), 70u * 40u * 16u);
   EXPECT_FALSE(m.complete());
 }
@@ -116,7 +118,7 @@ TEST(Merger, FewestSamplesOfAnyPixelComeFromTheTilesAndSurviveARestore) {
   for (uint64_t u : {0, 1, 2, 3, 4, 5, 7}) partial.add(u, fake_result(kGrid, u));
   Merger restored(kGrid);
   const Film& f = partial.film();
-  restored.restore(partial.merged_map(), f.sum(), f.sum_sq(), f.spp(), f.nonfinite(), f.rays());
+  restored.restore(partial.merged_units().to_bytes(), f.sum(), f.sum_sq(), f.nonfinite(), f.rays());
   EXPECT_EQ(restored.min_spp(), 8u);
   EXPECT_EQ(restored.min_spp(), f.min_spp());
 }

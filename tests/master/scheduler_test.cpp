@@ -1,14 +1,20 @@
 // The scheduler without sockets: units go out lowest first (pass-major), jobs in the order they
-// came, one lease per request; a lost worker's units go back to the queue ahead of fresh ones; a
-// unit is done once, whoever finishes it. A blocked worker gets only other jobs' units; a straggler
-// is leased a second time to an idle worker, and the first result ends both leases.
+// came, one lease per request, only units released to the job; a lost worker's units go back to
+// the queue ahead of fresh ones; a merged unit leaves the queue, whoever finished it. A blocked
+// worker gets only other jobs' units; a straggler is leased a second time to an idle worker, and
+// the first result ends both leases.
 #include <gtest/gtest.h>
 
 #include "master/scheduler.h"
-#include "master/unit_grid.h"
 
 namespace rayfarm::master {
 namespace {
+
+/// A job whose every unit is needed.
+void add_job(Scheduler& s, const std::string& job, uint64_t units) {
+  s.add_job(job);
+  s.release_all(job, units);
+}
 
 uint64_t lease_unit(Scheduler& s, const WorkerId& w) {
   const auto ref = s.lease(w);
@@ -16,43 +22,32 @@ uint64_t lease_unit(Scheduler& s, const WorkerId& w) {
   return ref ? ref->unit : ~uint64_t{0};
 }
 
-TEST(UnitGrid, NumbersUnitsPassMajor) {
-  const UnitGrid grid({100, 50}, 64, 10, 4);  // 2 x 1 tiles, passes [0,4) [4,8) [8,10)
-  ASSERT_EQ(grid.tile_count(), 2u);
-  ASSERT_EQ(grid.pass_count(), 3u);
-  ASSERT_EQ(grid.size(), 6u);
-  EXPECT_EQ(grid.unit(0).rect, (TileRect{0, 0, 64, 50}));
-  EXPECT_EQ(grid.unit(1).rect, (TileRect{64, 0, 100, 50}));
-  EXPECT_EQ(grid.unit(1).pass, 0u);
-  EXPECT_EQ(grid.unit(2).pass, 1u);
-  EXPECT_EQ(grid.unit(2).samples, (SampleRange{4, 8}));
-  EXPECT_EQ(grid.unit(5).samples, (SampleRange{8, 10}));
-  uint64_t total = 0;
-  for (uint64_t u = 0; u < grid.size(); ++u) total += grid.samples_in(u);
-  EXPECT_EQ(total, grid.samples_total());
-  EXPECT_EQ(total, 100u * 50u * 10u);
-}
-
 TEST(Scheduler, LeasesLowestFirstAndJobsInOrder) {
   Scheduler s;
-  s.add_job("a", 3);
-  s.add_job("b", 2);
+  add_job(s, "a", 3);
+  add_job(s, "b", 2);
   EXPECT_EQ(lease_unit(s, "w1"), 0u);
   EXPECT_EQ(lease_unit(s, "w2"), 1u);
   EXPECT_EQ(lease_unit(s, "w1"), 2u);
   const auto next = s.lease("w1");
   ASSERT_TRUE(next);
   EXPECT_EQ(*next, (UnitRef{"b", 0}));
-  EXPECT_EQ(s.leases_of("w1"), 3u);
+  EXPECT_EQ(s.leased_units("w1"), (std::vector<UnitRef>{{"a", 0}, {"a", 2}, {"b", 0}}));
   EXPECT_EQ(s.counts("a").leased, 3u);
   EXPECT_EQ(s.counts("a").workers, 2u);
-  EXPECT_EQ(s.counts("b").pending, 1u);
+  EXPECT_EQ(s.counts("b").leased, 1u);
+  EXPECT_TRUE(s.holds({"a", 1}, "w2"));
+  EXPECT_FALSE(s.holds({"a", 1}, "w1"));
+  EXPECT_EQ(lease_unit(s, "w3"), 1u) << "b's last unit";
+  EXPECT_FALSE(s.has_pending());
 }
 
 TEST(Scheduler, NothingPendingMeansNoLease) {
   Scheduler s;
   EXPECT_FALSE(s.lease("w"));
-  s.add_job("a", 1);
+  s.add_job("a");
+  EXPECT_FALSE(s.has_pending()) << "nothing released yet";
+  s.release_all("a", 1);
   EXPECT_TRUE(s.lease("w"));
   EXPECT_FALSE(s.has_pending());
   EXPECT_FALSE(s.lease("w"));
@@ -60,41 +55,41 @@ TEST(Scheduler, NothingPendingMeansNoLease) {
 
 TEST(Scheduler, LostWorkerUnitsAreRequeuedAheadOfFreshOnes) {
   Scheduler s;
-  s.add_job("a", 10);
+  add_job(s, "a", 10);
   lease_unit(s, "w1");  // 0
   lease_unit(s, "w2");  // 1
   lease_unit(s, "w1");  // 2
   const auto released = s.release_worker("w1");
   EXPECT_EQ(released, (std::vector<UnitRef>{{"a", 0}, {"a", 2}}));
-  EXPECT_EQ(s.leases_of("w1"), 0u);
-  EXPECT_EQ(s.counts("a").pending, 9u);
+  EXPECT_TRUE(s.leased_units("w1").empty());
+  EXPECT_EQ(s.counts("a").leased, 1u);
   EXPECT_EQ(lease_unit(s, "w3"), 0u);
   EXPECT_EQ(lease_unit(s, "w3"), 2u);
   EXPECT_EQ(lease_unit(s, "w3"), 3u);
   EXPECT_TRUE(s.release_worker("nobody").empty());
 }
 
-TEST(Scheduler, AUnitIsDoneOnceWhoeverFinishesIt) {
+TEST(Scheduler, AUnitIsCompletedOnceWhoeverFinishesIt) {
   Scheduler s;
-  s.add_job("a", 3);
+  add_job(s, "a", 3);
   lease_unit(s, "w1");  // 0
   s.release_worker("w1");
   lease_unit(s, "w2");  // 0 again
   // The lost worker's late result arrives first: it counts, and w2's lease ends.
   EXPECT_TRUE(s.complete({"a", 0}));
-  EXPECT_EQ(s.leases_of("w2"), 0u);
+  EXPECT_TRUE(s.leased_units("w2").empty());
   EXPECT_FALSE(s.complete({"a", 0}));
-  EXPECT_TRUE(s.is_done({"a", 0}));
   EXPECT_FALSE(s.complete({"a", 7}));
   EXPECT_FALSE(s.complete({"zz", 0}));
-  const auto c = s.counts("a");
-  EXPECT_EQ(c.done, 1u);
-  EXPECT_EQ(c.pending, 2u);
+  EXPECT_EQ(s.counts("a").leased, 0u);
+  EXPECT_EQ(lease_unit(s, "w2"), 1u);
+  EXPECT_EQ(lease_unit(s, "w2"), 2u);
+  EXPECT_FALSE(s.lease("w2")) << "unit 0 is not handed out again";
 }
 
 TEST(Scheduler, ARequeuedUnitFinishedLateLeavesTheQueue) {
   Scheduler s;
-  s.add_job("a", 2);
+  add_job(s, "a", 2);
   lease_unit(s, "w1");  // 0
   s.release_worker("w1");
   EXPECT_TRUE(s.complete({"a", 0}));  // late result while 0 waits in the queue
@@ -102,64 +97,63 @@ TEST(Scheduler, ARequeuedUnitFinishedLateLeavesTheQueue) {
   EXPECT_FALSE(s.lease("w2"));
 }
 
-TEST(Scheduler, UnitsDoneBeforeBeingHandedOutAreSkipped) {
+TEST(Scheduler, OnlyReleasedUnitsAreHandedOut) {
+  // A job resumed with units 0 and 1 merged: only unit 2 is released to it.
   Scheduler s;
-  s.add_job("a", 3);
-  EXPECT_TRUE(s.complete({"a", 0}));
-  EXPECT_TRUE(s.complete({"a", 1}));
+  s.add_job("a");
+  s.release("a", {2});
   EXPECT_EQ(lease_unit(s, "w"), 2u);
   EXPECT_FALSE(s.lease("w"));
 }
 
 TEST(Scheduler, RequeueOfAFailedUnit) {
   Scheduler s;
-  s.add_job("a", 2);
+  add_job(s, "a", 2);
   lease_unit(s, "w1");  // 0
   EXPECT_TRUE(s.requeue({"a", 0}));
   EXPECT_FALSE(s.requeue({"a", 0}));
-  EXPECT_FALSE(s.holder({"a", 0}));
+  EXPECT_FALSE(s.holds({"a", 0}, "w1"));
+  EXPECT_EQ(s.counts("a").leased, 0u);
   EXPECT_EQ(lease_unit(s, "w2"), 0u);
-  EXPECT_EQ(s.holder({"a", 0}), std::optional<WorkerId>("w2"));
+  EXPECT_TRUE(s.holds({"a", 0}, "w2"));
 }
 
 TEST(Scheduler, RemovingAJobDropsItsLeases) {
   Scheduler s;
-  s.add_job("a", 2);
-  s.add_job("b", 1);
+  add_job(s, "a", 2);
+  add_job(s, "b", 1);
   lease_unit(s, "w");
   s.remove_job("a");
-  EXPECT_FALSE(s.has_job("a"));
-  EXPECT_EQ(s.leases_of("w"), 0u);
+  EXPECT_TRUE(s.leased_units("w").empty());
+  EXPECT_FALSE(s.complete({"a", 0}));
   const auto next = s.lease("w");
   ASSERT_TRUE(next);
   EXPECT_EQ(next->job, "b");
   EXPECT_TRUE(s.release_worker("w") == (std::vector<UnitRef>{{"b", 0}}));
 }
 
-TEST(Scheduler, AGatedJobHandsOutOnlyReleasedUnits) {
+TEST(Scheduler, UnitsReleasedAsTheRenderGoesAreHandedOutLowestFirst) {
   Scheduler s;
-  s.add_job("a", 10, /*gated=*/true);
+  s.add_job("a");
   EXPECT_FALSE(s.has_pending());
   EXPECT_FALSE(s.lease("w1"));
-  s.release("a", {4, 2, 99});  // 99 is out of range
-  EXPECT_EQ(s.counts("a").total, 2u);
+  s.release("a", {4, 2});
   EXPECT_EQ(lease_unit(s, "w1"), 2u);
-  s.release("a", {2, 3});  // 2 again: ignored
-  EXPECT_EQ(s.counts("a").total, 3u);
+  s.release("a", {3});
   EXPECT_EQ(lease_unit(s, "w1"), 3u);
   EXPECT_EQ(lease_unit(s, "w2"), 4u);
   EXPECT_FALSE(s.lease("w1"));
-  // A lost worker's gated unit comes back like any other.
+  // A lost worker's unit comes back like any other.
   EXPECT_EQ(s.release_worker("w2").size(), 1u);
   EXPECT_EQ(lease_unit(s, "w1"), 4u);
   EXPECT_TRUE(s.complete({"a", 4}));
-  EXPECT_EQ(s.counts("a").done, 1u);
+  EXPECT_FALSE(s.has_pending());
 }
 
 TEST(Scheduler, ABlockedWorkerGetsOnlyOtherJobsUnits) {
   Scheduler s;
-  s.add_job("a", 2);
-  s.add_job("b", 1);
+  add_job(s, "a", 2);
+  add_job(s, "b", 1);
   s.block("a", "bad");
   EXPECT_TRUE(s.is_blocked("a", "bad"));
   EXPECT_FALSE(s.is_blocked("b", "bad"));
@@ -175,7 +169,7 @@ using namespace std::chrono_literals;
 
 TEST(Scheduler, AStragglerIsLeasedTwiceAndTheFirstResultEndsBothLeases) {
   Scheduler s;
-  s.add_job("a", 6);
+  add_job(s, "a", 6);
   const StragglerPolicy policy{4.0, 5000ms, 3};
   const auto t0 = Scheduler::Clock::now();
   // Three units of 1 s each give a median of 1 s.
@@ -184,7 +178,6 @@ TEST(Scheduler, AStragglerIsLeasedTwiceAndTheFirstResultEndsBothLeases) {
     ASSERT_TRUE(u);
     EXPECT_TRUE(s.complete(*u, WorkerId("w1"), t0 + 1s));
   }
-  EXPECT_DOUBLE_EQ(s.median_seconds("a"), 1.0);
   ASSERT_TRUE(s.lease("slow", t0 + 1s));  // unit 3
   ASSERT_TRUE(s.lease("w1", t0 + 1s));    // unit 4
   ASSERT_TRUE(s.lease("w2", t0 + 1s));    // unit 5
@@ -202,7 +195,9 @@ TEST(Scheduler, AStragglerIsLeasedTwiceAndTheFirstResultEndsBothLeases) {
   EXPECT_EQ(again->unit, (UnitRef{"a", 3}));
   EXPECT_EQ(again->first, "slow");
   EXPECT_DOUBLE_EQ(again->leased_seconds, 6.0);
-  EXPECT_EQ(s.holders({"a", 3}), (std::vector<WorkerId>{"slow", "idle"}));
+  EXPECT_TRUE(s.holds({"a", 3}, "slow"));
+  EXPECT_TRUE(s.holds({"a", 3}, "idle"));
+  EXPECT_DOUBLE_EQ(again->median_seconds, 1.0);
   EXPECT_EQ(s.counts("a").leased, 1u);
   EXPECT_EQ(s.counts("a").workers, 2u);
   // Held twice: no third copy.
@@ -210,18 +205,20 @@ TEST(Scheduler, AStragglerIsLeasedTwiceAndTheFirstResultEndsBothLeases) {
   EXPECT_FALSE(s.lease_straggler("third", policy, t0 + 60s));
   // One holder lost: the other keeps it, nothing is requeued.
   EXPECT_TRUE(s.release_worker("slow").empty());
-  EXPECT_EQ(s.holders({"a", 3}), (std::vector<WorkerId>{"idle"}));
+  EXPECT_FALSE(s.holds({"a", 3}, "slow"));
+  EXPECT_TRUE(s.holds({"a", 3}, "idle"));
   EXPECT_FALSE(s.has_pending());
-  // The result ends the lease; a late one from anybody else finds the unit done.
+  // The result ends the lease; a late one from anybody else finds nothing to complete.
   EXPECT_TRUE(s.complete({"a", 3}, WorkerId("idle"), t0 + 8s));
-  EXPECT_EQ(s.leases_of("idle"), 0u);
+  EXPECT_TRUE(s.leased_units("idle").empty());
   EXPECT_FALSE(s.complete({"a", 3}, WorkerId("slow"), t0 + 9s));
-  EXPECT_EQ(s.counts("a").done, 6u);
+  EXPECT_EQ(s.counts("a").leased, 0u);
+  EXPECT_FALSE(s.has_pending());
 }
 
 TEST(Scheduler, BothLeasesOfAStragglerEndWhenEitherFinishesOrFails) {
   Scheduler s;
-  s.add_job("a", 4);
+  add_job(s, "a", 4);
   const StragglerPolicy policy{2.0, 0ms, 1};
   const auto t0 = Scheduler::Clock::now();
   const auto first = s.lease("w1", t0);
@@ -235,13 +232,14 @@ TEST(Scheduler, BothLeasesOfAStragglerEndWhenEitherFinishesOrFails) {
   // The second holder fails it: the first still holds it, so it is not requeued.
   EXPECT_TRUE(s.requeue(again->unit, WorkerId("w2")));
   EXPECT_FALSE(s.requeue(again->unit, WorkerId("w2")));
-  EXPECT_EQ(s.holders(again->unit), (std::vector<WorkerId>{"slow"}));
+  EXPECT_TRUE(s.holds(again->unit, "slow"));
+  EXPECT_FALSE(s.holds(again->unit, "w2"));
   EXPECT_FALSE(s.has_pending());
   // The first holder's result arrives: both leases are gone.
   ASSERT_TRUE(s.lease_straggler("w3", policy, t0 + 4s));
   EXPECT_TRUE(s.complete(again->unit, WorkerId("slow"), t0 + 4s));
-  EXPECT_EQ(s.leases_of("slow"), 0u);
-  EXPECT_EQ(s.leases_of("w3"), 0u);
+  EXPECT_TRUE(s.leased_units("slow").empty());
+  EXPECT_TRUE(s.leased_units("w3").empty());
   // A policy factor of 0 never leases twice.
   EXPECT_FALSE(s.lease_straggler("w3", StragglerPolicy{0.0, 0ms, 1}, t0 + 100s));
 }

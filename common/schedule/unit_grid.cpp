@@ -1,22 +1,23 @@
-#include "master/unit_grid.h"
+#include "common/schedule/unit_grid.h"
 
 #include "common/util/check.h"
 
-namespace rayfarm::master {
+namespace rayfarm {
 
 UnitGrid::UnitGrid(FilmSize film, uint32_t tile_size, uint32_t spp, uint32_t pass_spp)
     : film_(film),
       spp_(spp),
+      pass_spp_(pass_spp),
       tiles_(split_tiles(film, tile_size)),
       passes_(split_passes(spp, pass_spp)) {}
 
 UnitGrid::Unit UnitGrid::unit(uint64_t id) const {
   RAYFARM_CHECK(id < size(), "unit number out of range");
-  const uint64_t tiles = tiles_.size();
   Unit u;
   u.id = id;
-  u.pass = static_cast<uint32_t>(id / tiles);
-  u.rect = tiles_[id % tiles];
+  u.pass = pass_of(id);
+  u.tile = tile_of(id);
+  u.rect = tiles_[u.tile];
   u.samples = passes_[u.pass];
   return u;
 }
@@ -28,4 +29,4 @@ uint64_t UnitGrid::samples_in(uint64_t id) const {
 
 uint64_t UnitGrid::samples_total() const { return uint64_t{film_.width} * film_.height * spp_; }
 
-}  // namespace rayfarm::master
+}  // namespace rayfarm

@@ -1,9 +1,7 @@
-#include "common/image/convergence.h"
+#include "common/schedule/pass_planner.h"
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
-#include <sstream>
 #include <stdexcept>
 #include <string>
 
@@ -12,49 +10,19 @@
 
 namespace rayfarm {
 
-void check_stop_rules(const StopRules& rules) {
-  const auto fail = [](const char* what, double value) {
-    std::ostringstream out;
-    out << what << value;
-    throw std::invalid_argument(out.str());
-  };
-  if (!(rules.target_error >= 0 && rules.target_error < 1e6))
-    fail("target error must be in [0, 1e6), got ", rules.target_error);
-  if (!(rules.time_limit_s >= 0 && rules.time_limit_s <= 1e9))
-    fail("time limit must be in [0, 1e9] s, got ", rules.time_limit_s);
-}
-
-uint32_t default_min_passes(uint32_t pass_spp) {
-  const uint32_t enough = pass_spp == 0 ? 256 : (256 + pass_spp - 1) / pass_spp;
-  return std::max<uint32_t>(2, enough);
-}
-
-const char* stop_reason_name(StopReason reason) {
-  switch (reason) {
-    case StopReason::kRunning: return "running";
-    case StopReason::kSpp: return "spp";
-    case StopReason::kTargetError: return "target error";
-    case StopReason::kTimeLimit: return "time limit";
-    case StopReason::kCancelled: return "cancelled";
-    case StopReason::kFailed: return "failed";
-  }
-  return "unknown";
-}
-
-PassPlanner::PassPlanner(std::vector<TileRect> tiles, uint32_t pass_count, uint32_t pass_spp,
-                         const StopRules& rules)
-    : tiles_(std::move(tiles)),
-      pass_count_(pass_count),
+PassPlanner::PassPlanner(const UnitGrid& grid, const StopRules& rules)
+    : grid_(grid),
       rules_(rules),
       gated_(rules.target_error > 0),
-      min_passes_(std::min(pass_count, rules.min_passes > 0 ? rules.min_passes
-                                                            : default_min_passes(pass_spp))),
-      state_(tiles_.size()),
-      tiles_open_(static_cast<uint32_t>(tiles_.size())) {
-  RAYFARM_CHECK(pass_count > 0 && !tiles_.empty(), "a render needs at least one unit");
+      min_passes_(std::min(grid.pass_count(), rules.min_passes > 0
+                                                  ? rules.min_passes
+                                                  : default_min_passes(grid.pass_spp()))),
+      state_(grid.tile_count()),
+      tiles_open_(grid.tile_count()) {
+  RAYFARM_CHECK(grid.size() > 0, "a render needs at least one unit");
   if (!gated_) {
-    for (TileState& s : state_) s.released = pass_count_;
-    units_released_ = uint64_t{pass_count_} * tiles_.size();
+    for (TileState& s : state_) s.released = pass_count();
+    units_released_ = grid_.size();
     return;
   }
   // The first passes of every tile, pass-major.
@@ -65,8 +33,8 @@ PassPlanner::PassPlanner(std::vector<TileRect> tiles, uint32_t pass_count, uint3
 
 void PassPlanner::release(uint32_t tile, uint32_t passes) {
   TileState& s = state_[tile];
-  for (uint32_t i = 0; i < passes && s.released < pass_count_; ++i) {
-    released_.push_back(uint64_t{s.released} * tiles_.size() + tile);
+  for (uint32_t i = 0; i < passes && s.released < pass_count(); ++i) {
+    released_.push_back(grid_.id(s.released, tile));
     ++s.released;
     ++units_released_;
   }
@@ -88,44 +56,44 @@ void PassPlanner::close(uint32_t tile, bool converged) {
   if (converged) ++tiles_converged_;
 }
 
-void PassPlanner::on_merged(uint64_t unit, const Film& film) {
-  const uint32_t tile = static_cast<uint32_t>(unit % tiles_.size());
+void PassPlanner::on_merged(uint64_t unit, const MergedUnits& merged, const Film& film) {
+  const uint32_t tile = grid_.tile_of(unit);
   TileState& s = state_[tile];
-  RAYFARM_CHECK(s.open && s.merged < s.released, "merged a unit the planner did not release");
-  ++s.merged;
-  if (s.merged < s.released) return;  // the tile still has released passes in flight
+  RAYFARM_CHECK(s.open && is_released(unit) && merged.contains(unit),
+                "merged a unit the planner did not release");
+  if (!caught_up(tile, merged)) return;  // the tile still has released passes in flight
 
   if (!gated_) {
     close(tile, false);
     return;
   }
   if (rules_.adaptive) {
-    s.error = estimate_error(film, tiles_[tile]).rel_mse;
+    s.error = estimate_error(film, grid_.tile(tile)).rel_mse;
     if (s.budget >= 0) {
       decide(tile);
       return;
     }
     // Budgets wait until every tile has merged its minimum passes (and nothing more).
-    for (const TileState& other : state_) {
-      if (other.merged < other.released || other.error < 0) return;
+    for (uint32_t t = 0; t < tile_count(); ++t) {
+      if (!caught_up(t, merged) || state_[t].error < 0) return;
     }
     set_budgets();
     for (uint32_t t = 0; t < tile_count(); ++t) decide(t);
     return;
   }
   // Whole passes: decide once every tile has merged what it was given.
-  for (const TileState& other : state_) {
-    if (other.merged < other.released) return;
+  for (uint32_t t = 0; t < tile_count(); ++t) {
+    if (!caught_up(t, merged)) return;
   }
   // The image's figure as the render reports it: the pixel-weighted mean of the tiles'.
-  TiledErrorEstimate image(tiles_);
+  TiledErrorEstimate image(grid_.tiles());
   image.update_all(film);
   const double error = image.whole().rel_mse;
   for (uint32_t t = 0; t < tile_count(); ++t) {
     state_[t].error = error;
     if (error <= rules_.target_error) {
       close(t, true);
-    } else if (state_[t].released == pass_count_) {
+    } else if (state_[t].released == pass_count()) {
       close(t, false);
     } else {
       release(t, 1);
@@ -137,7 +105,7 @@ void PassPlanner::decide(uint32_t tile) {
   const TileState& s = state_[tile];
   if (s.error <= s.budget) {
     close(tile, true);
-  } else if (s.released == pass_count_) {
+  } else if (s.released == pass_count()) {
     close(tile, false);
   } else {
     release(tile, 1);
@@ -153,8 +121,8 @@ void PassPlanner::set_budgets() {
   for (uint32_t t = 0; t < tile_count(); ++t) {
     const double e = state_[t].error;
     finite = finite && std::isfinite(e);
-    pixels += tiles_[t].pixel_count();
-    weighted += tiles_[t].pixel_count() * std::sqrt(std::max(e, 0.0));
+    pixels += grid_.tile(t).pixel_count();
+    weighted += grid_.tile(t).pixel_count() * std::sqrt(std::max(e, 0.0));
   }
   for (uint32_t t = 0; t < tile_count(); ++t) {
     TileState& s = state_[t];
@@ -169,39 +137,37 @@ void PassPlanner::set_budgets() {
 PlannerState PassPlanner::export_state() const {
   PlannerState out;
   out.tiles = state_;
-  out.pending = released_;
   return out;
 }
 
-void PassPlanner::import_state(const PlannerState& state) {
+void PassPlanner::import_state(const PlannerState& state, const MergedUnits& merged) {
   auto fail = [](const std::string& why) { throw std::invalid_argument("planner state: " + why); };
-  if (state.tiles.size() != tiles_.size()) {
+  if (state.tiles.size() != tile_count()) {
     fail(std::to_string(state.tiles.size()) + " tiles, the render has " +
-         std::to_string(tiles_.size()));
+         std::to_string(tile_count()));
   }
   uint32_t open = 0, converged = 0;
   uint64_t released = 0;
-  for (size_t t = 0; t < state.tiles.size(); ++t) {
+  for (uint32_t t = 0; t < tile_count(); ++t) {
     const TileState& s = state.tiles[t];
     const std::string where = "tile " + std::to_string(t) + ": ";
-    if (s.released > pass_count_) fail(where + "more passes released than the render has");
-    if (s.merged > s.released) fail(where + "more passes merged than released");
-    if (!gated_ && s.released != pass_count_) fail(where + "an ungated render releases every pass");
+    if (s.released > pass_count()) fail(where + "more passes released than the render has");
+    for (uint32_t p = s.released; p < pass_count(); ++p) {
+      if (merged.contains(grid_.id(p, t))) {
+        fail("unit " + std::to_string(grid_.id(p, t)) + " is merged but not released");
+      }
+    }
+    if (!gated_ && s.released != pass_count())
+      fail(where + "an ungated render releases every pass");
     if (gated_ && s.released < min_passes_) fail(where + "fewer passes released than the minimum");
-    if (!s.open && s.merged != s.released) fail(where + "closed with passes in flight");
+    if (!s.open && merged.in_tile(t) != s.released) fail(where + "closed with passes in flight");
     if (s.converged && s.open) fail(where + "converged but open");
     open += s.open ? 1 : 0;
     converged += s.converged ? 1 : 0;
     released += s.released;
   }
-  for (uint64_t unit : state.pending) {
-    const uint32_t tile = static_cast<uint32_t>(unit % tiles_.size());
-    if (unit / tiles_.size() >= state.tiles[tile].released) {
-      fail("pending unit " + std::to_string(unit) + " is not released");
-    }
-  }
   state_ = state.tiles;
-  released_ = state.pending;
+  released_.clear();
   tiles_open_ = open;
   tiles_converged_ = converged;
   units_released_ = released;
@@ -212,10 +178,10 @@ StopReason PassPlanner::reason() const {
   return gated_ && tiles_converged_ == tile_count() ? StopReason::kTargetError : StopReason::kSpp;
 }
 
-uint32_t PassPlanner::rounds_complete() const {
-  uint32_t rounds = pass_count_;
-  for (const TileState& s : state_) {
-    if (s.open) rounds = std::min(rounds, s.merged);
+uint32_t PassPlanner::rounds_complete(const MergedUnits& merged) const {
+  uint32_t rounds = pass_count();
+  for (uint32_t t = 0; t < tile_count(); ++t) {
+    if (state_[t].open) rounds = std::min(rounds, merged.in_tile(t));
   }
   return rounds;
 }

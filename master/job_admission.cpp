@@ -1,0 +1,271 @@
+// Admission: what `submit` checks before a job is accepted (the bundle, the scene, the settings
+// and their limits, the reference image), storing the job, and scheduling it.
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cmath>
+#include <system_error>
+
+#include "common/bundle/bundle.h"
+#include "common/limits.h"
+#include "common/protocol/codec.h"
+#include "common/protocol/convert.h"
+#include "common/scene/parser.h"
+#include "common/util/atomic_file.h"
+#include "master/job_manager.h"
+#include "master/job_text.h"
+
+namespace rayfarm::master {
+namespace fs = std::filesystem;
+namespace protocol = rayfarm::protocol;
+using namespace detail;
+
+namespace {
+
+constexpr uint64_t kMaxUnits = uint64_t{1} << 26;
+
+int64_t unix_ms_now() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+std::string describe_stop(const StopRules& stop, uint32_t spp) {
+  std::string out = fmt::format("{} spp", spp);
+  if (stop.target_error > 0) {
+    out += fmt::format(", target relMSE {:g} ({})", stop.target_error,
+                       stop.adaptive ? "per tile" : "whole passes");
+  }
+  if (stop.time_limit_s > 0) out += fmt::format(", time limit {:g} s", stop.time_limit_s);
+  return out;
+}
+
+/// What a client is told when the master cannot store its job (the cause, without the master's
+/// paths); the master's log has the whole message.
+std::string storage_refusal(const std::exception& e, const fs::path& root) {
+  log_jobs()->error("cannot store a submitted job in {}: {}", root.string(), e.what());
+  const int code = storage_error_code(e);
+  std::string cause = code ? std::generic_category().message(code) : "an I/O error";
+  cause[0] = static_cast<char>(std::tolower(static_cast<unsigned char>(cause[0])));
+  return "the master cannot store the job: " + cause + " (the master's data dir)";
+}
+
+}  // namespace
+
+Image JobManager::check_reference_bytes(const std::string& exr, FilmSize film) const {
+  fs::path scratch;
+  try {
+    scratch = store_.make_scratch_dir();
+    write_file_atomically(scratch / "reference.exr", exr);
+  } catch (const std::exception& e) {
+    std::error_code ec;
+    if (!scratch.empty()) fs::remove_all(scratch, ec);
+    throw JobRejected(storage_refusal(e, store_.root()));
+  }
+  std::error_code ec;
+  Image reference;
+  try {
+    // The header's size is checked against the film before any pixel is allocated, so a
+    // reference costs at most the film's size, whatever its header claims.
+    reference = read_exr(scratch / "reference.exr", ExrExpect{film.width, film.height, true});
+    check_reference(reference, film, "reference image");
+  } catch (const std::exception& e) {
+    fs::remove_all(scratch, ec);
+    throw JobRejected(
+        replace_all(e.what(), (scratch / "reference.exr").string(), "reference image"));
+  }
+  fs::remove_all(scratch, ec);
+  return reference;
+}
+
+const std::string* JobManager::owner_of(const std::string& id) const {
+  auto it = jobs_.find(id);
+  return it == jobs_.end() ? nullptr : &it->second.record.spec.owner;
+}
+
+std::string JobManager::submit(const wire::SubmitJob& request, const std::string& owner) {
+  return admit(prepare(request, owner));
+}
+
+JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
+                                            const std::string& owner,
+                                            const SceneCheck& check) const {
+  // The bundle and the scene path.
+  Bundle bundle;
+  try {
+    bundle = protocol::bundle_from_wire(request.bundle());
+    check_bundle_path(request.scene_path());
+  } catch (const BundleError& e) {
+    throw JobRejected(std::string("bad bundle: ") + e.what());
+  }
+  if (std::none_of(bundle.files.begin(), bundle.files.end(),
+                   [&](const BundleFile& f) { return f.path == request.scene_path(); })) {
+    throw JobRejected("the scene file '" + request.scene_path() + "' is not in the bundle");
+  }
+  const std::string hash = bundle_hash(bundle);
+
+  // The scene must load here before the job is accepted.
+  Scene scene;
+  fs::path scratch;
+  try {
+    scratch = store_.make_scratch_dir();
+  } catch (const std::exception& e) {
+    throw JobRejected(storage_refusal(e, store_.root()));
+  }
+  try {
+    const fs::path dir = unpack_bundle(bundle, scratch, hash);
+    try {
+      scene = load_scene(dir / request.scene_path(), check);
+    } catch (const std::exception& e) {
+      throw JobRejected(replace_all(e.what(), dir.string() + "/", ""));
+    }
+  } catch (const BundleError& e) {
+    std::error_code ec;
+    fs::remove_all(scratch, ec);
+    if (is_storage_error(e)) throw JobRejected(storage_refusal(e, store_.root()));
+    throw JobRejected(std::string("bad bundle: ") + e.what());
+  } catch (const std::exception& e) {
+    std::error_code ec;
+    fs::remove_all(scratch, ec);
+    if (is_storage_error(e)) throw JobRejected(storage_refusal(e, store_.root()));
+    throw;
+  } catch (...) {
+    std::error_code ec;
+    fs::remove_all(scratch, ec);
+    throw;
+  }
+  std::error_code ec;
+  fs::remove_all(scratch, ec);
+
+  // Settings: the scene's, with the job's overrides.
+  JobSpec spec;
+  spec.name =
+      protocol::printable(request.name().empty() ? request.scene_path() : request.name(), 128);
+  spec.bundle_hash = hash;
+  spec.scene_path = request.scene_path();
+  spec.film = scene.film;
+  spec.settings = scene.render;
+  const wire::JobOverrides& o = request.overrides();
+  if (o.has_spp()) spec.settings.spp = o.spp();
+  if (o.has_max_depth()) spec.settings.max_depth = o.max_depth();
+  if (o.has_seed()) spec.settings.seed = o.seed();
+  if (!(o.clamp() >= 0.f) || !std::isfinite(o.clamp())) {
+    throw JobRejected(fmt::format("clamp must be 0 (off) or positive, got {}", o.clamp()));
+  }
+  spec.settings.clamp = o.clamp();
+  if (o.integrator() != wire::INTEGRATOR_UNSPECIFIED) {
+    try {
+      spec.settings.integrator = protocol::integrator_from_wire(o.integrator());
+    } catch (const protocol::ProtocolError& e) {
+      throw JobRejected(e.what());
+    }
+  }
+  if (spec.settings.spp == 0 || spec.settings.spp > kMaxSpp) {
+    throw JobRejected(fmt::format("spp must be in [1, {}], got {}", kMaxSpp, spec.settings.spp));
+  }
+  if (spec.settings.max_depth > kMaxDepth) {
+    throw JobRejected(
+        fmt::format("max depth must be at most {}, got {}", kMaxDepth, spec.settings.max_depth));
+  }
+  spec.tile_size = o.tile_size() == 0 ? kDefaultTileSize : o.tile_size();
+  if (spec.tile_size > kMaxTileSize) {
+    throw JobRejected(
+        fmt::format("tile size must be in [1, {}], got {}", kMaxTileSize, spec.tile_size));
+  }
+  spec.pass_spp = o.pass_spp() == 0 ? default_pass_spp(spec.tile_size, spec.settings.spp)
+                                    : std::min(o.pass_spp(), spec.settings.spp);
+  if (o.width() != 0 || o.height() != 0) {
+    if (o.width() == 0 || o.height() == 0) {
+      throw JobRejected(fmt::format("the film override needs a width and a height, got {}x{}",
+                                    o.width(), o.height()));
+    }
+    spec.film = {o.width(), o.height()};
+  }
+  if (spec.film.width == 0 || spec.film.height == 0) throw JobRejected("the scene's film is empty");
+  spec.stop.target_error = o.target_error();
+  spec.stop.time_limit_s = o.time_limit_s();
+  spec.stop.adaptive = !o.no_adaptive();
+  spec.stop.min_passes = o.min_passes();
+  try {
+    check_stop_rules(spec.stop);
+  } catch (const std::invalid_argument& e) {
+    throw JobRejected(e.what());
+  }
+  spec.has_reference = !request.reference_exr().empty();
+  PreparedJob prepared;
+  if (spec.has_reference)
+    prepared.reference = check_reference_bytes(request.reference_exr(), spec.film);
+  const UnitGrid grid(spec.film, spec.tile_size, spec.settings.spp, spec.pass_spp);
+  if (grid.size() > kMaxUnits) {
+    throw JobRejected(
+        fmt::format("{} units of work is too many (limit {}); use larger tiles or passes",
+                    grid.size(), kMaxUnits));
+  }
+  spec.submitted_unix_ms = unix_ms_now();
+  spec.owner = owner;
+
+  // Store it; admit() schedules it.
+  try {
+    spec.id = store_.allocate_id();
+  } catch (const std::exception& e) {
+    throw JobRejected(storage_refusal(e, store_.root()));
+  }
+  JobRecord record;
+  record.spec = spec;
+  try {
+    wire::Bundle canonical;
+    protocol::bundle_to_wire(bundle, &canonical);
+    store_.save_bundle(spec.id, canonical);
+    if (spec.has_reference) store_.save_reference(spec.id, request.reference_exr());
+    store_.save_record(record);  // throws: a job is accepted only once it is on disk
+    store_.sync_job_dir(spec.id);
+  } catch (const std::exception& e) {
+    fs::remove_all(store_.job_dir(spec.id), ec);
+    throw JobRejected(storage_refusal(e, store_.root()));
+  }
+  prepared.spec = std::move(spec);
+  prepared.warnings = scene.warnings;
+  prepared.bundle_files = bundle.files.size();
+  prepared.bundle_bytes = bundle.data_bytes();
+  return prepared;
+}
+
+std::string JobManager::admit(PreparedJob prepared) {
+  const JobSpec& spec = prepared.spec;
+  const UnitGrid grid(spec.film, spec.tile_size, spec.settings.spp, spec.pass_spp);
+  const std::string& hash = spec.bundle_hash;
+  Job job;
+  job.record.spec = spec;
+  bundle_owner_.emplace(hash, spec.id);
+  try {
+    activate(job, std::move(prepared.reference));
+  } catch (const std::exception& e) {
+    // E.g. no memory for the job's film: it is on disk, so it is recorded as failed (and listed)
+    // rather than tried again at every start.
+    scheduler_.remove_job(spec.id);
+    job.active.reset();
+    job.record.state = wire::JOB_FAILED;
+    job.record.error = std::string("the master cannot hold the job: ") + e.what();
+    job.record.stop_reason = stop_reason_name(StopReason::kFailed);
+    log_jobs()->error("job {}: {}", spec.id, job.record.error);
+    const std::string error = job.record.error;
+    auto [it, inserted] = jobs_.emplace(spec.id, std::move(job));
+    save(it->second);
+    throw JobRejected(error);
+  }
+  log_jobs()->info(
+      "job {} accepted: '{}', scene {} {}x{}, {}, {}, max depth {}, seed {}; {} tiles of {} x "
+      "{} passes of {} spp = {} units; bundle of {} files, {} ({}){}",
+      spec.id, spec.name, spec.scene_path, spec.film.width, spec.film.height,
+      describe_stop(spec.stop, spec.settings.spp), integrator_name(spec.settings.integrator),
+      spec.settings.max_depth, spec.settings.seed, grid.tile_count(), spec.tile_size,
+      grid.pass_count(), spec.pass_spp, grid.size(), prepared.bundle_files,
+      human_bytes(prepared.bundle_bytes), hash.substr(0, 12),
+      spec.has_reference ? "; error measured against its reference image" : "");
+  for (const auto& w : prepared.warnings) log_jobs()->warn("job {}: {}", spec.id, w);
+  const std::string id = spec.id;
+  jobs_.emplace(id, std::move(job));
+  return id;
+}
+
+}  // namespace rayfarm::master

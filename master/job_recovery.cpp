@@ -1,0 +1,178 @@
+// Recovery: checkpoints of running jobs, and what a starting master does with the jobs of its
+// data dir (resume each unfinished one from its newest usable checkpoint, or start it over).
+#include "common/util/log.h"
+#include "master/job_manager.h"
+#include "master/job_text.h"
+
+namespace rayfarm::master {
+using namespace detail;
+
+size_t JobManager::recover() {
+  size_t restarted = 0;
+  for (JobRecord& record : store_.load_records()) {
+    const std::string id = record.spec.id;
+    Job job;
+    job.record = std::move(record);
+    if (job.record.unreadable) {  // listed as it is, with its cause; never saved over
+      jobs_.emplace(id, std::move(job));
+      continue;
+    }
+    bundle_owner_.emplace(job.record.spec.bundle_hash, id);
+    if (is_active_state(job.record.state)) {
+      if (!store_.load_bundle(id)) {
+        job.record.state = wire::JOB_FAILED;
+        job.record.error = "the job's bundle is missing from the data dir";
+        log_jobs()->error("job {}: {}; marked failed", id, job.record.error);
+        save(job);
+      } else {
+        const bool was_running = job.record.state == wire::JOB_RUNNING;
+        job.record.state = wire::JOB_QUEUED;
+        job.active = make_active(job.record.spec, std::nullopt);
+        ++restarted;
+        bool resumed = false;
+        try {
+          resumed = resume(job);
+        } catch (const std::exception& e) {  // e.g. out of memory: start over rather than stop
+          log_jobs()->error("job {}: its checkpoint cannot be loaded ({}); starting over", id,
+                            e.what());
+          job.record.state = wire::JOB_QUEUED;
+          job.active = make_active(job.record.spec, std::nullopt);
+        }
+        schedule(job);
+        if (!resumed) {
+          if (was_running) {
+            log_jobs()->info(
+                "job {} restarted from the beginning ('{}', {}x{}, {} spp): no usable checkpoint",
+                id, job.record.spec.name, job.record.spec.film.width, job.record.spec.film.height,
+                job.record.spec.settings.spp);
+          } else {
+            log_jobs()->info("job {} queued again ('{}'): it had not started", id,
+                             job.record.spec.name);
+          }
+        }
+        save(job);
+      }
+    } else if (job.record.state == wire::JOB_DONE && job.record.stop_reason.empty()) {
+      // A record from before stopping rules: the job ran every unit.
+      const JobSpec& s = job.record.spec;
+      job.record.units_done = UnitGrid(s.film, s.tile_size, s.settings.spp, s.pass_spp).size();
+      job.record.spp_min = s.settings.spp;
+      job.record.spp_mean = s.settings.spp;
+    }
+    if (!is_active_state(job.record.state)) remove_checkpoints(store_.job_dir(id));  // stale
+    auto [it, inserted] = jobs_.emplace(id, std::move(job));
+    // A job whose last unit was merged before the crash, but not yet recorded as done.
+    if (inserted && it->second.active && it->second.active->planner.finished()) {
+      finish(it->second, wire::JOB_DONE, "", it->second.active->planner.reason());
+    }
+  }
+  return restarted;
+}
+
+bool JobManager::resume(Job& job) {
+  const JobSpec& s = job.record.spec;
+  const UnitGrid& grid = job.active->grid();
+  // The merged state a checkpoint describes, checked against the job's settings and itself.
+  struct Restored {
+    Merger merger;
+    PassPlanner planner;
+  };
+  auto rebuild = [&](const Checkpoint& c) {
+    if (c.job_id != s.id || c.width != s.film.width || c.height != s.film.height ||
+        c.tile_size != s.tile_size || c.spp != s.settings.spp || c.pass_spp != s.pass_spp) {
+      throw CheckpointError(fmt::format(
+          "it is of job '{}' {}x{}, tile {}, {} spp in passes of {}, not of this job's settings",
+          c.job_id, c.width, c.height, c.tile_size, c.spp, c.pass_spp));
+    }
+    if (!(c.elapsed_seconds >= 0) || c.rows.size() > grid.size() + 1) {
+      throw CheckpointError("inconsistent: bad elapsed time or error rows");
+    }
+    Restored out{Merger(grid), PassPlanner(grid, s.stop)};
+    try {
+      out.merger.restore(c.merged, c.sum, c.sum_sq, c.nonfinite, c.rays);
+      out.planner.import_state(c.planner, out.merger.merged_units());
+    } catch (const std::invalid_argument& e) {
+      throw CheckpointError(std::string("inconsistent: ") + e.what());
+    }
+    return out;
+  };
+  std::vector<std::string> problems;
+  auto loaded = load_newest_checkpoint(store_.job_dir(s.id), problems,
+                                       [&](const Checkpoint& c) { rebuild(c); });
+  for (const std::string& problem : problems) {
+    log_jobs()->error("job {}: cannot use checkpoint {}{}", s.id, problem,
+                      loaded ? fmt::format("; falling back to {}", loaded->file.string())
+                             : std::string("; no other checkpoint to fall back to"));
+  }
+  if (!loaded) return false;
+  const Checkpoint& c = loaded->checkpoint;
+  ActiveJob& a = *job.active;
+  Restored restored = rebuild(c);
+  a.merger = std::move(restored.merger);
+  a.planner = std::move(restored.planner);
+  a.tracker.estimate_all(a.merger.film());
+  a.rows = c.rows;
+  a.rounds_recorded = c.rounds_recorded;
+  a.samples_recorded = c.samples_recorded;
+  job.checkpoint_sequence = c.sequence;
+  checkpoints_.set_newest_slot(s.id, loaded->slot);
+  if (c.elapsed_seconds > 0 || a.merger.merged_count() > 0) {
+    a.start_time = Clock::now() - std::chrono::duration_cast<Clock::duration>(
+                                      std::chrono::duration<double>(c.elapsed_seconds));
+    job.record.state = wire::JOB_RUNNING;
+  }
+  log_jobs()->info(
+      "job {} resumed from checkpoint at {}/{} units, pass {} ({:.1f} s rendered; {}, checkpoint "
+      "{})",
+      s.id, a.merger.merged_count(), grid.size(),
+      a.planner.rounds_complete(a.merger.merged_units()), c.elapsed_seconds, loaded->file.string(),
+      c.sequence);
+  if (a.merger.merged_count() > 0) write_image(job);
+  return true;
+}
+
+void JobManager::checkpoint(Job& job) {
+  const JobSpec& s = job.record.spec;
+  const Merger& m = job.active->merger;
+  Checkpoint c;
+  c.sequence = ++job.checkpoint_sequence;
+  c.job_id = s.id;
+  c.width = s.film.width;
+  c.height = s.film.height;
+  c.tile_size = s.tile_size;
+  c.spp = s.settings.spp;
+  c.pass_spp = s.pass_spp;
+  c.elapsed_seconds = job.active->elapsed();
+  c.merged = m.merged_units().to_bytes();
+  c.sum = m.film().sum();
+  c.sum_sq = m.film().sum_sq();
+  c.nonfinite = m.film().nonfinite();
+  c.rays = m.film().rays();
+  c.planner = job.active->planner.export_state();
+  c.rows = job.active->rows;
+  c.rounds_recorded = job.active->rounds_recorded;
+  c.samples_recorded = job.active->samples_recorded;
+  checkpoints_.submit(store_.job_dir(s.id), std::move(c));
+  job.active->checkpoint_due = false;
+  job.active->last_checkpoint = Clock::now();
+}
+
+size_t JobManager::shutdown() {
+  size_t count = 0;
+  for (auto& [id, job] : jobs_) {
+    if (!job.active || !job.active->started()) continue;  // finished, or nothing to keep yet
+    if (job.active->dirty) write_image(job);
+    checkpoint(job);
+    ++count;
+  }
+  checkpoints_.flush();
+  writer_.flush();
+  if (count) {
+    log_jobs()->info(
+        "{} running job{} checkpointed; they resume there when the master starts again", count,
+        count == 1 ? "" : "s");
+  }
+  return count;
+}
+
+}  // namespace rayfarm::master

@@ -1,0 +1,163 @@
+// Status: what `status`, `list` and `image` report of a job, queued, running or finished.
+#include <set>
+
+#include "common/protocol/convert.h"
+#include "master/eta.h"
+#include "master/job_manager.h"
+#include "master/job_text.h"
+
+namespace rayfarm::master {
+namespace fs = std::filesystem;
+namespace protocol = rayfarm::protocol;
+using namespace detail;
+
+namespace {
+
+/// A worker that returned a result this recently counts as active on the job.
+constexpr std::chrono::seconds kActiveWindow{10};
+
+}  // namespace
+
+double JobManager::elapsed(const Job& job) {
+  return job.active ? job.active->elapsed() : job.record.elapsed_seconds;
+}
+
+uint32_t JobManager::workers_active(const ActiveJob& job) {
+  const auto now = Clock::now();
+  std::set<WorkerId> active;
+  for (const auto& [worker, when] : job.contributors) {
+    if (now - when <= kActiveWindow) active.insert(worker);
+  }
+  return static_cast<uint32_t>(active.size());
+}
+
+wire::JobStatus JobManager::make_status(const Job& job, uint32_t workers_total) const {
+  const JobSpec& s = job.record.spec;
+  wire::JobStatus st;
+  st.set_job_id(s.id);
+  st.set_name(s.name);
+  st.set_owner(s.owner);
+  st.set_state(job.record.state);
+  if (job.record.unreadable) {  // only its id and what is wrong are known
+    st.set_error(job.record.error);
+    st.set_est_rel_mse(-1.0);
+    st.set_ref_rel_mse(-1.0);
+    st.set_eta_seconds(-1.0);
+    st.set_workers_total(workers_total);
+    return st;
+  }
+  st.set_width(s.film.width);
+  st.set_height(s.film.height);
+  *st.mutable_settings() = protocol::settings_to_wire(s.settings);
+  st.set_tile_size(s.tile_size);
+  st.set_pass_spp(s.pass_spp);
+  const UnitGrid grid(s.film, s.tile_size, s.settings.spp, s.pass_spp);
+  st.set_passes_total(grid.pass_count());
+  st.set_units_total(grid.size());
+  st.set_elapsed_seconds(elapsed(job));
+  st.set_workers_total(workers_total);
+  st.set_error(job.record.error);
+  st.set_eta_seconds(-1.0);
+  st.set_stop_reason(job.record.stop_reason);
+  st.set_tiles_total(grid.tile_count());
+  st.set_est_rel_mse(job.record.est_rel_mse);
+  st.set_ref_rel_mse(job.record.ref_rel_mse);
+  st.set_spp_mean(job.record.spp_mean);
+  st.set_tiles_converged(job.record.tiles_converged);
+  st.set_storage_error(for_clients(job.storage_error));
+  st.set_error(for_clients(job.record.error));
+  if (job.active) {
+    const ActiveJob& a = *job.active;
+    const Merger& m = a.merger;
+    const auto counts = scheduler_.counts(s.id);
+    st.set_passes_done(a.planner.rounds_complete(m.merged_units()));
+    st.set_tiles_converged(a.planner.tiles_converged());
+    st.set_spp_mean(static_cast<double>(m.samples_merged()) /
+                    (double(s.film.width) * s.film.height));
+    if (!a.rows.empty()) {
+      const ErrorRow& row = a.rows.back();
+      st.set_est_rel_mse(row.est_rel_mse);
+      if (row.ref_rel_mse) st.set_ref_rel_mse(*row.ref_rel_mse);
+    }
+    st.set_units_done(m.merged_count());
+    st.set_units_leased(counts.leased);
+    st.set_spp_done(m.min_spp());
+    st.set_workers_busy(counts.workers);
+    const double seconds = elapsed(job);
+    if (seconds > 0 && m.samples_merged() > 0) {
+      const double rate = static_cast<double>(m.samples_merged()) / seconds;
+      st.set_samples_per_second(rate);
+      st.set_eta_seconds(
+          estimate_eta(s.stop, static_cast<double>(grid.samples_total() - m.samples_merged()), rate,
+                       seconds, a.rows));
+    }
+  } else {
+    st.set_units_done(job.record.units_done);
+    st.set_spp_done(job.record.spp_min);
+    // Records from before passes_done was kept: every pass when the job ran to its spp.
+    const bool all_passes = job.record.state == wire::JOB_DONE &&
+                            (job.record.stop_reason.empty() || job.record.stop_reason == "spp");
+    st.set_passes_done(job.record.passes_done > 0 ? job.record.passes_done
+                       : all_passes               ? grid.pass_count()
+                                                  : 0);
+    if (job.record.state == wire::JOB_DONE) st.set_eta_seconds(0.0);
+    if (job.record.elapsed_seconds > 0) {
+      st.set_samples_per_second(job.record.spp_mean * s.film.width * s.film.height /
+                                job.record.elapsed_seconds);
+    }
+  }
+  return st;
+}
+
+std::optional<wire::JobStatus> JobManager::status(const std::string& id,
+                                                  uint32_t workers_total) const {
+  auto it = jobs_.find(id);
+  if (it == jobs_.end()) return std::nullopt;
+  return make_status(it->second, workers_total);
+}
+
+std::vector<wire::JobStatus> JobManager::list(uint32_t workers_total) const {
+  std::vector<wire::JobStatus> out;
+  for (const auto& [id, job] : jobs_) out.push_back(make_status(job, workers_total));
+  return out;
+}
+
+wire::ImageData JobManager::image(const std::string& id) const {
+  auto it = jobs_.find(id);
+  if (it == jobs_.end()) throw JobRejected("unknown job '" + id + "'");
+  auto exr = store_.read_file(id, "image.exr");
+  if (!exr) throw JobRejected("job " + id + " has no image yet (no unit has been merged)");
+  wire::ImageData out;
+  out.set_job_id(id);
+  out.set_exr(std::move(*exr));
+  if (auto png = store_.read_file(id, "image.png")) out.set_png(std::move(*png));
+  if (auto csv = store_.read_file(id, "error.csv")) out.set_error_csv(std::move(*csv));
+  if (auto plot = store_.read_file(id, "error.png")) out.set_error_png(std::move(*plot));
+  const Job& job = it->second;
+  out.set_spp_done(job.active ? job.active->merger.min_spp() : job.record.spp_min);
+  out.set_state(job.record.state);
+  return out;
+}
+
+std::optional<wire::Bundle> JobManager::bundle(const std::string& hash) const {
+  auto it = bundle_owner_.find(hash);
+  if (it == bundle_owner_.end()) return std::nullopt;
+  return store_.load_bundle(it->second);
+}
+
+std::vector<std::string> JobManager::units_of(const WorkerId& worker) const {
+  std::vector<std::string> out;
+  for (const UnitRef& u : scheduler_.leased_units(worker))
+    out.push_back(fmt::format("{}/{}", u.job, u.unit));
+  return out;
+}
+
+std::string JobManager::for_clients(const std::string& text) const {
+  std::string out = text;
+  std::error_code ec;
+  const fs::path absolute = fs::absolute(store_.root(), ec);
+  if (!ec && !absolute.empty()) out = replace_all(out, absolute.string(), "<data dir>");
+  return replace_all(out, store_.root().string(), "<data dir>");
+}
+
+}  // namespace rayfarm::master
