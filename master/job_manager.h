@@ -19,8 +19,8 @@
 #include <unordered_map>
 #include <vector>
 
-#include "master/active_job.h"
 #include "common/scene/parser.h"
+#include "master/active_job.h"
 #include "master/checkpoint.h"
 #include "master/image_writer.h"
 #include "master/job_store.h"
