@@ -42,13 +42,13 @@ void Broker::admit_submissions() {
         admitted = true;
       } catch (const std::exception& e) {
         log()->error("job refused ({}) from {}: {}", done.scene, done.label, e.what());
-        out.set_code(wire::Error::REFUSED);
+        out.set_code(wire::Error::INTERNAL);
         out.set_error(jobs_.for_clients(e.what()));
       }
     } else {
       log()->log(refusal_log_.take(done.user) ? spdlog::level::warn : spdlog::level::debug,
                  "job refused ({}) from {}: {}", done.scene, done.label, done.error);
-      out.set_code(wire::Error::REFUSED);
+      out.set_code(done.internal ? wire::Error::INTERNAL : wire::Error::REFUSED);
       out.set_error(jobs_.for_clients(done.error));
     }
     reply(done.peer, encode(std::move(out)));

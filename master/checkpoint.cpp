@@ -161,7 +161,8 @@ Checkpoint decode_payload(Reader& r, uint32_t version) {
   c.merged = r.array<uint8_t>("merged units");
   c.sum = r.array<Fixed>("sums");
   c.sum_sq = r.array<Fixed>("sums of squares");
-  if (v1) r.array<uint32_t>("samples per pixel");  // what the merged map says
+  // Version 1 also stored the samples per pixel, which the merged map says: checked, not kept.
+  const size_t v1_pixel_spp = v1 ? r.array<uint32_t>("samples per pixel").size() : 0;
   c.nonfinite = r.pod<uint64_t>("nonfinite");
   c.rays = r.pod<uint64_t>("rays");
   const uint64_t tiles = r.pod<uint64_t>("planner tiles");
@@ -198,7 +199,8 @@ Checkpoint decode_payload(Reader& r, uint32_t version) {
   if (!r.done()) r.fail("end", "bytes left over after the last field");
   // Sizes that must agree with each other (agreement with the job is the caller's check).
   const uint64_t pixels = uint64_t{c.width} * c.height;
-  if (c.sum.size() != pixels * 3 || c.sum_sq.size() != pixels * 3) {
+  if (c.sum.size() != pixels * 3 || c.sum_sq.size() != pixels * 3 ||
+      (v1 && v1_pixel_spp != pixels)) {
     throw CheckpointError("malformed payload: the film's arrays do not match its size " +
                           std::to_string(c.width) + "x" + std::to_string(c.height));
   }
@@ -309,10 +311,17 @@ std::optional<LoadedCheckpoint> load_newest_checkpoint(
 
 void remove_checkpoints(const fs::path& job_dir) {
   std::error_code ec;
-  for (int slot = 0; slot < 2; ++slot) {
-    fs::remove(checkpoint_path(job_dir, slot), ec);
-    fs::remove(checkpoint_path(job_dir, slot).string() + ".tmp", ec);
+  for (int slot = 0; slot < 2; ++slot) fs::remove(checkpoint_path(job_dir, slot), ec);
+  // Temporaries a crash left mid-write: "checkpoint-N.bin.tmp" (older masters) and
+  // "checkpoint-N.bin.tmp-PID-SEQ" (write_file_atomically).
+  std::vector<fs::path> leftovers;
+  for (fs::directory_iterator it(job_dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (name.rfind("checkpoint-", 0) == 0 && name.find(".bin.tmp") != std::string::npos) {
+      leftovers.push_back(it->path());
+    }
   }
+  for (const fs::path& path : leftovers) fs::remove(path, ec);
 }
 
 // --- CheckpointWriter ---

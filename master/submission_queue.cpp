@@ -81,6 +81,7 @@ void SubmissionQueue::loop() {
       done.error = e.what();
     } catch (const std::exception& e) {
       done.error = std::string("the master failed to check the job: ") + e.what();
+      done.internal = true;
     }
     lock.lock();
     done_.push_back(std::move(done));

@@ -37,6 +37,7 @@ class SubmissionQueue {
     std::string error;  // why it was refused
     std::string user;   // the client's key
     uint64_t bytes = 0;
+    bool internal = false;  // refused for a fault of the master's, not of the submission
   };
 
   /// Starts the checking thread; `jobs` must outlive the queue.

@@ -202,6 +202,8 @@ TEST(Checkpoint, AVersion1FileIsStillRead) {
   ASSERT_EQ(error_of(old), "");
   expect_same(decode_checkpoint(old), c);
   EXPECT_NE(encode_checkpoint(c), old) << "written in the current version";
+  // Its samples-per-pixel array is no longer kept, but still has to be the film's size.
+  EXPECT_NE(error_of(encode_version_1(c, std::vector<uint32_t>(63, 16), {2, 2})), "");
 }
 
 TEST(Checkpoint, TwoGenerationsAlternateAndTheNewestUsableWins) {
@@ -248,9 +250,16 @@ TEST(Checkpoint, TwoGenerationsAlternateAndTheNewestUsableWins) {
   ASSERT_EQ(problems.size(), 1u);
   EXPECT_NE(problems[0].find("of other settings"), std::string::npos);
 
+  // Temporaries a crash left mid-write go with the checkpoints; other files stay.
+  for (const char* name : {"checkpoint-0.bin.tmp", "checkpoint-1.bin.tmp-4242-7", "image.exr"}) {
+    spit(dir.path() / name, "left over");
+  }
   writer.forget("j0042", dir.path());
   writer.flush();
   EXPECT_FALSE(fs::exists(file0));
+  EXPECT_FALSE(fs::exists(dir.path() / "checkpoint-0.bin.tmp"));
+  EXPECT_FALSE(fs::exists(dir.path() / "checkpoint-1.bin.tmp-4242-7"));
+  EXPECT_TRUE(fs::exists(dir.path() / "image.exr"));
   problems.clear();
   EXPECT_FALSE(load_newest_checkpoint(dir.path(), problems));
   EXPECT_TRUE(problems.empty());
