@@ -51,6 +51,13 @@ struct Strip {
     }
     return r;
   }
+  /// Merges `u` as the master does: into the film, then the merged record, then the planner.
+  void merge(uint64_t u, uint32_t pass_spp, Film& film, MergedUnits& merged,
+             PassPlanner& planner) const {
+    film.add(unit(u, pass_spp));
+    merged.add(u);
+    planner.on_merged(u, merged, film);
+  }
 };
 
 TEST(PassPlanner, WithoutATargetEveryUnitIsNeeded) {
@@ -65,9 +72,7 @@ TEST(PassPlanner, WithoutATargetEveryUnitIsNeeded) {
   for (uint64_t u = 0; u < 6; ++u) {
     EXPECT_TRUE(planner.is_released(u));
     EXPECT_FALSE(planner.finished());
-    film.add(strip.unit(u, 4));
-    merged.add(u);
-    planner.on_merged(u, merged, film);
+    strip.merge(u, 4, film, merged, planner);
   }
   EXPECT_TRUE(planner.finished());
   EXPECT_EQ(planner.reason(), StopReason::kSpp);
@@ -88,9 +93,7 @@ TEST(PassPlanner, QuietTilesStopAndNoisyOnesGoOnOnePassAtATime) {
   EXPECT_FALSE(planner.is_released(4));
   Film film(2, 1);
   auto merge = [&](uint64_t u) {
-    film.add(strip.unit(u, 8));
-    merged.add(u);
-    planner.on_merged(u, merged, film);
+    strip.merge(u, 8, film, merged, planner);
   };
   merge(2);  // pass 1 of tile 0 before its pass 0: nothing decided yet
   EXPECT_TRUE(planner.take_released().empty());
@@ -132,9 +135,7 @@ TEST(PassPlanner, ReachingTheTargetEverywhereIsTheStopReason) {
   while (!ready.empty()) {
     const uint64_t u = ready.back();  // latest first: order must not matter
     ready.pop_back();
-    film.add(strip.unit(u, 16));
-    merged.add(u);
-    planner.on_merged(u, merged, film);
+    strip.merge(u, 16, film, merged, planner);
     for (uint64_t next : planner.take_released()) ready.push_back(next);
   }
   EXPECT_TRUE(planner.finished());
@@ -154,9 +155,7 @@ TEST(PassPlanner, NoisierTilesGetLargerBudgetsThatAverageToTheTarget) {
   MergedUnits merged(grid);
   Film film(3, 1);
   for (uint64_t u : planner.take_released()) {
-    film.add(strip.unit(u, 16));
-    merged.add(u);
-    planner.on_merged(u, merged, film);
+    strip.merge(u, 16, film, merged, planner);
   }
   const double b0 = planner.tile_budget(0), b1 = planner.tile_budget(1),
                b2 = planner.tile_budget(2);
@@ -176,13 +175,9 @@ TEST(PassPlanner, WholePassesWaitForTheWholeImage) {
   MergedUnits merged(grid);
   EXPECT_EQ(planner.take_released(), (std::vector<uint64_t>{0, 1}));
   Film film(2, 1);
-  film.add(strip.unit(0, 8));
-  merged.add(0);
-  planner.on_merged(0, merged, film);
+  strip.merge(0, 8, film, merged, planner);
   EXPECT_TRUE(planner.take_released().empty()) << "decided before the pass was whole";
-  film.add(strip.unit(1, 8));
-  merged.add(1);
-  planner.on_merged(1, merged, film);
+  strip.merge(1, 8, film, merged, planner);
   EXPECT_EQ(planner.take_released(), (std::vector<uint64_t>{2, 3}))
       << "the quiet tile goes on with the image";
 }
@@ -197,9 +192,7 @@ TEST(PassPlanner, ImportedDecisionsMustAgreeWithWhatIsMerged) {
   MergedUnits merged(grid);
   Film film(2, 1);
   for (uint64_t u : planner.take_released()) {
-    film.add(strip.unit(u, 8));
-    merged.add(u);
-    planner.on_merged(u, merged, film);
+    strip.merge(u, 8, film, merged, planner);
   }
   // Tile 0 converged after its two passes; tile 1 was given pass 2 (unit 5).
   const PlannerState state = planner.export_state();
