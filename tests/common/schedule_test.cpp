@@ -92,9 +92,7 @@ TEST(PassPlanner, QuietTilesStopAndNoisyOnesGoOnOnePassAtATime) {
   EXPECT_EQ(planner.take_released(), (std::vector<uint64_t>{0, 1, 2, 3}));
   EXPECT_FALSE(planner.is_released(4));
   Film film(2, 1);
-  auto merge = [&](uint64_t u) {
-    strip.merge(u, 8, film, merged, planner);
-  };
+  auto merge = [&](uint64_t u) { strip.merge(u, 8, film, merged, planner); };
   merge(2);  // pass 1 of tile 0 before its pass 0: nothing decided yet
   EXPECT_TRUE(planner.take_released().empty());
   merge(0);  // tile 0 has its minimum; budgets wait for every tile's
