@@ -10,6 +10,7 @@
 #include "common/limits.h"
 #include "common/math/wide.h"
 #include "common/scene/json_reader.h"
+#include "common/scene/material_reader.h"
 #include "common/scene/obj_loader.h"
 #include "common/util/text.h"
 
@@ -120,69 +121,13 @@ class SceneReader {
     Material m;
     m.name = name;
     const Node type = n.require("type");
-    if (!read_kind(n, read_string(type), m.kind)) {
+    if (!read_material_kind(n, read_string(type), m.kind)) {
       type.fail("unknown material type " + as_written(type.json()) + "; expected one of " +
-                kind_names());
+                material_type_names());
     }
     if (auto e = n.find("emission")) m.emission = read_radiance(*e);
     if (auto s = n.find("two_sided")) m.two_sided = read_bool(*s);
     return m;
-  }
-
-  /// Reads the parameters of the kind named `kind` into `out`; false when no kind has that name.
-  template <size_t I = 0>
-  static bool read_kind(const Node& n, const std::string& kind, MaterialKind& out) {
-    if constexpr (I < std::variant_size_v<MaterialKind>) {
-      using Params = std::variant_alternative_t<I, MaterialKind>;
-      if (kind != Params::kName) return read_kind<I + 1>(n, kind, out);
-      read_params(n, out.emplace<I>());
-      return true;
-    } else {
-      return false;
-    }
-  }
-
-  /// "diffuse, phong, ...": every kind's name, for messages.
-  template <size_t I = 0>
-  static std::string kind_names() {
-    const std::string name = std::variant_alternative_t<I, MaterialKind>::kName;
-    if constexpr (I + 1 < std::variant_size_v<MaterialKind>) {
-      return name + ", " + kind_names<I + 1>();
-    } else {
-      return name;
-    }
-  }
-
-  // One reader per material kind: its keys, then its parameters.
-
-  static void read_params(const Node& n, DiffuseMaterial& d) {
-    n.allow_keys({"type", "albedo", "emission", "two_sided"});
-    if (auto a = n.find("albedo")) d.albedo = read_reflectance(*a);
-  }
-
-  static void read_params(const Node& n, PhongMaterial& p) {
-    n.allow_keys({"type", "kd", "ks", "exponent", "emission", "two_sided"});
-    p.kd = read_reflectance(n.require("kd"));
-    p.ks = read_reflectance(n.require("ks"));
-    p.exponent = read_non_negative(n.require("exponent"));
-    const Vec3 total = p.kd + p.ks;
-    for (int i = 0; i < 3; ++i) {
-      if (total[i] > 1.f + 1e-6f) {
-        n.fail("kd + ks is " + std::to_string(total[i]) + " in channel " + std::to_string(i) +
-               "; it must not exceed 1 (energy conservation)");
-      }
-    }
-  }
-
-  static void read_params(const Node& n, MirrorMaterial& m) {
-    n.allow_keys({"type", "reflectance", "emission", "two_sided"});
-    if (auto r = n.find("reflectance")) m.reflectance = read_reflectance(*r);
-  }
-
-  static void read_params(const Node& n, DielectricMaterial& d) {
-    n.allow_keys({"type", "ior", "tint", "emission", "two_sided"});
-    if (auto ior = n.find("ior")) d.ior = read_positive(*ior);
-    if (auto tint = n.find("tint")) d.tint = read_reflectance(*tint);
   }
 
   uint32_t material_ref(const Node& n) const {

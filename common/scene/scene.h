@@ -62,9 +62,61 @@ struct DielectricMaterial {
   Vec3 tint{1.f};    ///< transmission colour
 };
 
+/// A metal with GGX microfacets: exact conductor Fresnel from eta + i k, or Schlick's from f0.
+/// alpha 0 on both axes is a smooth conductor (a Dirac lobe).
+struct RoughConductorMaterial {
+  static constexpr const char* kName = "roughconductor";
+  /// Gold's complex index per channel (linear sRGB, red green blue): the values renderers
+  /// commonly use for gold, reduced from Johnson and Christy's 1972 measurements.
+  Vec3 eta{0.143119f, 0.374957f, 1.44248f};
+  Vec3 k{3.98316f, 2.38572f, 1.60322f};
+  bool use_f0 = false;             ///< Schlick's approximation with f0 instead of eta, k
+  Vec3 f0{1.f};                    ///< reflectance at normal incidence, when use_f0
+  float alpha_u = 0.1f;            ///< GGX roughness along the surface tangent
+  float alpha_v = 0.1f;            ///< GGX roughness along the bitangent
+  Vec3 specular_reflectance{1.f};  ///< multiplier
+};
+
+/// Glass with GGX microfacets: rough reflection and refraction (Walter et al. 2007). alpha 0 is
+/// the smooth dielectric.
+struct RoughDielectricMaterial {
+  static constexpr const char* kName = "roughdielectric";
+  float ior = 1.5f;
+  float alpha_u = 0.1f;
+  float alpha_v = 0.1f;
+  Vec3 tint{1.f};  ///< transmission colour
+};
+
+/// A pane of glass of zero thickness: specular reflection including the pane's inner bounces,
+/// and straight-through transmission.
+struct ThinDielectricMaterial {
+  static constexpr const char* kName = "thindielectric";
+  float ior = 1.5f;
+  Vec3 tint{1.f};
+};
+
+/// A diffuse base under a smooth (alpha 0) or GGX-rough dielectric coating.
+struct PlasticMaterial {
+  static constexpr const char* kName = "plastic";
+  Vec3 diffuse_reflectance{0.5f};
+  float ior = 1.49f;       ///< of the coating (polypropylene)
+  float alpha = 0.f;       ///< GGX roughness of the coating; 0 = smooth
+  bool nonlinear = false;  ///< internal reflections darken and saturate the base's colour
+};
+
+/// The glTF 2.0 metallic-roughness BRDF (with KHR_materials_ior and _transmission).
+struct MetallicRoughnessMaterial {
+  static constexpr const char* kName = "metallic_roughness";
+  Vec3 base_color{1.f};
+  float metallic = 1.f;
+  float roughness = 1.f;  ///< GGX alpha = roughness^2
+  float ior = 1.5f;
+  float transmission = 0.f;
+};
+
 /// Every material kind, in the order the scene format lists them.
-using MaterialKind =
-    std::variant<DiffuseMaterial, PhongMaterial, MirrorMaterial, DielectricMaterial>;
+using MaterialKind = std::variant<DiffuseMaterial, PhongMaterial, MirrorMaterial,
+                                  DielectricMaterial, RoughConductorMaterial>;
 
 /// Name of a material kind as written in scene files ("diffuse", ...).
 inline const char* material_kind_name(const MaterialKind& kind) {

@@ -12,6 +12,7 @@
 #include "worker/bsdfs/diffuse.h"
 #include "worker/bsdfs/mirror.h"
 #include "worker/bsdfs/phong.h"
+#include "worker/bsdfs/rough_conductor.h"
 
 namespace rayfarm {
 
@@ -26,7 +27,10 @@ struct BsdfKindFor<P, K, Rest...>
 }  // namespace detail
 
 /// A BSDF that knows the kinds `Kinds`. Each kind has `Params` (the material struct it is built
-/// from), `kSpecular` (every lobe a Dirac delta) and eval / pdf / sample as documented below.
+/// from), `is_specular()` (every lobe a Dirac delta: per instance, since a rough kind with
+/// roughness 0 is smooth) and eval / pdf / sample as documented below. A BSDF that is not specular
+/// may still draw some samples from a Dirac lobe (a smooth coat over a diffuse base): those carry
+/// `BsdfSample::specular`, and eval / pdf leave the Dirac lobes out.
 template <class... Kinds>
 class BsdfOf {
  public:
@@ -58,7 +62,7 @@ class BsdfOf {
 
   /// True when every lobe is a Dirac delta (light sampling cannot help).
   bool is_specular() const {
-    return std::visit([](const auto& k) { return std::decay_t<decltype(k)>::kSpecular; }, kind_);
+    return std::visit([](const auto& k) { return k.is_specular(); }, kind_);
   }
   /// f(wo, wi) * |cos(wi)|; zero for specular kinds.
   Vec3 eval(const Vec3& wo, const Vec3& wi) const {
@@ -78,7 +82,7 @@ class BsdfOf {
 };
 
 /// Every BSDF kind: the one the renderer uses.
-using Bsdf = BsdfOf<DiffuseBsdf, PhongBsdf, MirrorBsdf, DielectricBsdf>;
+using Bsdf = BsdfOf<DiffuseBsdf, PhongBsdf, MirrorBsdf, DielectricBsdf, RoughConductorBsdf>;
 
 /// Diffuse only: for measuring what the other kinds cost a diffuse scene (bench/diffuse_only.sh).
 using DiffuseOnlyBsdf = BsdfOf<DiffuseBsdf>;

@@ -9,7 +9,7 @@ namespace rayfarm {
 class DielectricBsdf {
  public:
   using Params = DielectricMaterial;
-  static constexpr bool kSpecular = true;
+  bool is_specular() const { return true; }
 
   explicit DielectricBsdf(const DielectricMaterial& m) : ior_(m.ior), tint_(m.tint) {}
 

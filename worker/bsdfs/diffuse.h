@@ -10,7 +10,7 @@ namespace rayfarm {
 class DiffuseBsdf {
  public:
   using Params = DiffuseMaterial;
-  static constexpr bool kSpecular = false;
+  bool is_specular() const { return false; }
 
   explicit DiffuseBsdf(const DiffuseMaterial& m) : albedo_(m.albedo) {}
 

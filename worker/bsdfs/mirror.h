@@ -8,7 +8,7 @@ namespace rayfarm {
 class MirrorBsdf {
  public:
   using Params = MirrorMaterial;
-  static constexpr bool kSpecular = true;
+  bool is_specular() const { return true; }
 
   explicit MirrorBsdf(const MirrorMaterial& m) : reflectance_(m.reflectance) {}
 

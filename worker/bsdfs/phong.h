@@ -9,7 +9,7 @@ namespace rayfarm {
 class PhongBsdf {
  public:
   using Params = PhongMaterial;
-  static constexpr bool kSpecular = false;
+  bool is_specular() const { return false; }
 
   explicit PhongBsdf(const PhongMaterial& m) : m_(m) {}
 

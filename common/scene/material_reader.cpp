@@ -1,0 +1,134 @@
+// One reader per material kind (docs/scene-format.md, "Materials"): its keys, then its
+// parameters, each range checked where it is read so that the message names the value.
+#include "common/scene/material_reader.h"
+
+#include <sstream>
+#include <variant>
+
+namespace rayfarm::scene_json {
+namespace {
+
+void read_params(const Node& n, DiffuseMaterial& d) {
+  n.allow_keys({"type", "albedo", "emission", "two_sided"});
+  if (auto a = n.find("albedo")) d.albedo = read_reflectance(*a);
+}
+
+void read_params(const Node& n, PhongMaterial& p) {
+  n.allow_keys({"type", "kd", "ks", "exponent", "emission", "two_sided"});
+  p.kd = read_reflectance(n.require("kd"));
+  p.ks = read_reflectance(n.require("ks"));
+  p.exponent = read_non_negative(n.require("exponent"));
+  const Vec3 total = p.kd + p.ks;
+  for (int i = 0; i < 3; ++i) {
+    if (total[i] > 1.f + 1e-6f) {
+      n.fail("kd + ks is " + std::to_string(total[i]) + " in channel " + std::to_string(i) +
+             "; it must not exceed 1 (energy conservation)");
+    }
+  }
+}
+
+void read_params(const Node& n, MirrorMaterial& m) {
+  n.allow_keys({"type", "reflectance", "emission", "two_sided"});
+  if (auto r = n.find("reflectance")) m.reflectance = read_reflectance(*r);
+}
+
+void read_params(const Node& n, DielectricMaterial& d) {
+  n.allow_keys({"type", "ior", "tint", "emission", "two_sided"});
+  if (auto ior = n.find("ior")) d.ior = read_positive(*ior);
+  if (auto tint = n.find("tint")) d.tint = read_reflectance(*tint);
+}
+
+/// A number in [lo, hi].
+float read_in_range(const Node& n, float lo, float hi) {
+  const float v = read_float(n);
+  if (!(v >= lo && v <= hi)) {
+    std::ostringstream range;
+    range << "expected a number in [" << lo << ", " << hi << "], got " << as_written(n.json());
+    n.fail(range.str());
+  }
+  return v;
+}
+
+/// A GGX roughness: in [0, 1] (alpha above 1 is a surface rougher than any the model describes).
+float read_alpha(const Node& n) { return read_in_range(n, 0.f, 1.f); }
+
+/// "alpha" (isotropic) or "alpha_u" with "alpha_v", not both; unchanged when neither is given.
+void read_alphas(const Node& n, float& alpha_u, float& alpha_v) {
+  const auto alpha = n.find("alpha");
+  const auto u = n.find("alpha_u"), v = n.find("alpha_v");
+  if (alpha && (u || v)) (u ? *u : *v).fail("give either \"alpha\" or \"alpha_u\" and \"alpha_v\"");
+  if (alpha) alpha_u = alpha_v = read_alpha(*alpha);
+  if (u || v) {
+    if (!u) n.fail("\"alpha_v\" needs \"alpha_u\"");
+    if (!v) n.fail("\"alpha_u\" needs \"alpha_v\"");
+    alpha_u = read_alpha(*u);
+    alpha_v = read_alpha(*v);
+  }
+}
+
+void read_params(const Node& n, RoughConductorMaterial& c) {
+  n.allow_keys({"type", "eta", "k", "f0", "alpha", "alpha_u", "alpha_v", "specular_reflectance",
+                "emission", "two_sided"});
+  const auto f0 = n.find("f0");
+  if (f0) {
+    if (auto e = n.find("eta")) e->fail("give either \"f0\" or \"eta\" and \"k\"");
+    if (auto k = n.find("k")) k->fail("give either \"f0\" or \"eta\" and \"k\"");
+    c.use_f0 = true;
+    c.f0 = read_reflectance(*f0);
+  }
+  if (auto e = n.find("eta")) {
+    c.eta = read_vec3(*e);
+    for (int i = 0; i < 3; ++i)
+      if (!(c.eta[i] > 0.f)) e->fail("every channel of eta must be > 0");
+  }
+  if (auto k = n.find("k")) {
+    c.k = read_vec3(*k);
+    for (int i = 0; i < 3; ++i)
+      if (!(c.k[i] >= 0.f)) k->fail("every channel of k must be >= 0");
+  }
+  read_alphas(n, c.alpha_u, c.alpha_v);
+  if (auto s = n.find("specular_reflectance")) c.specular_reflectance = read_reflectance(*s);
+}
+
+/// "conductor": the smooth conductor, the same keys less the roughness.
+void read_smooth_conductor(const Node& n, RoughConductorMaterial& c) {
+  n.allow_keys({"type", "eta", "k", "f0", "specular_reflectance", "emission", "two_sided"});
+  read_params(n, c);
+  c.alpha_u = c.alpha_v = 0.f;
+}
+
+template <size_t I = 0>
+bool read_kind(const Node& n, const std::string& type, MaterialKind& out) {
+  if constexpr (I < std::variant_size_v<MaterialKind>) {
+    using Params = std::variant_alternative_t<I, MaterialKind>;
+    if (type != Params::kName) return read_kind<I + 1>(n, type, out);
+    read_params(n, out.emplace<I>());
+    return true;
+  } else {
+    return false;
+  }
+}
+
+template <size_t I = 0>
+std::string kind_names() {
+  const std::string name = std::variant_alternative_t<I, MaterialKind>::kName;
+  if constexpr (I + 1 < std::variant_size_v<MaterialKind>) {
+    return name + ", " + kind_names<I + 1>();
+  } else {
+    return name;
+  }
+}
+
+}  // namespace
+
+bool read_material_kind(const Node& n, const std::string& type, MaterialKind& out) {
+  if (type == "conductor") {
+    read_smooth_conductor(n, out.emplace<RoughConductorMaterial>());
+    return true;
+  }
+  return read_kind(n, type, out);
+}
+
+std::string material_type_names() { return kind_names() + ", conductor"; }
+
+}  // namespace rayfarm::scene_json

@@ -1,0 +1,17 @@
+#pragma once
+// The scene format's material kinds: one reader per kind, each checking its keys and ranges.
+#include <string>
+
+#include "common/scene/json_reader.h"
+#include "common/scene/scene.h"
+
+namespace rayfarm::scene_json {
+
+/// Reads the parameters of the material type `type` (a kind's name or a synonym such as
+/// "conductor") from `n`; false when no kind has that name.
+bool read_material_kind(const Node& n, const std::string& type, MaterialKind& out);
+
+/// "diffuse, phong, ...": every accepted type name, for messages.
+std::string material_type_names();
+
+}  // namespace rayfarm::scene_json

@@ -1,0 +1,115 @@
+// The material kinds of the scene format (common/scene/material_reader.cpp): defaults, synonyms,
+// and every out-of-range value rejected with a SceneError naming the file and the JSON pointer.
+#include <gtest/gtest.h>
+
+#include <initializer_list>
+#include <string>
+#include <variant>
+
+#include "common/scene/parser.h"
+#include "tests/support/temp_dir.h"
+
+namespace rayfarm {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::TempDir;
+
+/// A valid scene whose only material is `material` (a JSON object) named "m".
+std::string scene_with_material(const std::string& material) {
+  return R"({
+  "camera": {"eye": [0, 0, -5], "look_at": [0, 0, 0], "up": [0, 1, 0], "fov_y": 40},
+  "film": {"width": 16, "height": 16},
+  "materials": {"m": )" +
+         material + R"(},
+  "shapes": [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "m"}]
+}
+)";
+}
+
+/// The parameters of the one material of a scene built around `material`, which must have no
+/// warnings.
+template <class K>
+K load_params(const std::string& material) {
+  TempDir dir;
+  const Scene scene = load_scene(dir.write("scene.json", scene_with_material(material)));
+  std::string warnings;
+  for (const std::string& w : scene.warnings) warnings += w + "\n";
+  EXPECT_TRUE(scene.warnings.empty()) << warnings;
+  const K* k = std::get_if<K>(&scene.materials.at(0).kind);
+  EXPECT_NE(k, nullptr) << material;
+  return k != nullptr ? *k : K{};
+}
+
+/// Expects a SceneError naming the file and containing every one of `parts`.
+void expect_material_error(const std::string& material, std::initializer_list<std::string> parts) {
+  TempDir dir;
+  const fs::path file = dir.write("scene.json", scene_with_material(material));
+  try {
+    (void)load_scene(file);
+    ADD_FAILURE() << "expected a SceneError for " << material;
+  } catch (const SceneError& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find(file.string()), std::string::npos) << message;
+    for (const std::string& part : parts)
+      EXPECT_NE(message.find(part), std::string::npos) << "\"" << part << "\" not in: " << message;
+  }
+}
+
+TEST(MaterialReader, RoughConductorDefaultsAreRoughGold) {
+  const auto c = load_params<RoughConductorMaterial>(R"({"type": "roughconductor"})");
+  EXPECT_EQ(c.eta, Vec3(0.143119f, 0.374957f, 1.44248f));
+  EXPECT_EQ(c.k, Vec3(3.98316f, 2.38572f, 1.60322f));
+  EXPECT_FALSE(c.use_f0);
+  EXPECT_EQ(c.alpha_u, 0.1f);
+  EXPECT_EQ(c.alpha_v, 0.1f);
+  EXPECT_EQ(c.specular_reflectance, Vec3(1.f));
+}
+
+TEST(MaterialReader, RoughConductorKeys) {
+  auto c = load_params<RoughConductorMaterial>(
+      R"({"type": "roughconductor", "eta": [0.2, 0.9, 1.1], "k": [3, 2.5, 2], "alpha": 0.3,
+          "specular_reflectance": [0.9, 0.8, 0.7]})");
+  EXPECT_EQ(c.eta, Vec3(0.2f, 0.9f, 1.1f));
+  EXPECT_EQ(c.k, Vec3(3.f, 2.5f, 2.f));
+  EXPECT_EQ(c.alpha_u, 0.3f);
+  EXPECT_EQ(c.alpha_v, 0.3f);
+  EXPECT_EQ(c.specular_reflectance, Vec3(0.9f, 0.8f, 0.7f));
+  c = load_params<RoughConductorMaterial>(
+      R"({"type": "roughconductor", "f0": [1, 0.8, 0.3], "alpha_u": 0.5, "alpha_v": 0.05})");
+  EXPECT_TRUE(c.use_f0);
+  EXPECT_EQ(c.f0, Vec3(1.f, 0.8f, 0.3f));
+  EXPECT_EQ(c.alpha_u, 0.5f);
+  EXPECT_EQ(c.alpha_v, 0.05f);
+}
+
+TEST(MaterialReader, ConductorIsTheSmoothRoughConductor) {
+  const auto c = load_params<RoughConductorMaterial>(R"({"type": "conductor", "f0": [1, 1, 1]})");
+  EXPECT_EQ(c.alpha_u, 0.f);
+  EXPECT_EQ(c.alpha_v, 0.f);
+  EXPECT_TRUE(c.use_f0);
+}
+
+TEST(MaterialReader, RoughConductorErrors) {
+  expect_material_error(R"({"type": "roughconductor", "alpha": 1.5})",
+                        {"/materials/m/alpha", "[0, 1]", "1.5"});
+  expect_material_error(R"({"type": "roughconductor", "alpha": -0.1})", {"/materials/m/alpha"});
+  expect_material_error(
+      R"({"type": "roughconductor", "alpha": 0.1, "alpha_u": 0.2, "alpha_v": 0.2})",
+      {"/materials/m/alpha_u", "either"});
+  expect_material_error(R"({"type": "roughconductor", "alpha_u": 0.2})",
+                        {"/materials/m", "\"alpha_u\" needs \"alpha_v\""});
+  expect_material_error(R"({"type": "roughconductor", "f0": [1, 1, 1], "eta": [1, 1, 1]})",
+                        {"/materials/m/eta", "either"});
+  expect_material_error(R"({"type": "roughconductor", "eta": [1, 0, 1]})",
+                        {"/materials/m/eta", "> 0"});
+  expect_material_error(R"({"type": "roughconductor", "k": [1, -1, 1]})",
+                        {"/materials/m/k", ">= 0"});
+  expect_material_error(R"({"type": "roughconductor", "f0": [1, 1.2, 1]})",
+                        {"/materials/m/f0/1", "[0, 1]"});
+  expect_material_error(R"({"type": "roughconductor", "specular_reflectance": [2, 1, 1]})",
+                        {"/materials/m/specular_reflectance/0"});
+}
+
+}  // namespace
+}  // namespace rayfarm

@@ -1,0 +1,33 @@
+#pragma once
+// A metal: GGX microfacets with the conductor's Fresnel reflectance, on both sides (mirrored to
+// wo's side). Roughness 0 on both axes is a smooth conductor, a Dirac lobe.
+#include "common/scene/scene.h"
+#include "worker/bsdfs/bsdf_sample.h"
+#include "worker/bsdfs/microfacet.h"
+
+namespace rayfarm {
+
+class RoughConductorBsdf {
+ public:
+  using Params = RoughConductorMaterial;
+
+  explicit RoughConductorBsdf(const RoughConductorMaterial& m)
+      : m_(m), ggx_(m.alpha_u, m.alpha_v) {}
+
+  bool is_specular() const { return ggx_.is_smooth(); }
+  /// f(wo, wi) * |cos(wi)|; zero when smooth.
+  Vec3 eval(const Vec3& wo, const Vec3& wi) const;
+  /// Solid-angle density with which sample() draws wi given wo; zero when smooth.
+  float pdf(const Vec3& wo, const Vec3& wi) const;
+  /// A visible micro-normal, and wo reflected about it; false when that falls below the surface.
+  bool sample(const Vec3& wo, float u_lobe, float u1, float u2, BsdfSample& out) const;
+
+  /// Reflectance at incidence cosine cos_i, times specular_reflectance.
+  Vec3 fresnel(float cos_i) const;
+
+ private:
+  RoughConductorMaterial m_;
+  GgxDistribution ggx_;
+};
+
+}  // namespace rayfarm
