@@ -90,6 +90,13 @@ void read_params(const Node& n, RoughConductorMaterial& c) {
   if (auto s = n.find("specular_reflectance")) c.specular_reflectance = read_reflectance(*s);
 }
 
+void read_params(const Node& n, RoughDielectricMaterial& d) {
+  n.allow_keys({"type", "ior", "alpha", "alpha_u", "alpha_v", "tint", "emission", "two_sided"});
+  if (auto ior = n.find("ior")) d.ior = read_positive(*ior);
+  read_alphas(n, d.alpha_u, d.alpha_v);
+  if (auto tint = n.find("tint")) d.tint = read_reflectance(*tint);
+}
+
 /// "conductor": the smooth conductor, the same keys less the roughness.
 void read_smooth_conductor(const Node& n, RoughConductorMaterial& c) {
   n.allow_keys({"type", "eta", "k", "f0", "specular_reflectance", "emission", "two_sided"});

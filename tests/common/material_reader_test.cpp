@@ -111,5 +111,24 @@ TEST(MaterialReader, RoughConductorErrors) {
                         {"/materials/m/specular_reflectance/0"});
 }
 
+TEST(MaterialReader, RoughDielectric) {
+  auto d = load_params<RoughDielectricMaterial>(R"({"type": "roughdielectric"})");
+  EXPECT_EQ(d.ior, 1.5f);
+  EXPECT_EQ(d.alpha_u, 0.1f);
+  EXPECT_EQ(d.tint, Vec3(1.f));
+  d = load_params<RoughDielectricMaterial>(
+      R"({"type": "roughdielectric", "ior": 1.33, "alpha_u": 0.2, "alpha_v": 0.4, "tint": [1, 0.9, 0.8]})");
+  EXPECT_EQ(d.ior, 1.33f);
+  EXPECT_EQ(d.alpha_u, 0.2f);
+  EXPECT_EQ(d.alpha_v, 0.4f);
+  EXPECT_EQ(d.tint, Vec3(1.f, 0.9f, 0.8f));
+  expect_material_error(R"({"type": "roughdielectric", "ior": -1})",
+                        {"/materials/m/ior", "positive"});
+  expect_material_error(R"({"type": "roughdielectric", "alpha_v": 2, "alpha_u": 0.1})",
+                        {"/materials/m/alpha_v", "[0, 1]"});
+  expect_material_error(R"({"type": "roughdielectric", "tint": [0, 0, 1.1]})",
+                        {"/materials/m/tint/2"});
+}
+
 }  // namespace
 }  // namespace rayfarm

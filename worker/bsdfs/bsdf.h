@@ -13,6 +13,7 @@
 #include "worker/bsdfs/mirror.h"
 #include "worker/bsdfs/phong.h"
 #include "worker/bsdfs/rough_conductor.h"
+#include "worker/bsdfs/rough_dielectric.h"
 
 namespace rayfarm {
 
@@ -82,7 +83,8 @@ class BsdfOf {
 };
 
 /// Every BSDF kind: the one the renderer uses.
-using Bsdf = BsdfOf<DiffuseBsdf, PhongBsdf, MirrorBsdf, DielectricBsdf, RoughConductorBsdf>;
+using Bsdf = BsdfOf<DiffuseBsdf, PhongBsdf, MirrorBsdf, DielectricBsdf, RoughConductorBsdf,
+                    RoughDielectricBsdf>;
 
 /// Diffuse only: for measuring what the other kinds cost a diffuse scene (bench/diffuse_only.sh).
 using DiffuseOnlyBsdf = BsdfOf<DiffuseBsdf>;
