@@ -97,6 +97,12 @@ void read_params(const Node& n, RoughDielectricMaterial& d) {
   if (auto tint = n.find("tint")) d.tint = read_reflectance(*tint);
 }
 
+void read_params(const Node& n, ThinDielectricMaterial& d) {
+  n.allow_keys({"type", "ior", "tint", "emission", "two_sided"});
+  if (auto ior = n.find("ior")) d.ior = read_positive(*ior);
+  if (auto tint = n.find("tint")) d.tint = read_reflectance(*tint);
+}
+
 /// "conductor": the smooth conductor, the same keys less the roughness.
 void read_smooth_conductor(const Node& n, RoughConductorMaterial& c) {
   n.allow_keys({"type", "eta", "k", "f0", "specular_reflectance", "emission", "two_sided"});

@@ -130,5 +130,17 @@ TEST(MaterialReader, RoughDielectric) {
                         {"/materials/m/tint/2"});
 }
 
+TEST(MaterialReader, ThinDielectric) {
+  auto d = load_params<ThinDielectricMaterial>(R"({"type": "thindielectric"})");
+  EXPECT_EQ(d.ior, 1.5f);
+  EXPECT_EQ(d.tint, Vec3(1.f));
+  d = load_params<ThinDielectricMaterial>(
+      R"({"type": "thindielectric", "ior": 1.2, "tint": [0.5, 1, 1]})");
+  EXPECT_EQ(d.ior, 1.2f);
+  EXPECT_EQ(d.tint, Vec3(0.5f, 1.f, 1.f));
+  expect_material_error(R"({"type": "thindielectric", "ior": 0})",
+                        {"/materials/m/ior", "positive"});
+}
+
 }  // namespace
 }  // namespace rayfarm

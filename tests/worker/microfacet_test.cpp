@@ -645,6 +645,58 @@ TEST(RoughDielectricTest, SmallAlphaApproachesTheSmoothDielectric) {
 }
 
 // ----------------------------------------------------------------------------------------------
+// Thin dielectric
+
+/// Reflectance of a slab summed bounce by bounce (R, then T R T, T R R R T, ...), 200 terms.
+double slab_reflectance_series(double r) {
+  double total = r, inner = (1.0 - r) * (1.0 - r) * r;
+  for (int k = 0; k < 200; ++k, inner *= r * r) total += inner;
+  return total;
+}
+
+TEST(ThinDielectricTest, ReflectsTheSlabsSummedBouncesAndPassesTheRestStraightOn) {
+  // Over N uniform u_lobe, the reflected count is binomial(N, R'): z test, R' from the series of
+  // inner bounces and the one-face Fresnel reflectance of the angle form (fresnel_reference).
+  constexpr int kDraws = 100000;
+  const Vec3 tint(0.9f, 0.8f, 0.6f);
+  Pcg32 rng(201, 1);
+  for (const float ior : {1.5f, 1.33f, 2.4f}) {
+    Material m;
+    m.kind = ThinDielectricMaterial{ior, tint};
+    const Bsdf bsdf(m);
+    EXPECT_TRUE(bsdf.is_specular());
+    for (const double theta : {0.0, 45.0, 80.0, 100.0, 170.0}) {
+      SCOPED_TRACE("ior " + std::to_string(ior) + ", theta " + std::to_string(theta));
+      const Vec3 wo = spherical(theta * kDegree, 1.3, 1);
+      // Fresnel by the angle forms: r_s = -sin(ti - tt) / sin(ti + tt), r_p = tan / tan.
+      const double ti = std::acos(std::fabs(double(wo.z))), tt = std::asin(std::sin(ti) / ior);
+      const double r = ti < 1e-7 ? std::pow((ior - 1.0) / (ior + 1.0), 2.0)
+                                 : 0.5 * (std::pow(std::sin(ti - tt) / std::sin(ti + tt), 2.0) +
+                                          std::pow(std::tan(ti - tt) / std::tan(ti + tt), 2.0));
+      const double expected = slab_reflectance_series(r);
+      int reflected = 0;
+      for (int k = 0; k < kDraws; ++k) {
+        BsdfSample out;
+        ASSERT_TRUE(draw(bsdf, wo, rng, out));
+        ASSERT_TRUE(out.specular);
+        if (out.wi.z * wo.z > 0.f) {
+          ++reflected;
+          ASSERT_EQ(out.wi, reflect_z(wo));
+          ASSERT_EQ(out.weight, Vec3(1.f));
+        } else {
+          ASSERT_EQ(out.wi, -wo);
+          ASSERT_EQ(out.weight, tint);
+        }
+      }
+      EXPECT_NEAR(double(reflected) / kDraws, expected,
+                  kZ * std::sqrt(expected * (1.0 - expected) / kDraws) + 1e-5);
+    }
+  }
+  // At normal incidence on glass: R = 0.04, R' = 0.08 / 1.04.
+  EXPECT_NEAR(slab_reflectance_series(0.04), 0.08 / 1.04, 1e-12);
+}
+
+// ----------------------------------------------------------------------------------------------
 // White furnace renders: one sphere under a uniform sky of radiance 1, seen head-on through a
 // narrow field of view (every camera ray meets the sphere within 3.2 degrees of its normal).
 // A convex object cannot see itself, so each path scatters once and the pixel's radiance is the

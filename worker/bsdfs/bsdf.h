@@ -14,6 +14,7 @@
 #include "worker/bsdfs/phong.h"
 #include "worker/bsdfs/rough_conductor.h"
 #include "worker/bsdfs/rough_dielectric.h"
+#include "worker/bsdfs/thin_dielectric.h"
 
 namespace rayfarm {
 
@@ -84,7 +85,7 @@ class BsdfOf {
 
 /// Every BSDF kind: the one the renderer uses.
 using Bsdf = BsdfOf<DiffuseBsdf, PhongBsdf, MirrorBsdf, DielectricBsdf, RoughConductorBsdf,
-                    RoughDielectricBsdf>;
+                    RoughDielectricBsdf, ThinDielectricBsdf>;
 
 /// Diffuse only: for measuring what the other kinds cost a diffuse scene (bench/diffuse_only.sh).
 using DiffuseOnlyBsdf = BsdfOf<DiffuseBsdf>;
