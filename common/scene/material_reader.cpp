@@ -103,6 +103,23 @@ void read_params(const Node& n, ThinDielectricMaterial& d) {
   if (auto tint = n.find("tint")) d.tint = read_reflectance(*tint);
 }
 
+void read_params(const Node& n, PlasticMaterial& p) {
+  n.allow_keys(
+      {"type", "diffuse_reflectance", "ior", "alpha", "nonlinear", "emission", "two_sided"});
+  if (auto r = n.find("diffuse_reflectance")) p.diffuse_reflectance = read_reflectance(*r);
+  if (auto ior = n.find("ior")) p.ior = read_positive(*ior);
+  if (auto a = n.find("alpha")) p.alpha = read_alpha(*a);
+  if (auto nl = n.find("nonlinear")) p.nonlinear = read_bool(*nl);
+}
+
+/// "roughplastic": plastic whose coating must be rough (alpha 0.1 unless given).
+void read_rough_plastic(const Node& n, PlasticMaterial& p) {
+  p.alpha = 0.1f;
+  read_params(n, p);
+  if (!(p.alpha > 0.f))
+    n.require("alpha").fail("roughplastic needs alpha > 0 (plastic is the smooth one)");
+}
+
 /// "conductor": the smooth conductor, the same keys less the roughness.
 void read_smooth_conductor(const Node& n, RoughConductorMaterial& c) {
   n.allow_keys({"type", "eta", "k", "f0", "specular_reflectance", "emission", "two_sided"});
@@ -139,9 +156,13 @@ bool read_material_kind(const Node& n, const std::string& type, MaterialKind& ou
     read_smooth_conductor(n, out.emplace<RoughConductorMaterial>());
     return true;
   }
+  if (type == "roughplastic") {
+    read_rough_plastic(n, out.emplace<PlasticMaterial>());
+    return true;
+  }
   return read_kind(n, type, out);
 }
 
-std::string material_type_names() { return kind_names() + ", conductor"; }
+std::string material_type_names() { return kind_names() + ", conductor, roughplastic"; }
 
 }  // namespace rayfarm::scene_json

@@ -142,5 +142,27 @@ TEST(MaterialReader, ThinDielectric) {
                         {"/materials/m/ior", "positive"});
 }
 
+TEST(MaterialReader, PlasticAndRoughPlastic) {
+  auto p = load_params<PlasticMaterial>(R"({"type": "plastic"})");
+  EXPECT_EQ(p.ior, 1.49f);
+  EXPECT_EQ(p.alpha, 0.f);
+  EXPECT_FALSE(p.nonlinear);
+  EXPECT_EQ(p.diffuse_reflectance, Vec3(0.5f));
+  p = load_params<PlasticMaterial>(
+      R"({"type": "plastic", "diffuse_reflectance": [0.1, 0.2, 0.3], "ior": 1.6, "alpha": 0.2, "nonlinear": true})");
+  EXPECT_EQ(p.diffuse_reflectance, Vec3(0.1f, 0.2f, 0.3f));
+  EXPECT_EQ(p.ior, 1.6f);
+  EXPECT_EQ(p.alpha, 0.2f);
+  EXPECT_TRUE(p.nonlinear);
+  p = load_params<PlasticMaterial>(R"({"type": "roughplastic"})");
+  EXPECT_EQ(p.alpha, 0.1f);
+  p = load_params<PlasticMaterial>(R"({"type": "roughplastic", "alpha": 0.4})");
+  EXPECT_EQ(p.alpha, 0.4f);
+  expect_material_error(R"({"type": "roughplastic", "alpha": 0})",
+                        {"/materials/m/alpha", "alpha > 0"});
+  expect_material_error(R"({"type": "plastic", "nonlinear": 1})", {"/materials/m/nonlinear"});
+  expect_material_error(R"({"type": "plastic", "alpha": 3})", {"/materials/m/alpha", "[0, 1]"});
+}
+
 }  // namespace
 }  // namespace rayfarm

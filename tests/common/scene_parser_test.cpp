@@ -395,8 +395,8 @@ TEST(SceneParser, AUsemtlBeforeAnyMtllibGetsTheDefaultMaterial) {
 // ---- errors in the JSON ----------------------------------------------------------------------
 
 TEST(SceneErrors, UnknownMaterialType) {
-  expect_scene_error(R"("materials": {"m": {"type": "plastic"}})",
-                     {"/materials/m/type", "\"plastic\"", "diffuse, phong, mirror, dielectric"});
+  expect_scene_error(R"("materials": {"m": {"type": "velvet"}})",
+                     {"/materials/m/type", "\"velvet\"", "diffuse, phong, mirror, dielectric"});
 }
 
 TEST(SceneErrors, StringInAVector) {

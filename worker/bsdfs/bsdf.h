@@ -12,6 +12,7 @@
 #include "worker/bsdfs/diffuse.h"
 #include "worker/bsdfs/mirror.h"
 #include "worker/bsdfs/phong.h"
+#include "worker/bsdfs/plastic.h"
 #include "worker/bsdfs/rough_conductor.h"
 #include "worker/bsdfs/rough_dielectric.h"
 #include "worker/bsdfs/thin_dielectric.h"
@@ -85,7 +86,7 @@ class BsdfOf {
 
 /// Every BSDF kind: the one the renderer uses.
 using Bsdf = BsdfOf<DiffuseBsdf, PhongBsdf, MirrorBsdf, DielectricBsdf, RoughConductorBsdf,
-                    RoughDielectricBsdf, ThinDielectricBsdf>;
+                    RoughDielectricBsdf, ThinDielectricBsdf, PlasticBsdf>;
 
 /// Diffuse only: for measuring what the other kinds cost a diffuse scene (bench/diffuse_only.sh).
 using DiffuseOnlyBsdf = BsdfOf<DiffuseBsdf>;

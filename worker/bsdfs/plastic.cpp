@@ -1,0 +1,146 @@
+#include "worker/bsdfs/plastic.h"
+
+#include <array>
+#include <cmath>
+
+#include "worker/bsdfs/dielectric.h"
+
+namespace rayfarm {
+namespace {
+
+/// Nodes and weights of the n-point Gauss-Legendre rule on [0, 1] (Newton on P_n).
+template <int N>
+struct GaussLegendre {
+  std::array<double, N> x{}, w{};
+  GaussLegendre() {
+    for (int i = 0; i < N; ++i) {
+      double z = std::cos(3.141592653589793 * (i + 0.75) / (N + 0.5)), dp = 1.0;
+      for (int it = 0; it < 100; ++it) {
+        double p0 = 1.0, p1 = z;
+        for (int k = 2; k <= N; ++k) {
+          const double p2 = ((2.0 * k - 1.0) * z * p1 - (k - 1.0) * p0) / k;
+          p0 = p1;
+          p1 = p2;
+        }
+        dp = N * (z * p1 - p0) / (z * z - 1.0);
+        const double dz = p1 / dp;
+        z -= dz;
+        if (std::fabs(dz) < 1e-15) break;
+      }
+      x[i] = 0.5 * (1.0 - z);
+      w[i] = 1.0 / ((1.0 - z * z) * dp * dp);  // 2 / ((1 - z^2) P'^2), halved for [0, 1]
+    }
+  }
+};
+
+/// 2 * integral over [0, 1] of F(c, eta) c dc: smooth in c when eta >= 1 (no total internal
+/// reflection), where 32 Gauss-Legendre nodes are exact to float precision.
+double diffuse_fresnel(double eta) {
+  static const GaussLegendre<32> rule;
+  double sum = 0.0;
+  for (int i = 0; i < 32; ++i) {
+    float cos_t = 0.f;
+    sum += rule.w[i] * fresnel_dielectric(float(rule.x[i]), float(eta), cos_t) * rule.x[i];
+  }
+  return 2.0 * sum;
+}
+
+}  // namespace
+
+float internal_diffuse_reflectance(float ior) {
+  // From inside a denser medium the integrand has a kink at the critical angle; the light that
+  // escapes is that of the outside average, scaled by the solid angle's compression 1 / ior^2.
+  if (ior >= 1.f) return float(1.0 - (1.0 - diffuse_fresnel(ior)) / (double(ior) * ior));
+  return float(diffuse_fresnel(1.0 / ior));
+}
+
+PlasticBsdf::PlasticBsdf(const PlasticMaterial& m)
+    : ior_(m.ior), ggx_(m.alpha, m.alpha), base_weight_(luminance(m.diffuse_reflectance)) {
+  // Constructed at every path vertex: the one integral is remembered per thread for the last
+  // index asked, which in most scenes is the only one.
+  thread_local float last_ior = -1.f, last_fdr = 0.f;
+  if (m.ior != last_ior) {
+    last_fdr = internal_diffuse_reflectance(m.ior);
+    last_ior = m.ior;
+  }
+  const Vec3& rho = m.diffuse_reflectance;
+  const Vec3 denom = m.nonlinear ? Vec3(1.f) - rho * last_fdr : Vec3(1.f - last_fdr);
+  const float scale = kInvPi / (m.ior * m.ior);
+  diffuse_ = rho * scale / denom;
+  for (int c = 0; c < 3; ++c) {
+    if (!(denom[c] > 0.f)) diffuse_ = Vec3(0.f);  // ior 0+ reflects everything back inside
+  }
+}
+
+float PlasticBsdf::fresnel(float cos_i) const {
+  float cos_t = 0.f;
+  return fresnel_dielectric(cos_i, ior_, cos_t);
+}
+
+float PlasticBsdf::coat_probability(float fresnel_o) const {
+  const float coat = fresnel_o, base = (1.f - fresnel_o) * base_weight_;
+  return coat + base > 0.f ? coat / (coat + base) : 1.f;
+}
+
+Vec3 PlasticBsdf::eval_upper(const Vec3& wo, const Vec3& wi) const {
+  Vec3 f = diffuse_ * ((1.f - fresnel(wi.z)) * (1.f - fresnel(wo.z)) * wi.z);
+  if (!ggx_.is_smooth()) {
+    const Vec3 wm = normalize(wo + wi);
+    f += Vec3(ggx_.d(wm) * ggx_.g(wo, wi) * fresnel(dot(wo, wm)) / (4.f * wo.z));
+  }
+  return f;
+}
+
+float PlasticBsdf::pdf_upper(const Vec3& wo, const Vec3& wi) const {
+  const float p_coat = coat_probability(fresnel(wo.z));
+  float pdf = (1.f - p_coat) * wi.z * kInvPi;
+  if (!ggx_.is_smooth()) {
+    const Vec3 wm = normalize(wo + wi);
+    const float c = dot(wo, wm);
+    if (c > 0.f) pdf += p_coat * ggx_.visible_pdf(wo, wm) / (4.f * c);
+  }
+  return pdf;
+}
+
+Vec3 PlasticBsdf::eval(const Vec3& wo, const Vec3& wi) const {
+  if (wo.z * wi.z <= 0.f) return Vec3(0.f);
+  const bool flip = wo.z < 0.f;
+  return eval_upper(to_upper(wo, flip), to_upper(wi, flip));
+}
+
+float PlasticBsdf::pdf(const Vec3& wo, const Vec3& wi) const {
+  if (wo.z * wi.z <= 0.f) return 0.f;
+  const bool flip = wo.z < 0.f;
+  return pdf_upper(to_upper(wo, flip), to_upper(wi, flip));
+}
+
+bool PlasticBsdf::sample(const Vec3& wo_in, float u_lobe, float u1, float u2,
+                         BsdfSample& out) const {
+  if (wo_in.z == 0.f) return false;
+  const bool flip = wo_in.z < 0.f;
+  const Vec3 wo = to_upper(wo_in, flip);
+  const float f_o = fresnel(wo.z);
+  const float p_coat = coat_probability(f_o);
+  Vec3 wi;
+  if (u_lobe < p_coat) {
+    if (ggx_.is_smooth()) {
+      out.wi = to_upper(reflect_z(wo), flip);
+      out.weight = Vec3(f_o / p_coat);
+      out.pdf = 0.f;
+      out.specular = true;
+      return true;
+    }
+    wi = normalize(reflect_about(wo, ggx_.sample_visible(wo, u1, u2)));
+  } else {
+    wi = sample_cosine_hemisphere(u1, u2);
+  }
+  if (wi.z <= 0.f) return false;
+  out.pdf = pdf_upper(wo, wi);
+  if (!(out.pdf > 0.f)) return false;
+  out.weight = eval_upper(wo, wi) / out.pdf;
+  out.wi = to_upper(wi, flip);
+  out.specular = false;
+  return true;
+}
+
+}  // namespace rayfarm
