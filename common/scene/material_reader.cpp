@@ -112,6 +112,16 @@ void read_params(const Node& n, PlasticMaterial& p) {
   if (auto nl = n.find("nonlinear")) p.nonlinear = read_bool(*nl);
 }
 
+void read_params(const Node& n, MetallicRoughnessMaterial& m) {
+  n.allow_keys({"type", "base_color", "metallic", "roughness", "ior", "transmission", "emission",
+                "two_sided"});
+  if (auto b = n.find("base_color")) m.base_color = read_reflectance(*b);
+  if (auto v = n.find("metallic")) m.metallic = read_in_range(*v, 0.f, 1.f);
+  if (auto r = n.find("roughness")) m.roughness = read_in_range(*r, 0.f, 1.f);
+  if (auto ior = n.find("ior")) m.ior = read_positive(*ior);
+  if (auto t = n.find("transmission")) m.transmission = read_in_range(*t, 0.f, 1.f);
+}
+
 /// "roughplastic": plastic whose coating must be rough (alpha 0.1 unless given).
 void read_rough_plastic(const Node& n, PlasticMaterial& p) {
   p.alpha = 0.1f;

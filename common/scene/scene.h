@@ -115,9 +115,10 @@ struct MetallicRoughnessMaterial {
 };
 
 /// Every material kind, in the order the scene format lists them.
-using MaterialKind = std::variant<DiffuseMaterial, PhongMaterial, MirrorMaterial,
-                                  DielectricMaterial, RoughConductorMaterial,
-                                  RoughDielectricMaterial, ThinDielectricMaterial, PlasticMaterial>;
+using MaterialKind =
+    std::variant<DiffuseMaterial, PhongMaterial, MirrorMaterial, DielectricMaterial,
+                 RoughConductorMaterial, RoughDielectricMaterial, ThinDielectricMaterial,
+                 PlasticMaterial, MetallicRoughnessMaterial>;
 
 /// Name of a material kind as written in scene files ("diffuse", ...).
 inline const char* material_kind_name(const MaterialKind& kind) {

@@ -164,5 +164,30 @@ TEST(MaterialReader, PlasticAndRoughPlastic) {
   expect_material_error(R"({"type": "plastic", "alpha": 3})", {"/materials/m/alpha", "[0, 1]"});
 }
 
+TEST(MaterialReader, MetallicRoughness) {
+  auto m = load_params<MetallicRoughnessMaterial>(R"({"type": "metallic_roughness"})");
+  EXPECT_EQ(m.base_color, Vec3(1.f));
+  EXPECT_EQ(m.metallic, 1.f);
+  EXPECT_EQ(m.roughness, 1.f);
+  EXPECT_EQ(m.ior, 1.5f);
+  EXPECT_EQ(m.transmission, 0.f);
+  m = load_params<MetallicRoughnessMaterial>(
+      R"({"type": "metallic_roughness", "base_color": [0.5, 0.4, 0.3], "metallic": 0, "roughness": 0.25,
+          "ior": 1.33, "transmission": 0.8})");
+  EXPECT_EQ(m.base_color, Vec3(0.5f, 0.4f, 0.3f));
+  EXPECT_EQ(m.metallic, 0.f);
+  EXPECT_EQ(m.roughness, 0.25f);
+  EXPECT_EQ(m.ior, 1.33f);
+  EXPECT_EQ(m.transmission, 0.8f);
+  expect_material_error(R"({"type": "metallic_roughness", "metallic": 1.1})",
+                        {"/materials/m/metallic", "[0, 1]"});
+  expect_material_error(R"({"type": "metallic_roughness", "roughness": -0.5})",
+                        {"/materials/m/roughness"});
+  expect_material_error(R"({"type": "metallic_roughness", "transmission": "all"})",
+                        {"/materials/m/transmission"});
+  expect_material_error(R"({"type": "metallic_roughness", "ior": 0})",
+                        {"/materials/m/ior", "positive"});
+}
+
 }  // namespace
 }  // namespace rayfarm

@@ -98,6 +98,17 @@ PlasticMaterial plastic(const Vec3& rho, float alpha) {
   return m;
 }
 
+MetallicRoughnessMaterial gltf(const Vec3& base, float metallic, float roughness,
+                               float transmission = 0.f, float ior = 1.5f) {
+  MetallicRoughnessMaterial m;
+  m.base_color = base;
+  m.metallic = metallic;
+  m.roughness = roughness;
+  m.transmission = transmission;
+  m.ior = ior;
+  return m;
+}
+
 /// Every rough case of every kind, at several roughnesses.
 const std::vector<Case>& cases() {
   static const std::vector<Case> all = [] {
@@ -125,6 +136,13 @@ const std::vector<Case>& cases() {
     nonlinear.nonlinear = true;
     nonlinear.ior = 1.8f;
     v.push_back(make_case("nonlinear rough plastic ior 1.8", nonlinear, 0.2));
+    v.push_back(make_case("gltf gold metal r 0.5", gltf(Vec3(1.f, 0.78f, 0.34f), 1.f, 0.5f), 0.25));
+    v.push_back(make_case("gltf dielectric r 0.6", gltf(Vec3(0.8f, 0.3f, 0.2f), 0.f, 0.6f), 0.36));
+    v.push_back(make_case("gltf half metal r 0.4", gltf(Vec3(0.5f, 0.6f, 0.9f), 0.5f, 0.4f), 0.16));
+    v.push_back(make_case("gltf transmission 0.7 r 0.5",
+                          gltf(Vec3(0.9f, 0.9f, 0.5f), 0.f, 0.5f, 0.7f, 1.4f), 0.25));
+    v.push_back(make_case("gltf smooth, transmission 0.5",
+                          gltf(Vec3(0.7f, 0.8f, 0.9f), 0.2f, 0.f, 0.5f), 1.0));
     return v;
   }();
   return all;
@@ -809,6 +827,69 @@ TEST(PlasticTest, SmallAlphaApproachesTheSmoothCoating) {
     }
     EXPECT_NEAR(mr / kDraws, ms / kDraws, 0.01 * ms / kDraws) << theta;
   }
+}
+
+// ----------------------------------------------------------------------------------------------
+// glTF metallic-roughness
+
+TEST(MetallicRoughnessTest, FullMetalIsTheSchlickRoughConductor) {
+  // metallic 1: the glTF metal BRDF is GGX with alpha = roughness^2 and Schlick's F0 = base colour.
+  const Vec3 base(0.95f, 0.64f, 0.54f);
+  for (const float r : {0.2f, 0.5f, 0.9f}) {
+    Material a, b;
+    a.kind = gltf(base, 1.f, r);
+    RoughConductorMaterial c = white_conductor(r * r);
+    c.f0 = base;
+    b.kind = c;
+    const Bsdf x(a), y(b);
+    Pcg32 rng(231, 1);
+    for (int k = 0; k < 2000; ++k) {
+      const Vec3 wo = uniform_sphere(rng), wi = uniform_sphere(rng);
+      const Vec3 fx = x.eval(wo, wi), fy = y.eval(wo, wi);
+      for (int ch = 0; ch < 3; ++ch) ASSERT_TRUE(near_relative(fx[ch], fy[ch], 1e-5)) << r;
+      ASSERT_TRUE(near_relative(x.pdf(wo, wi), y.pdf(wo, wi), 1e-5)) << r;
+    }
+  }
+}
+
+TEST(MetallicRoughnessTest, SmoothThinTransmissionPassesWhatTheLayerDoesNotReflect) {
+  // roughness 0, metallic 0, transmission 1, white: every lobe is a Dirac; the mirror carries
+  // F = F0 + (1 - F0)(1 - cos)^5 and the straight-through ray 1 - F, so every weight averages to 1.
+  Material m;
+  m.kind = gltf(Vec3(1.f), 0.f, 0.f, 1.f);
+  const Bsdf bsdf(m);
+  EXPECT_TRUE(bsdf.is_specular());
+  Pcg32 rng(241, 1);
+  for (const double theta : {0.0, 50.0, 85.0, 120.0}) {
+    const Vec3 wo = wo_at(theta);
+    const double f = 0.04 + 0.96 * std::pow(1.0 - std::fabs(wo.z), 5.0);
+    constexpr int kDraws = 50000;
+    int reflected = 0;
+    for (int k = 0; k < kDraws; ++k) {
+      BsdfSample out;
+      ASSERT_TRUE(draw(bsdf, wo, rng, out));
+      ASSERT_TRUE(out.specular);
+      if (out.wi.z * wo.z > 0.f) {
+        ++reflected;
+        ASSERT_EQ(out.wi, reflect_z(wo));
+      } else {
+        ASSERT_EQ(out.wi, -wo);
+      }
+    }
+    // The lobe choice estimates the albedos exactly here (F and 1 - F, above its floor of
+    // 0.1 (1 - F0)), so the reflected fraction is F and each weight is 1.
+    BsdfSample out;
+    ASSERT_TRUE(bsdf.sample(wo, 0.f, 0.5f, 0.5f, out));
+    EXPECT_NEAR(out.weight.y, 1.0, 1e-5);
+    ASSERT_TRUE(bsdf.sample(wo, 0.99999f, 0.5f, 0.5f, out));
+    EXPECT_NEAR(out.weight.y, 1.0, 1e-5);
+    EXPECT_NEAR(double(reflected) / kDraws, f, kZ * std::sqrt(f * (1.0 - f) / kDraws) + 1e-6)
+        << theta;
+  }
+  // With a diffuse share the surface is no longer specular as a whole.
+  Material d;
+  d.kind = gltf(Vec3(1.f), 0.f, 0.f, 0.5f);
+  EXPECT_FALSE(Bsdf(d).is_specular());
 }
 
 // ----------------------------------------------------------------------------------------------

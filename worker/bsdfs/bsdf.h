@@ -10,6 +10,7 @@
 #include "worker/bsdfs/bsdf_sample.h"
 #include "worker/bsdfs/dielectric.h"
 #include "worker/bsdfs/diffuse.h"
+#include "worker/bsdfs/metallic_roughness.h"
 #include "worker/bsdfs/mirror.h"
 #include "worker/bsdfs/phong.h"
 #include "worker/bsdfs/plastic.h"
@@ -86,7 +87,7 @@ class BsdfOf {
 
 /// Every BSDF kind: the one the renderer uses.
 using Bsdf = BsdfOf<DiffuseBsdf, PhongBsdf, MirrorBsdf, DielectricBsdf, RoughConductorBsdf,
-                    RoughDielectricBsdf, ThinDielectricBsdf, PlasticBsdf>;
+                    RoughDielectricBsdf, ThinDielectricBsdf, PlasticBsdf, MetallicRoughnessBsdf>;
 
 /// Diffuse only: for measuring what the other kinds cost a diffuse scene (bench/diffuse_only.sh).
 using DiffuseOnlyBsdf = BsdfOf<DiffuseBsdf>;
