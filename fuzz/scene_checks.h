@@ -32,6 +32,22 @@ inline void check_scene(const Scene& s) {
     if (const auto* d = std::get_if<DielectricMaterial>(&m.kind)) {
       require(d->ior > 0.f && std::isfinite(d->ior), "ior");
     }
+    if (const auto* c = std::get_if<RoughConductorMaterial>(&m.kind)) {
+      require(c->alpha_u >= 0.f && c->alpha_u <= 1.f && c->alpha_v >= 0.f && c->alpha_v <= 1.f,
+              "conductor alpha");
+      require(min_component(c->eta) > 0.f && min_component(c->k) >= 0.f, "conductor index");
+    }
+    if (const auto* d = std::get_if<RoughDielectricMaterial>(&m.kind)) {
+      require(d->ior > 0.f && d->alpha_u >= 0.f && d->alpha_u <= 1.f, "rough dielectric");
+    }
+    if (const auto* p = std::get_if<PlasticMaterial>(&m.kind)) {
+      require(p->ior > 0.f && p->alpha >= 0.f && p->alpha <= 1.f, "plastic");
+    }
+    if (const auto* g = std::get_if<MetallicRoughnessMaterial>(&m.kind)) {
+      require(g->metallic >= 0.f && g->metallic <= 1.f && g->roughness >= 0.f &&
+                  g->roughness <= 1.f && g->transmission >= 0.f && g->transmission <= 1.f,
+              "metallic_roughness");
+    }
   }
   for (const TriangleMesh& mesh : s.meshes) {
     require(mesh.indices.size() % 3 == 0, "indices in threes");

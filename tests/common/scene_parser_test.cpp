@@ -175,6 +175,22 @@ TEST(SceneBundled, FurnaceIsAClosedTwoSidedEmitter) {
   EXPECT_TRUE(m.two_sided) << "the camera sees the sphere's back side";
 }
 
+TEST(SceneBundled, MaterialsHasEveryMicrofacetAndLayeredKind) {
+  const Scene scene = load_scene(bundled("materials"));
+  EXPECT_TRUE(scene.warnings.empty()) << warnings_of(scene);
+  EXPECT_EQ(scene.film.width, 320u);
+  EXPECT_EQ(scene.film.height, 160u);
+  EXPECT_EQ(params<RoughConductorMaterial>(material_named(scene, "rough-gold")).alpha_u, 0.2f);
+  EXPECT_EQ(params<RoughDielectricMaterial>(material_named(scene, "rough-glass")).alpha_v, 0.15f);
+  EXPECT_EQ(params<ThinDielectricMaterial>(material_named(scene, "pane")).ior, 1.5f);
+  EXPECT_EQ(params<PlasticMaterial>(material_named(scene, "plastic")).alpha, 0.f);
+  EXPECT_EQ(params<PlasticMaterial>(material_named(scene, "rough-plastic")).alpha, 0.25f);
+  EXPECT_EQ(params<MetallicRoughnessMaterial>(material_named(scene, "gltf-metal")).metallic, 1.f);
+  EXPECT_EQ(params<MetallicRoughnessMaterial>(material_named(scene, "gltf-dielectric")).metallic,
+            0.f);
+  EXPECT_EQ(scene.spheres.size(), 6u);
+}
+
 TEST(SceneBundled, EmbreeCornellMatchesTheTutorial) {
   const Scene scene = load_scene(bundled("embree-cornell"));
   EXPECT_TRUE(scene.warnings.empty()) << warnings_of(scene);
