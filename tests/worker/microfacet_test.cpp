@@ -893,6 +893,57 @@ TEST(MetallicRoughnessTest, SmoothThinTransmissionPassesWhatTheLayerDoesNotRefle
 }
 
 // ----------------------------------------------------------------------------------------------
+// Extreme parameters
+
+TEST(MicrofacetStabilityTest, ExtremeParametersGiveFiniteValues) {
+  // The scene format allows roughness down to the smooth threshold, indices from 1e-30 to 1e30,
+  // and indices a hair's breadth from 1: every sample, eval and pdf must stay finite and >= 0.
+  std::vector<MaterialKind> kinds;
+  for (const float a : {1e-4f, 2e-4f, 1.f}) kinds.push_back(conductor(a, a));
+  kinds.push_back(conductor(1.f, 1e-4f));
+  RoughConductorMaterial odd = conductor(0.3f, 0.3f);
+  odd.eta = Vec3(1e-30f);
+  odd.k = Vec3(0.f);
+  kinds.push_back(odd);
+  odd.eta = Vec3(1e30f);
+  odd.k = Vec3(1e30f);
+  kinds.push_back(odd);
+  for (const float ior : {1e-30f, 1e30f, 1.0001f, 1.0002f, 0.9998f, 1.5f})
+    for (const float a : {1e-4f, 0.5f}) kinds.push_back(glass(ior, a, a));
+  for (const float ior : {1e-30f, 1e30f, 1.f})
+    for (const float a : {0.f, 1e-4f, 1.f}) {
+      PlasticMaterial p = plastic(Vec3(1.f), a);
+      p.ior = ior;
+      kinds.push_back(p);
+    }
+  kinds.push_back(ThinDielectricMaterial{1e30f, Vec3(1.f)});
+  kinds.push_back(ThinDielectricMaterial{1e-30f, Vec3(1.f)});
+  for (const float r : {0.f, 0.01f, 0.011f, 1.f})
+    for (const float ior : {1e-30f, 1.f, 1e30f})
+      kinds.push_back(gltf(Vec3(0.5f), 0.3f, r, 0.5f, ior));
+  Pcg32 rng(251, 1);
+  for (const MaterialKind& kind : kinds) {
+    Material m;
+    m.kind = kind;
+    const Bsdf bsdf(m);
+    for (int k = 0; k < 2000; ++k) {
+      const Vec3 wo = uniform_sphere(rng);
+      BsdfSample out;
+      if (draw(bsdf, wo, rng, out)) {
+        ASSERT_TRUE(is_finite(out.weight) && min_component(out.weight) >= 0.f) << k;
+        ASSERT_TRUE(std::isfinite(out.pdf) && out.pdf >= 0.f);
+        ASSERT_TRUE(std::isfinite(out.wi.x) && std::fabs(length(out.wi) - 1.f) < 1e-4f);
+      }
+      const Vec3 wi = uniform_sphere(rng);
+      const Vec3 f = bsdf.eval(wo, wi);
+      ASSERT_TRUE(is_finite(f) && min_component(f) >= 0.f);
+      const float p = bsdf.pdf(wo, wi);
+      ASSERT_TRUE(std::isfinite(p) && p >= 0.f);
+    }
+  }
+}
+
+// ----------------------------------------------------------------------------------------------
 // White furnace renders: one sphere under a uniform sky of radiance 1, seen head-on through a
 // narrow field of view (every camera ray meets the sphere within 3.2 degrees of its normal).
 // A convex object cannot see itself, so each path scatters once and the pixel's radiance is the
