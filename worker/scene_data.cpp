@@ -1,5 +1,6 @@
 #include "worker/scene_data.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -58,6 +59,7 @@ SceneData::SceneData(const Scene& scene) : scene_(scene) {
       triangles_.push_back(info);
     }
     meshes.push_back({&mesh.positions, &mesh.indices});
+    interpolates_.push_back(!mesh.normals.empty() || (uses_uv_ && !mesh.uvs.empty()));
   }
   std::vector<Bvh::SphereInput> spheres;
   for (const Sphere& s : scene_.spheres) spheres.push_back({s.center, s.radius});
@@ -84,9 +86,36 @@ SurfaceHit SceneData::resolve_sphere(const Ray& ray, const RayHit& hit) const {
   s.p = sphere.center + n * sphere.radius;
   s.n = n;
   s.p_error = sphere_point_error(sphere.center, sphere.radius);
+  s.ns = n;
+  if (uses_uv_) {
+    // Angles in the sphere's own frame; the poles and the seam get u = 0.
+    const float x = dot(n, sphere.axis_x), y = dot(n, sphere.axis_y), z = dot(n, sphere.axis_z);
+    float phi = std::atan2(y, x);
+    if (phi < 0.f) phi += 2.f * kPi;
+    s.uv = {phi * (0.5f * kInvPi), std::acos(std::clamp(z, -1.f, 1.f)) * kInvPi};
+  }
   s.material = sphere.material;
   s.light = sphere_lights_[hit.prim];
   return s;
+}
+
+void SceneData::interpolate(const RayHit& hit, SurfaceHit& s) const {
+  const TriangleMesh& mesh = scene_.meshes[hit.geom];
+  const uint32_t* idx = &mesh.indices[3 * size_t(hit.prim)];
+  const float b0 = 1.f - hit.u - hit.v;
+  if (!mesh.normals.empty()) {
+    const Vec3 &n0 = mesh.normals[idx[0]], &n1 = mesh.normals[idx[1]], &n2 = mesh.normals[idx[2]];
+    if (!is_black(n0) && !is_black(n1) && !is_black(n2)) {
+      const Vec3 sum = n0 * b0 + n1 * hit.u + n2 * hit.v;
+      const float len = length(sum);
+      // Opposite normals can cancel; such a point keeps the flat normal.
+      if (len > 1e-6f) s.ns = dot(sum, s.n) < 0.f ? -(sum / len) : sum / len;
+    }
+  }
+  if (uses_uv_ && !mesh.uvs.empty()) {
+    const Vec2 &t0 = mesh.uvs[idx[0]], &t1 = mesh.uvs[idx[1]], &t2 = mesh.uvs[idx[2]];
+    s.uv = t0 * b0 + t1 * hit.u + t2 * hit.v;
+  }
 }
 
 }  // namespace rayfarm

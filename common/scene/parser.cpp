@@ -11,6 +11,7 @@
 #include "common/math/wide.h"
 #include "common/scene/json_reader.h"
 #include "common/scene/obj_loader.h"
+#include "common/scene/transform_reader.h"
 #include "common/util/text.h"
 
 namespace rayfarm {
@@ -217,16 +218,17 @@ class SceneReader {
   }
 
   void read_sphere(const Node& n) {
-    n.allow_keys({"type", "center", "radius", "material"});
+    n.allow_keys({"type", "center", "radius", "material", "transform"});
     Sphere s;
     s.center = read_point(n.require("center"));
     s.radius = read_length(n.require("radius"));
     s.material = material_ref(n.require("material"));
+    if (auto t = n.find("transform")) transform_sphere(s, read_transform(*t), *t);
     scene_.spheres.push_back(s);
   }
 
   void read_quad(const Node& n, const std::string& origin) {
-    n.allow_keys({"type", "corner", "edge1", "edge2", "material"});
+    n.allow_keys({"type", "corner", "edge1", "edge2", "material", "transform"});
     const Vec3 c = read_point(n.require("corner"));
     const Vec3 e1 = read_point(n.require("edge1"));
     const Vec3 e2 = read_point(n.require("edge2"));
@@ -235,12 +237,14 @@ class SceneReader {
       n.warn("the quad has zero area and is dropped");
       return;
     }
-    // Both triangles' front faces, (v1-v0) x (v2-v0), point along edge1 x edge2.
-    add_triangles(origin, {c, c + e1, c + e1 + e2, c + e2}, {0, 1, 2, 0, 2, 3}, material);
+    // Both triangles' front faces, (v1-v0) x (v2-v0), point along edge1 x edge2. Texture
+    // coordinates run from (0, 0) at the corner to (1, 1) at corner + edge1 + edge2.
+    add_triangles(n, origin, {c, c + e1, c + e1 + e2, c + e2}, {0, 1, 2, 0, 2, 3}, material,
+                  {{0.f, 0.f}, {1.f, 0.f}, {1.f, 1.f}, {0.f, 1.f}});
   }
 
   void read_triangle(const Node& n, const std::string& origin) {
-    n.allow_keys({"type", "vertices", "material"});
+    n.allow_keys({"type", "vertices", "material", "transform"});
     const Node vertices = n.require("vertices");
     if (vertices.array().size() != 3) {
       vertices.fail("expected 3 vertices, got " + std::to_string(vertices.array().size()));
@@ -253,21 +257,23 @@ class SceneReader {
       n.warn("the triangle has zero area and is dropped");
       return;
     }
-    add_triangles(origin, {a, b, c}, {0, 1, 2}, material);
+    add_triangles(n, origin, {a, b, c}, {0, 1, 2}, material, {});
   }
 
-  void add_triangles(const std::string& origin, std::vector<Vec3> positions,
-                     std::vector<uint32_t> indices, uint32_t material) {
+  void add_triangles(const Node& n, const std::string& origin, std::vector<Vec3> positions,
+                     std::vector<uint32_t> indices, uint32_t material, std::vector<Vec2> uvs) {
     TriangleMesh mesh;
     mesh.materials.assign(indices.size() / 3, material);
     mesh.positions = std::move(positions);
     mesh.indices = std::move(indices);
+    mesh.uvs = std::move(uvs);
     mesh.origin = origin;
+    if (auto t = n.find("transform")) transform_mesh(mesh, read_transform(*t), *t);
     scene_.meshes.push_back(std::move(mesh));
   }
 
   void read_mesh(const Node& n) {
-    n.allow_keys({"type", "file", "material"});
+    n.allow_keys({"type", "file", "material", "transform"});
     const fs::path relative = mesh_path(n.require("file"));
     std::optional<uint32_t> material;
     if (auto m = n.find("material")) material = material_ref(*m);
@@ -282,6 +288,7 @@ class SceneReader {
       n.warn("the mesh has no triangles");
       return;
     }
+    if (auto t = n.find("transform")) transform_mesh(obj.mesh, read_transform(*t), *t);
     scene_.meshes.push_back(std::move(obj.mesh));
   }
 

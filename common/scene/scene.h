@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "common/limits.h"
+#include "common/math/vec2.h"
 #include "common/math/vec3.h"
 
 namespace rayfarm {
@@ -84,17 +85,26 @@ struct Material {
 /// Triangles with one material index each. The front face is (v1-v0) x (v2-v0).
 struct TriangleMesh {
   std::vector<Vec3> positions;
-  std::vector<uint32_t> indices;    ///< 3 per triangle, into positions
+  /// Shading normals per vertex (unit length), or empty: every triangle is flat. A triangle with
+  /// a zero normal at any of its vertices is flat too.
+  std::vector<Vec3> normals;
+  /// Texture coordinates per vertex, or empty: (u, v) are then the hit's barycentrics.
+  std::vector<Vec2> uvs;
+  std::vector<uint32_t> indices;    ///< 3 per triangle, into positions (and normals, uvs)
   std::vector<uint32_t> materials;  ///< 1 per triangle, into Scene::materials
   std::string origin;               ///< where it came from, for messages ("box.obj", "shapes[3]")
 
   size_t triangle_count() const { return indices.size() / 3; }
 };
 
+/// A sphere; its front side is the outside. Its texture coordinates are taken in its own frame
+/// (the rotation of its transform): u = phi / 2pi around local +z from local +x, v = theta / pi
+/// from local +z.
 struct Sphere {
   Vec3 center;
   float radius = 1.f;
   uint32_t material = 0;
+  Vec3 axis_x{1.f, 0.f, 0.f}, axis_y{0.f, 1.f, 0.f}, axis_z{0.f, 0.f, 1.f};  ///< unit, orthogonal
 };
 
 /// Isotropic point light; intensity is radiant intensity in W/sr per RGB channel.
