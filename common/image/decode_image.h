@@ -1,0 +1,39 @@
+#pragma once
+// Decoding of image textures (PNG, JPEG, OpenEXR, Radiance HDR) from bytes in memory: the bytes
+// come from a scene bundle, never from a path of the machine. docs/textures.md.
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace rayfarm {
+
+/// A decoded image: interleaved samples, row-major, top row first. Exactly one of `bytes` and
+/// `floats` holds the samples (width * height * channels of them).
+struct DecodedImage {
+  uint32_t width = 0;
+  uint32_t height = 0;
+  /// 1: gray, 2: gray + alpha, 3: RGB, 4: RGBA.
+  uint32_t channels = 0;
+  /// 8-bit samples (8-bit PNG, JPEG; PNG of 1, 2 or 4 bits widened to 8).
+  std::vector<uint8_t> bytes;
+  /// Float samples: OpenEXR and Radiance HDR as stored; 16-bit PNG as value / 65535, so that the
+  /// file's precision survives (8 bits would band smooth gradients and height maps).
+  std::vector<float> floats;
+  /// Whether the colour samples are display-encoded (sRGB transfer curve) rather than linear.
+  /// Alpha is always linear. PNG and JPEG: true, except a PNG whose gAMA chunk says 1.0 and that
+  /// has no sRGB chunk. OpenEXR and Radiance HDR: false.
+  bool display_encoded = false;
+  /// "PNG", "JPEG", "OpenEXR" or "Radiance HDR", for messages.
+  const char* format = "";
+
+  bool is_float() const { return !floats.empty(); }
+};
+
+/// Decodes `bytes`, choosing the format by its magic bytes (not by the name's extension). Throws
+/// SceneError "NAME: what, where" for an unknown format, a size over kMaxTextureSide or
+/// kMaxTexturePixels (checked from the header, before any pixel is allocated), and truncated or
+/// corrupt data; never returns a partial image. Thread-safe: decodes share no state.
+DecodedImage decode_image(std::span<const uint8_t> bytes, const std::string& name);
+
+}  // namespace rayfarm
