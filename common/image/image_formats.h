@@ -5,7 +5,7 @@
 #include <span>
 #include <string>
 
-#include "common/image/decode_image.h"
+#include "common/image/decoded_image.h"
 
 namespace rayfarm::image_formats {
 

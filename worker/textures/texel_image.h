@@ -4,7 +4,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "common/image/decode_image.h"
+#include "common/image/decoded_image.h"
 #include "common/math/vec4.h"
 
 namespace rayfarm {

@@ -2,6 +2,8 @@
 
 #include <span>
 
+#include "common/image/decode_image.h"
+
 namespace rayfarm {
 
 uint32_t TextureSet::load_image(const std::string& file, ColourSpace space, const ReadBytes& read) {
