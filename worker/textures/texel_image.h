@@ -1,6 +1,7 @@
 #pragma once
 // A decoded image as textures read it: 8-bit samples stay 8-bit (decoded through a 256-entry
 // table at lookup), float samples stay float; every texel comes back as linear RGBA.
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
