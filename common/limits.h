@@ -27,6 +27,12 @@ inline constexpr int64_t kMaxFilmSide = 16384;
 /// Most pixels of a scene's film (2^26).
 inline constexpr int64_t kMaxFilmPixels = int64_t{1} << 26;
 
+/// Largest side of an image texture (PNG, JPEG, OpenEXR, Radiance HDR), in pixels; checked from
+/// the file's header before any pixel is allocated.
+inline constexpr int64_t kMaxTextureSide = 16384;
+/// Most pixels of an image texture (2^26: 256 MiB as 8-bit RGBA, 1 GiB as float RGBA).
+inline constexpr int64_t kMaxTexturePixels = int64_t{1} << 26;
+
 // ---- rendering
 // -----------------------------------------------------------------------------------
 
