@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <stdexcept>
 
 #include "common/math/wide.h"
 
@@ -42,6 +43,7 @@ float sphere_point_error(const Vec3& center, float radius) {
 }
 
 SceneData::SceneData(const Scene& scene) : scene_(scene) {
+  build_textures();
   std::vector<Bvh::Mesh> meshes;
   for (const TriangleMesh& mesh : scene_.meshes) {
     mesh_offset_.push_back(triangles_.size());
@@ -65,6 +67,26 @@ SceneData::SceneData(const Scene& scene) : scene_(scene) {
   for (const Sphere& s : scene_.spheres) spheres.push_back({s.center, s.radius});
   sphere_lights_.assign(scene_.spheres.size(), -1);
   bvh_ = std::make_unique<Bvh>(meshes, spheres);
+}
+
+void SceneData::build_textures() {
+  uses_uv_ = !scene_.textures.empty();
+  for (const TextureDesc& t : scene_.textures) {
+    if (t.kind == TextureDesc::Kind::kCheckerboard) {
+      textures_.add_checkerboard(CheckerboardTexture(Vec4(t.color0.x, t.color0.y, t.color0.z, 1.f),
+                                                     Vec4(t.color1.x, t.color1.y, t.color1.z, 1.f),
+                                                     t.options.transform));
+      continue;
+    }
+    if (!t.image) {
+      throw std::runtime_error("texture \"" + t.name + "\": its image " + t.file.string() +
+                               " was not kept when the scene was loaded");
+    }
+    const uint32_t image = textures_.load_image(t.file.generic_string(), t.space, *t.image);
+    textures_.add_image_texture(image, t.options);
+  }
+  // The decoded files now live in the texture set; the scene's copies are not needed.
+  for (TextureDesc& t : scene_.textures) t.image.reset();
 }
 
 void SceneData::set_light_index(uint32_t geom, uint32_t prim, int32_t light) {

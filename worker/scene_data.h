@@ -9,6 +9,7 @@
 #include "common/math/vec2.h"
 #include "common/scene/scene.h"
 #include "worker/embree/bvh.h"
+#include "worker/textures/texture_set.h"
 
 namespace rayfarm {
 
@@ -64,6 +65,8 @@ class SceneData {
   const Scene& scene() const { return scene_; }
   const Bvh& bvh() const { return *bvh_; }
   const Material& material(uint32_t i) const { return scene_.materials[i]; }
+  /// The scene's textures, indexed as Scene::textures.
+  const TextureSet& textures() const { return textures_; }
 
   /// Resolves an Embree hit into position, normal, material and light.
   SurfaceHit resolve(const Ray& ray, const RayHit& hit) const {
@@ -98,6 +101,7 @@ class SceneData {
     int32_t light;
   };
   SurfaceHit resolve_sphere(const Ray& ray, const RayHit& hit) const;
+  void build_textures();
   // Shading normal and texture coordinates from a mesh's vertex attributes.
   void interpolate(const RayHit& hit, SurfaceHit& s) const;
 
@@ -107,6 +111,7 @@ class SceneData {
   std::vector<uint8_t> interpolates_;  // per mesh: its hits read vertex attributes
   bool uses_uv_ = false;
   std::unique_ptr<Bvh> bvh_;
+  TextureSet textures_;
   uint64_t degenerate_ = 0;
 };
 

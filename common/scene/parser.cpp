@@ -11,6 +11,7 @@
 #include "common/math/wide.h"
 #include "common/scene/json_reader.h"
 #include "common/scene/obj_loader.h"
+#include "common/scene/texture_reader.h"
 #include "common/scene/transform_reader.h"
 #include "common/util/text.h"
 
@@ -29,12 +30,17 @@ double cross_length(const Vec3& a, const Vec3& b) { return length(cross(wide(a),
 /// Fills a Scene from the parsed JSON, one top-level section at a time.
 class SceneReader {
  public:
-  SceneReader(Scene* scene, const Context& context, fs::path folder, const SceneCheck& check)
-      : scene_(*scene), context_(context), folder_(std::move(folder)), check_(check) {}
+  SceneReader(Scene* scene, const Context& context, fs::path folder, const SceneCheck& check,
+              SceneImages images)
+      : scene_(*scene),
+        context_(context),
+        folder_(std::move(folder)),
+        check_(check),
+        textures_(folder_, images) {}
 
   void read(const Node& root) {
-    root.allow_keys(
-        {"format", "camera", "film", "materials", "shapes", "lights", "background", "render"});
+    root.allow_keys({"format", "camera", "film", "textures", "materials", "shapes", "lights",
+                     "background", "render"});
     if (auto n = root.find("format")) read_format(*n);
     // The film and the render settings first: the caller's limits on them come before the rest.
     read_film(root.require("film"));
@@ -43,6 +49,7 @@ class SceneReader {
       if (auto refusal = check_(scene_.film, scene_.render)) throw SceneRefused(*refusal);
     }
     read_camera(root.require("camera"));
+    if (auto n = root.find("textures")) textures_.read(*n, scene_.textures, scene_.referenced);
     if (auto n = root.find("materials")) read_materials(*n);
     if (auto n = root.find("shapes")) read_shapes(*n);
     if (auto n = root.find("lights")) read_lights(*n);
@@ -349,11 +356,12 @@ class SceneReader {
   fs::path folder_;
   const SceneCheck& check_;
   std::map<std::string, uint32_t> material_index_;
+  TextureReader textures_;
 };
 
 }  // namespace
 
-Scene load_scene(const fs::path& file, const SceneCheck& check) {
+Scene load_scene(const fs::path& file, const SceneCheck& check, SceneImages images) {
   const std::string name = file.string();
   const Json root = parse_json(read_text_file(file, kMaxSceneFileBytes, name), name);
   Scene scene;
@@ -361,7 +369,7 @@ Scene load_scene(const fs::path& file, const SceneCheck& check) {
   const Context context{name, &scene.warnings};
   const Node top(root, context, "");
   top.object();
-  SceneReader(&scene, context, file.parent_path(), check).read(top);
+  SceneReader(&scene, context, file.parent_path(), check, images).read(top);
   return scene;
 }
 

@@ -11,6 +11,7 @@
 #include "common/limits.h"
 #include "common/math/vec2.h"
 #include "common/math/vec3.h"
+#include "common/scene/textures.h"
 
 namespace rayfarm {
 
@@ -78,6 +79,7 @@ struct Material {
   MaterialKind kind;       ///< default: diffuse, albedo 0.8
   Vec3 emission{0.f};      ///< emitted radiance; non-zero makes an area light
   bool two_sided = false;  ///< emission leaves both sides
+  bool textured = false;   ///< some parameter reads a texture (set by the scene's reader)
 
   bool is_emissive() const { return !is_black(emission); }
 };
@@ -138,6 +140,7 @@ struct Scene {
   Camera camera;
   FilmSize film;
   std::vector<Material> materials;
+  std::vector<TextureDesc> textures;  ///< what textured material parameters read
   std::vector<TriangleMesh> meshes;
   std::vector<Sphere> spheres;
   std::vector<PointLight> point_lights;
@@ -148,5 +151,10 @@ struct Scene {
   std::vector<std::filesystem::path> referenced;     ///< files it uses, relative to its folder
   std::vector<std::string> warnings;                 ///< non-fatal problems found while loading
 };
+
+/// Releases the decoded texture images a loaded scene holds, once a renderer has taken its copy.
+inline void drop_images(Scene& scene) {
+  for (TextureDesc& t : scene.textures) t.image.reset();
+}
 
 }  // namespace rayfarm

@@ -94,7 +94,8 @@ Vec3 PathIntegratorFor<BsdfT>::li(Ray ray, Pcg32& rng, PathStats& stats) const {
     // Light sampling (NEE / MIS) at non-specular vertices, in the shading frame.
     const Frame frame(hit.ns);
     const Vec3 wo_local = frame.to_local(wo);
-    const BsdfT bsdf(material);
+    const BsdfT bsdf = material.textured ? BsdfT(material, TextureLookup(&data_.textures(), hit.uv))
+                                         : BsdfT(material);
     if (plan_.sample_lights && !bsdf.is_specular()) {
       radiance += beta * sample_light(hit, wo, wo_local, frame, bsdf, rng, rays);
     }

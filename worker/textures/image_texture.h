@@ -9,22 +9,6 @@
 
 namespace rayfarm {
 
-enum class TextureFilter { bilinear, nearest };
-/// Outside [0, 1): repeat the image, repeat it mirrored every other time, or extend its edge.
-enum class TextureWrap { repeat, mirror, clamp };
-/// Where uv (0, 0) is on the image: its bottom-left corner (OBJ, Mitsuba) or its top-left one
-/// (glTF).
-enum class UvOrigin { bottom_left, top_left };
-
-struct ImageTextureOptions {
-  TextureFilter filter = TextureFilter::bilinear;
-  TextureWrap wrap_u = TextureWrap::repeat;
-  TextureWrap wrap_v = TextureWrap::repeat;
-  /// Applied to (u, v) first; the origin then places the result on the image.
-  UvTransform transform;
-  UvOrigin origin = UvOrigin::bottom_left;
-};
-
 /// Read-only after construction: lookups from any number of threads.
 class ImageTexture {
  public:

@@ -6,14 +6,10 @@
 #include <vector>
 
 #include "common/image/decoded_image.h"
+#include "common/image/texture_options.h"
 #include "common/math/vec4.h"
 
 namespace rayfarm {
-
-/// How a texture's colour samples are encoded. `from_file`: as the file says
-/// (DecodedImage::display_encoded); a scene may override it either way (e.g. a normal map in a
-/// PNG is `linear`). Alpha is always linear.
-enum class ColourSpace { from_file, srgb, linear };
 
 /// The sRGB transfer curve, decoded: display value -> linear (IEC 61966-2-1).
 float srgb_to_linear(float encoded);

@@ -18,6 +18,16 @@ uint32_t TextureSet::load_image(const std::string& file, ColourSpace space, cons
   return index;
 }
 
+uint32_t TextureSet::load_image(const std::string& file, ColourSpace space,
+                                const DecodedImage& decoded) {
+  const auto key = std::pair{file, space};
+  if (const auto it = loaded_.find(key); it != loaded_.end()) return it->second;
+  const auto index = static_cast<uint32_t>(images_.size());
+  images_.push_back(std::make_shared<const TexelImage>(DecodedImage(decoded), space));
+  loaded_.emplace(key, index);
+  return index;
+}
+
 uint32_t TextureSet::add_image_texture(uint32_t image, const ImageTextureOptions& options) {
   textures_.emplace_back(ImageTexture(images_.at(image), options));
   return static_cast<uint32_t>(textures_.size() - 1);

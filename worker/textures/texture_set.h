@@ -29,6 +29,8 @@ class TextureSet {
   /// decode_image, whose SceneError names `file`) only the first time this pair is asked for.
   uint32_t load_image(const std::string& file, ColourSpace space, const ReadBytes& read);
   /// A texture of image `image` (from load_image) with `options`; returns the texture's index.
+  /// The same for an image already decoded (a scene's): its samples are copied the first time.
+  uint32_t load_image(const std::string& file, ColourSpace space, const DecodedImage& decoded);
   uint32_t add_image_texture(uint32_t image, const ImageTextureOptions& options);
   uint32_t add_checkerboard(const CheckerboardTexture& checkerboard);
 

@@ -4,16 +4,9 @@
 #include <array>
 #include <cmath>
 
-namespace rayfarm {
+#include "common/image/texture_options.h"
 
-/// What a scene states. `rotation` (radians) turns the UVs counter-clockwise about the origin,
-/// which turns the image clockwise: u' = cos r * su u + sin r * sv v + offset_u,
-/// v' = -sin r * su u + cos r * sv v + offset_v.
-struct UvTransform {
-  std::array<float, 2> offset{0.f, 0.f};
-  std::array<float, 2> scale{1.f, 1.f};
-  float rotation = 0.f;
-};
+namespace rayfarm {
 
 /// A UvTransform as the affine map it is, computed once (lookups only multiply and add).
 class UvMap {
