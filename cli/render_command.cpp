@@ -104,6 +104,7 @@ int run_render(const RenderArgs& args) {
   ErrorTracker tracker(split_tiles(scene.film, options.tile_size), std::move(reference));
 
   Renderer renderer(scene, settings);
+  drop_images(scene);  // the renderer holds its own texels
   log->info("{}: {}x{}, {} spp, seed {}; {}", args.scene, scene.film.width, scene.film.height,
             settings.spp, settings.seed, renderer.plan());
   if (options.stop.target_error > 0 || options.stop.time_limit_s > 0) {

@@ -126,7 +126,7 @@ int run_submit(const SubmitArgs& args) {
   if (args.pass_spp) o->set_pass_spp(*args.pass_spp);
   o->set_clamp(args.clamp);
   if (args.film.given()) {
-    const auto film = args.film.resolve(load_scene(args.scene).film);
+    const auto film = args.film.resolve(load_scene(args.scene, {}, SceneImages::kCheckOnly).film);
     o->set_width(film->width);
     o->set_height(film->height);
   }

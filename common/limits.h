@@ -13,6 +13,8 @@ namespace rayfarm {
 inline constexpr std::uintmax_t kMaxSceneFileBytes = std::uintmax_t{64} << 20;
 /// Largest OBJ file read, in bytes.
 inline constexpr std::uintmax_t kMaxObjFileBytes = std::uintmax_t{1} << 30;
+/// Largest texture image file read (PNG, JPEG, OpenEXR, HDR).
+inline constexpr std::uintmax_t kMaxTextureFileBytes = std::uintmax_t{1} << 28;
 /// Largest MTL file read, in bytes.
 inline constexpr std::uintmax_t kMaxMtlFileBytes = std::uintmax_t{16} << 20;
 /// Deepest nesting of JSON arrays and objects read.
@@ -26,6 +28,12 @@ inline constexpr double kMaxCoordinate = 1e17;
 inline constexpr int64_t kMaxFilmSide = 16384;
 /// Most pixels of a scene's film (2^26).
 inline constexpr int64_t kMaxFilmPixels = int64_t{1} << 26;
+
+/// Largest side of an image texture (PNG, JPEG, OpenEXR, Radiance HDR), in pixels; checked from
+/// the file's header before any pixel is allocated.
+inline constexpr int64_t kMaxTextureSide = 16384;
+/// Most pixels of an image texture (2^26: 256 MiB as 8-bit RGBA, 1 GiB as float RGBA).
+inline constexpr int64_t kMaxTexturePixels = int64_t{1} << 26;
 
 // ---- rendering
 // -----------------------------------------------------------------------------------

@@ -1,11 +1,18 @@
 #!/usr/bin/env bash
 # Regenerates the seed corpus in fuzz/corpus/ from the bundled scenes and, for the wire, from
-# text-format messages encoded with protoc. Run from anywhere; the seeds are committed.
+# text-format messages encoded with protoc; the image seeds are written by the build's
+# fuzz_image_seeds (BUILD=folder, default build/; cmake --build build --target fuzz_image_seeds).
+# Run from anywhere; the seeds are committed.
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 root=$(dirname "$here")
 c="$here/corpus"
-rm -rf "$c" && mkdir -p "$c"/{scene,obj,wire,bundle}
+build=${BUILD:-$root/build}
+if [ ! -x "$build/fuzz/fuzz_image_seeds" ]; then
+  echo "make_seeds: $build/fuzz/fuzz_image_seeds is missing: cmake --build $build --target fuzz_image_seeds" >&2
+  exit 1
+fi
+rm -rf "$c" && mkdir -p "$c"/{scene,obj,wire,bundle,image}
 
 # Scenes: the bundled ones, one with a mesh and every shape and material, and broken ones.
 for s in cornell-box phong furnace; do cp "$root/scenes/$s/scene.json" "$c/scene/$s.json"; done
@@ -70,4 +77,6 @@ printf 'files { path: "scene.json" data: "{}" } files { path: "a/b/c.obj" data: 
 printf 'scene.json\t{}\nmeshes/m.obj\tv 0 0 0\n' > "$c/bundle/lines.txt"
 printf '../escape\tx\n' > "$c/bundle/escape.txt"
 printf 'a/./b\tx\na\\b\ty\n/abs\tz\n' > "$c/bundle/odd-paths.txt"
+# Images: tiny valid PNG, JPEG, OpenEXR and Radiance HDR files, and broken ones.
+"$build/fuzz/fuzz_image_seeds" "$c/image"
 echo "seeds: $(find "$c" -type f | wc -l) files in $c"

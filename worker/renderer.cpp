@@ -1,5 +1,7 @@
 #include "worker/renderer.h"
 
+#include "common/util/text.h"
+
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -209,6 +211,14 @@ std::string Renderer::plan() const {
   for (const auto& k : kinds) {
     out += (first ? " " : ", ") + k;
     first = false;
+  }
+  const TextureSet& textures = impl_->data.textures();
+  if (textures.texture_count() == 0) {
+    out += "; no textures";
+  } else {
+    out += "; " + std::to_string(textures.texture_count()) + " textures over " +
+           std::to_string(textures.image_count()) + " images (" +
+           human_bytes(textures.memory_bytes()) + ")";
   }
   out += "; max_depth " + std::to_string(p.max_depth);
   return out;

@@ -1,8 +1,10 @@
 #include "worker/scene_data.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <stdexcept>
 
 #include "common/math/wide.h"
 
@@ -41,6 +43,7 @@ float sphere_point_error(const Vec3& center, float radius) {
 }
 
 SceneData::SceneData(const Scene& scene) : scene_(scene) {
+  build_textures();
   std::vector<Bvh::Mesh> meshes;
   for (const TriangleMesh& mesh : scene_.meshes) {
     mesh_offset_.push_back(triangles_.size());
@@ -58,11 +61,32 @@ SceneData::SceneData(const Scene& scene) : scene_(scene) {
       triangles_.push_back(info);
     }
     meshes.push_back({&mesh.positions, &mesh.indices});
+    interpolates_.push_back(!mesh.normals.empty() || (uses_uv_ && !mesh.uvs.empty()));
   }
   std::vector<Bvh::SphereInput> spheres;
   for (const Sphere& s : scene_.spheres) spheres.push_back({s.center, s.radius});
   sphere_lights_.assign(scene_.spheres.size(), -1);
   bvh_ = std::make_unique<Bvh>(meshes, spheres);
+}
+
+void SceneData::build_textures() {
+  uses_uv_ = !scene_.textures.empty();
+  for (const TextureDesc& t : scene_.textures) {
+    if (t.kind == TextureDesc::Kind::kCheckerboard) {
+      textures_.add_checkerboard(CheckerboardTexture(Vec4(t.color0.x, t.color0.y, t.color0.z, 1.f),
+                                                     Vec4(t.color1.x, t.color1.y, t.color1.z, 1.f),
+                                                     t.options.transform));
+      continue;
+    }
+    if (!t.image) {
+      throw std::runtime_error("texture \"" + t.name + "\": its image " + t.file.string() +
+                               " was not kept when the scene was loaded");
+    }
+    const uint32_t image = textures_.load_image(t.file.generic_string(), t.space, *t.image);
+    textures_.add_image_texture(image, t.options);
+  }
+  // The decoded files now live in the texture set; the scene's copies are not needed.
+  for (TextureDesc& t : scene_.textures) t.image.reset();
 }
 
 void SceneData::set_light_index(uint32_t geom, uint32_t prim, int32_t light) {
@@ -84,9 +108,36 @@ SurfaceHit SceneData::resolve_sphere(const Ray& ray, const RayHit& hit) const {
   s.p = sphere.center + n * sphere.radius;
   s.n = n;
   s.p_error = sphere_point_error(sphere.center, sphere.radius);
+  s.ns = n;
+  if (uses_uv_) {
+    // Angles in the sphere's own frame; the poles and the seam get u = 0.
+    const float x = dot(n, sphere.axis_x), y = dot(n, sphere.axis_y), z = dot(n, sphere.axis_z);
+    float phi = std::atan2(y, x);
+    if (phi < 0.f) phi += 2.f * kPi;
+    s.uv = {phi * (0.5f * kInvPi), std::acos(std::clamp(z, -1.f, 1.f)) * kInvPi};
+  }
   s.material = sphere.material;
   s.light = sphere_lights_[hit.prim];
   return s;
+}
+
+void SceneData::interpolate(const RayHit& hit, SurfaceHit& s) const {
+  const TriangleMesh& mesh = scene_.meshes[hit.geom];
+  const uint32_t* idx = &mesh.indices[3 * size_t(hit.prim)];
+  const float b0 = 1.f - hit.u - hit.v;
+  if (!mesh.normals.empty()) {
+    const Vec3 &n0 = mesh.normals[idx[0]], &n1 = mesh.normals[idx[1]], &n2 = mesh.normals[idx[2]];
+    if (!is_black(n0) && !is_black(n1) && !is_black(n2)) {
+      const Vec3 sum = n0 * b0 + n1 * hit.u + n2 * hit.v;
+      const float len = length(sum);
+      // Opposite normals can cancel; such a point keeps the flat normal.
+      if (len > 1e-6f) s.ns = dot(sum, s.n) < 0.f ? -(sum / len) : sum / len;
+    }
+  }
+  if (uses_uv_ && !mesh.uvs.empty()) {
+    const Vec2 &t0 = mesh.uvs[idx[0]], &t1 = mesh.uvs[idx[1]], &t2 = mesh.uvs[idx[2]];
+    s.uv = t0 * b0 + t1 * hit.u + t2 * hit.v;
+  }
 }
 
 }  // namespace rayfarm

@@ -6,8 +6,10 @@
 #include <memory>
 #include <vector>
 
+#include "common/math/vec2.h"
 #include "common/scene/scene.h"
 #include "worker/embree/bvh.h"
+#include "worker/textures/texture_set.h"
 
 namespace rayfarm {
 
@@ -15,6 +17,13 @@ namespace rayfarm {
 struct SurfaceHit {
   Vec3 p;          ///< position, recomputed from the primitive (not org + t dir)
   Vec3 n;          ///< unit geometric normal on the front side
+  /// Unit shading normal on n's side: interpolated from a mesh's vertex normals, else n itself
+  /// (bit for bit, which the integrator uses to know a flat hit).
+  Vec3 ns;
+  /// Texture coordinates: a mesh's interpolated ones, a sphere's angles (docs/scene-format.md),
+  /// else the triangle's barycentrics. Filled only when the scene has a use for them
+  /// (SceneData::uses_uv()), else the barycentrics on triangles and zero on spheres.
+  Vec2 uv;
   float p_error = 0.f;  ///< offset that clears the error bound of p (scene units)
   uint32_t material = 0;
   int32_t light = -1;  ///< index into LightSet, or -1
@@ -56,6 +65,8 @@ class SceneData {
   const Scene& scene() const { return scene_; }
   const Bvh& bvh() const { return *bvh_; }
   const Material& material(uint32_t i) const { return scene_.materials[i]; }
+  /// The scene's textures, indexed as Scene::textures.
+  const TextureSet& textures() const { return textures_; }
 
   /// Resolves an Embree hit into position, normal, material and light.
   SurfaceHit resolve(const Ray& ray, const RayHit& hit) const {
@@ -64,11 +75,16 @@ class SceneData {
     SurfaceHit s;
     s.p = tri.v0 + tri.e1 * hit.u + tri.e2 * hit.v;
     s.n = tri.n;
+    s.ns = tri.n;
+    s.uv = {hit.u, hit.v};
     s.p_error = tri.p_error;
     s.material = tri.material;
     s.light = tri.light;
+    if (interpolates_[hit.geom]) interpolate(hit, s);
     return s;
   }
+  /// True when hits carry texture coordinates (some material looks them up).
+  bool uses_uv() const { return uses_uv_; }
   /// Light index of a primitive (-1 when it does not emit); set by LightSet.
   void set_light_index(uint32_t geom, uint32_t prim, int32_t light);
   /// Number of triangles dropped because they have no area.
@@ -85,11 +101,17 @@ class SceneData {
     int32_t light;
   };
   SurfaceHit resolve_sphere(const Ray& ray, const RayHit& hit) const;
+  void build_textures();
+  // Shading normal and texture coordinates from a mesh's vertex attributes.
+  void interpolate(const RayHit& hit, SurfaceHit& s) const;
 
   std::vector<TriangleInfo> triangles_;  // all meshes, mesh after mesh
   std::vector<size_t> mesh_offset_;      // index of each mesh's first triangle in triangles_
   std::vector<int32_t> sphere_lights_;
+  std::vector<uint8_t> interpolates_;  // per mesh: its hits read vertex attributes
+  bool uses_uv_ = false;
   std::unique_ptr<Bvh> bvh_;
+  TextureSet textures_;
   uint64_t degenerate_ = 0;
 };
 

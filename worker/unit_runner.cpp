@@ -126,6 +126,7 @@ std::shared_ptr<const UnitRunner::Prepared> UnitRunner::prepare(const wire::Work
   }
   const RenderSettings settings = protocol::settings_from_wire(unit.settings());
   arena_.execute([&] { p->renderer = std::make_unique<Renderer>(*p->scene, settings); });
+  drop_images(*p->scene);  // the renderer holds its own texels
   log()->info(
       "job {}: {} {}x{}, {} spp, {}, seed {}; renderer ready in {:.2f} s ({} threads, {} units "
       "at once): {}",

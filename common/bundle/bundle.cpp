@@ -188,7 +188,7 @@ std::string canonical_bytes(const Bundle& bundle) {
 std::string bundle_hash(const Bundle& bundle) { return sha256_hex(canonical_bytes(bundle)); }
 
 PackedScene pack_scene(const fs::path& scene_file) {
-  const Scene scene = load_scene(scene_file);
+  const Scene scene = load_scene(scene_file, {}, SceneImages::kCheckOnly);
   const fs::path scene_abs = fs::absolute(scene_file).lexically_normal();
   const fs::path scene_dir = scene_abs.parent_path();
 

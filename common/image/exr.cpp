@@ -1,5 +1,6 @@
 #include "common/image/exr.h"
 
+#include "common/image/exr_header.h"
 #include "common/util/atomic_file.h"
 
 #include <fcntl.h>
@@ -84,46 +85,14 @@ void write_exr_file(const fs::path& file, const Image& image) {
   out.writePixels(height);
 }
 
-/// The data window's size from the header of the EXR at `path`, read without OpenEXR (which
-/// reads a table sized by the header when it opens a file); the last one when the header has
-/// several (as OpenEXR reads it). nullopt when the first MiB holds no complete, well-formed
-/// header with a data window.
+/// The data window's size from the header of the EXR at `path` (peek_exr_data_window over its
+/// first MiB).
 std::optional<std::pair<int64_t, int64_t>> peek_data_window(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);
   std::string head(size_t{1} << 20, '\0');
   in.read(head.data(), static_cast<std::streamsize>(head.size()));
   head.resize(static_cast<size_t>(in.gcount()));
-  auto read_i32 = [&](size_t at) {
-    uint32_t v = 0;
-    for (int b = 3; b >= 0; --b) v = (v << 8) | static_cast<unsigned char>(head[at + b]);
-    return static_cast<int32_t>(v);
-  };
-  if (head.size() < 8 || read_i32(0) != 20000630) return std::nullopt;  // the EXR magic number
-  size_t at = 8;
-  auto read_name = [&](std::string& out) {
-    const size_t end = head.find('\0', at);
-    if (end == std::string::npos || end - at > 255) return false;
-    out = head.substr(at, end - at);
-    at = end + 1;
-    return true;
-  };
-  std::optional<std::pair<int64_t, int64_t>> window;
-  for (;;) {
-    std::string name, type;
-    if (!read_name(name)) return std::nullopt;
-    if (name.empty()) return window;  // the end of the header
-    if (!read_name(type) || at + 4 > head.size()) return std::nullopt;
-    const int32_t size = read_i32(at);
-    at += 4;
-    if (size < 0 || at + static_cast<size_t>(size) > head.size()) return std::nullopt;
-    if (name == "dataWindow") {
-      if (type != "box2i" || size != 16) return std::nullopt;
-      const int64_t x0 = read_i32(at), y0 = read_i32(at + 4), x1 = read_i32(at + 8),
-                    y1 = read_i32(at + 12);
-      window = std::pair{x1 - x0 + 1, y1 - y0 + 1};
-    }
-    at += static_cast<size_t>(size);
-  }
+  return peek_exr_data_window(head);
 }
 
 /// Reads the whole EXR at `path`; OpenEXR (Iex) errors propagate.

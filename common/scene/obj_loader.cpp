@@ -8,6 +8,7 @@
 #include <set>
 #include <string_view>
 #include <system_error>
+#include <unordered_map>
 
 #include "common/limits.h"
 #include "common/math/wide.h"
@@ -52,6 +53,7 @@ class ObjReader {
   ObjRead read(const std::string& text, const std::string& file) {
     scene_text::for_each_line(
         text, file, [this](const Where& at, std::string_view line) { statement(at, line); });
+    if (uses_attributes_) weld_attributes();
     return std::move(out_);
   }
 
@@ -75,18 +77,23 @@ class ObjReader {
       out_.mesh.positions.push_back({xyz[0], xyz[1], xyz[2]});
     } else if (keyword == "vt") {
       scene_text::check_numbers(at, words, 1, 3, "1 to 3 texture coordinates");
-      ++texcoords_;
+      const double u = *scene_text::parse_number(words[1]);
+      const double v = words.size() > 2 ? *scene_text::parse_number(words[2]) : 0.0;
+      texcoords_.push_back({static_cast<float>(u), static_cast<float>(v)});
     } else if (keyword == "vn") {
       scene_text::check_numbers(at, words, 3, 3, "3 normal components");
-      if (*scene_text::parse_number(words[1]) == 0.0 &&
-          *scene_text::parse_number(words[2]) == 0.0 &&
-          *scene_text::parse_number(words[3]) == 0.0 && !warned_zero_normal_) {
+      const WideVec3 n{*scene_text::parse_number(words[1]), *scene_text::parse_number(words[2]),
+                       *scene_text::parse_number(words[3])};
+      const double len = length(n);
+      if (!(len > 0.0) && !warned_zero_normal_) {
         warned_zero_normal_ = true;
         out_.warnings.push_back(at.message(
-            "vn has zero length (normals are not used: faces are shaded with their geometric "
-            "normal)"));
+            "vn has zero length: faces that use it are shaded with their geometric normal"));
       }
-      ++normals_;
+      normals_.push_back(len > 0.0
+                             ? Vec3(static_cast<float>(n.x / len), static_cast<float>(n.y / len),
+                                    static_cast<float>(n.z / len))
+                             : Vec3(0.f));
     } else if (keyword == "f") {
       face(at, words);
     } else if (keyword == "usemtl") {
@@ -118,8 +125,15 @@ class ObjReader {
     for (size_t k = 1; k + 1 < corners; ++k) triangle(corners_[0], corners_[k], corners_[k + 1]);
   }
 
-  /// One "v", "v/t", "v//n" or "v/t/n" reference; returns the vertex's index.
-  uint32_t corner(const Where& at, std::string_view word) {
+  /// A face corner: its position, texture coordinate and normal (kNone when not given).
+  static constexpr uint32_t kNone = UINT32_MAX;
+  struct Corner {
+    uint32_t v, t, n;
+    bool operator==(const Corner&) const = default;
+  };
+
+  /// One "v", "v/t", "v//n" or "v/t/n" reference.
+  Corner corner(const Where& at, std::string_view word) {
     std::vector<std::string_view> parts;
     size_t start = 0;
     for (size_t slash = word.find('/'); slash != std::string_view::npos;
@@ -130,11 +144,14 @@ class ObjReader {
     parts.push_back(word.substr(start));
     const bool well_formed = parts.size() <= 3 && !parts[0].empty() && !parts.back().empty();
     if (!well_formed) at.fail("malformed face vertex " + in_quotes(word));
-    const size_t vertex = index(at, parts[0], out_.mesh.positions.size(), "vertex");
+    Corner c{static_cast<uint32_t>(index(at, parts[0], out_.mesh.positions.size(), "vertex")),
+             kNone, kNone};
     if (parts.size() >= 2 && !parts[1].empty())
-      index(at, parts[1], texcoords_, "texture coordinate");
-    if (parts.size() == 3) index(at, parts[2], normals_, "normal");
-    return static_cast<uint32_t>(vertex);
+      c.t = static_cast<uint32_t>(index(at, parts[1], texcoords_.size(), "texture coordinate"));
+    if (parts.size() == 3)
+      c.n = static_cast<uint32_t>(index(at, parts[2], normals_.size(), "normal"));
+    uses_attributes_ = uses_attributes_ || c.t != kNone || c.n != kNone;
+    return c;
   }
 
   static size_t index(const Where& at, std::string_view word, size_t defined, const char* what) {
@@ -152,14 +169,42 @@ class ObjReader {
     return static_cast<size_t>(resolved);
   }
 
-  void triangle(uint32_t a, uint32_t b, uint32_t c) {
+  void triangle(const Corner& a, const Corner& b, const Corner& c) {
     const std::vector<Vec3>& p = out_.mesh.positions;
-    if (is_zero(edge_cross(p[a], p[b], p[c]))) {
+    if (is_zero(edge_cross(p[a.v], p[b.v], p[c.v]))) {
       ++out_.dropped;
       return;
     }
-    out_.mesh.indices.insert(out_.mesh.indices.end(), {a, b, c});
+    out_.mesh.indices.insert(out_.mesh.indices.end(), {a.v, b.v, c.v});
+    corner_attributes_.insert(corner_attributes_.end(), {a.t, a.n, b.t, b.n, c.t, c.n});
     out_.mesh.materials.push_back(material_);
+  }
+
+  /// One vertex per distinct (position, texture coordinate, normal) that faces use, so that each
+  /// vertex carries one of each. A corner without a normal gets a zero one (flat shading there);
+  /// one without a texture coordinate gets (0, 0).
+  void weld_attributes() {
+    struct Hash {
+      size_t operator()(const Corner& c) const {
+        return std::hash<uint64_t>()((uint64_t(c.v) << 32) ^
+                                     (uint64_t(c.t) * 0x9e3779b97f4a7c15ull) ^ c.n);
+      }
+    };
+    std::unordered_map<Corner, uint32_t, Hash> welded;
+    TriangleMesh& mesh = out_.mesh;
+    std::vector<Vec3> positions;
+    const bool any_uv = !texcoords_.empty(), any_normal = !normals_.empty();
+    for (size_t i = 0; i < mesh.indices.size(); ++i) {
+      const Corner c{mesh.indices[i], corner_attributes_[2 * i], corner_attributes_[2 * i + 1]};
+      const auto [it, added] = welded.try_emplace(c, static_cast<uint32_t>(positions.size()));
+      if (added) {
+        positions.push_back(mesh.positions[c.v]);
+        if (any_uv) mesh.uvs.push_back(c.t == kNone ? Vec2() : texcoords_[c.t]);
+        if (any_normal) mesh.normals.push_back(c.n == kNone ? Vec3(0.f) : normals_[c.n]);
+      }
+      mesh.indices[i] = it->second;
+    }
+    mesh.positions = std::move(positions);
   }
 
   /// An mtllib line's file names (a backslash keeps a blank in a name).
@@ -189,12 +234,14 @@ class ObjReader {
     }
   }
 
-  size_t texcoords_ = 0;
-  size_t normals_ = 0;
+  std::vector<Vec2> texcoords_;
+  std::vector<Vec3> normals_;                ///< unit, or zero where the file's was
+  std::vector<uint32_t> corner_attributes_;  ///< per kept triangle corner: its t and n indices
+  bool uses_attributes_ = false;
   uint32_t material_ = kNoMaterial;  ///< index into usemtls of the faces being read
   bool warned_zero_normal_ = false;
   std::set<std::string> warned_;
-  std::vector<uint32_t> corners_;
+  std::vector<Corner> corners_;
   ObjRead out_;
 };
 

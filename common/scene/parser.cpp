@@ -12,6 +12,8 @@
 #include "common/scene/json_reader.h"
 #include "common/scene/material_reader.h"
 #include "common/scene/obj_loader.h"
+#include "common/scene/texture_reader.h"
+#include "common/scene/transform_reader.h"
 #include "common/util/text.h"
 
 namespace rayfarm {
@@ -29,12 +31,17 @@ double cross_length(const Vec3& a, const Vec3& b) { return length(cross(wide(a),
 /// Fills a Scene from the parsed JSON, one top-level section at a time.
 class SceneReader {
  public:
-  SceneReader(Scene* scene, const Context& context, fs::path folder, const SceneCheck& check)
-      : scene_(*scene), context_(context), folder_(std::move(folder)), check_(check) {}
+  SceneReader(Scene* scene, const Context& context, fs::path folder, const SceneCheck& check,
+              SceneImages images)
+      : scene_(*scene),
+        context_(context),
+        folder_(std::move(folder)),
+        check_(check),
+        textures_(folder_, images) {}
 
   void read(const Node& root) {
-    root.allow_keys(
-        {"format", "camera", "film", "materials", "shapes", "lights", "background", "render"});
+    root.allow_keys({"format", "camera", "film", "textures", "materials", "shapes", "lights",
+                     "background", "render"});
     if (auto n = root.find("format")) read_format(*n);
     // The film and the render settings first: the caller's limits on them come before the rest.
     read_film(root.require("film"));
@@ -43,6 +50,7 @@ class SceneReader {
       if (auto refusal = check_(scene_.film, scene_.render)) throw SceneRefused(*refusal);
     }
     read_camera(root.require("camera"));
+    if (auto n = root.find("textures")) textures_.read(*n, scene_.textures, scene_.referenced);
     if (auto n = root.find("materials")) read_materials(*n);
     if (auto n = root.find("shapes")) read_shapes(*n);
     if (auto n = root.find("lights")) read_lights(*n);
@@ -59,14 +67,26 @@ class SceneReader {
   }
 
   void read_camera(const Node& n) {
-    n.allow_keys({"type", "eye", "look_at", "up", "fov_y", "aperture_radius", "focus_distance"});
-    if (auto type = n.find("type"); type && read_string(*type) != "perspective") {
-      type->fail("unknown camera type " + as_written(type->json()) + "; expected \"perspective\"");
-    }
     Camera& c = scene_.camera;
+    if (auto type = n.find("type")) {
+      const std::string kind = read_string(*type);
+      if (kind == "orthographic") {
+        c.projection = Camera::Projection::kOrthographic;
+      } else if (kind != "perspective") {
+        type->fail("unknown camera type " + as_written(type->json()) +
+                   "; expected \"perspective\" or \"orthographic\"");
+      }
+    }
     c.eye = read_point(n.require("eye"));
     c.look_at = read_point(n.require("look_at"));
     if (auto up = n.find("up")) c.up = read_point(*up);
+    if (c.projection == Camera::Projection::kOrthographic) {
+      n.allow_keys({"type", "eye", "look_at", "up", "view_height"});
+      c.view_height = read_length(n.require("view_height"));
+      check_view(n, c);
+      return;
+    }
+    n.allow_keys({"type", "eye", "look_at", "up", "fov_y", "aperture_radius", "focus_distance"});
     const Node fov = n.require("fov_y");
     c.fov_y_deg = read_float(fov);
     if (!(c.fov_y_deg > 0.f && c.fov_y_deg < 180.f)) fov.fail("fov_y must lie in (0, 180) degrees");
@@ -162,16 +182,17 @@ class SceneReader {
   }
 
   void read_sphere(const Node& n) {
-    n.allow_keys({"type", "center", "radius", "material"});
+    n.allow_keys({"type", "center", "radius", "material", "transform"});
     Sphere s;
     s.center = read_point(n.require("center"));
     s.radius = read_length(n.require("radius"));
     s.material = material_ref(n.require("material"));
+    if (auto t = n.find("transform")) transform_sphere(s, read_transform(*t), *t);
     scene_.spheres.push_back(s);
   }
 
   void read_quad(const Node& n, const std::string& origin) {
-    n.allow_keys({"type", "corner", "edge1", "edge2", "material"});
+    n.allow_keys({"type", "corner", "edge1", "edge2", "material", "transform"});
     const Vec3 c = read_point(n.require("corner"));
     const Vec3 e1 = read_point(n.require("edge1"));
     const Vec3 e2 = read_point(n.require("edge2"));
@@ -180,12 +201,14 @@ class SceneReader {
       n.warn("the quad has zero area and is dropped");
       return;
     }
-    // Both triangles' front faces, (v1-v0) x (v2-v0), point along edge1 x edge2.
-    add_triangles(origin, {c, c + e1, c + e1 + e2, c + e2}, {0, 1, 2, 0, 2, 3}, material);
+    // Both triangles' front faces, (v1-v0) x (v2-v0), point along edge1 x edge2. Texture
+    // coordinates run from (0, 0) at the corner to (1, 1) at corner + edge1 + edge2.
+    add_triangles(n, origin, {c, c + e1, c + e1 + e2, c + e2}, {0, 1, 2, 0, 2, 3}, material,
+                  {{0.f, 0.f}, {1.f, 0.f}, {1.f, 1.f}, {0.f, 1.f}});
   }
 
   void read_triangle(const Node& n, const std::string& origin) {
-    n.allow_keys({"type", "vertices", "material"});
+    n.allow_keys({"type", "vertices", "material", "transform"});
     const Node vertices = n.require("vertices");
     if (vertices.array().size() != 3) {
       vertices.fail("expected 3 vertices, got " + std::to_string(vertices.array().size()));
@@ -198,21 +221,23 @@ class SceneReader {
       n.warn("the triangle has zero area and is dropped");
       return;
     }
-    add_triangles(origin, {a, b, c}, {0, 1, 2}, material);
+    add_triangles(n, origin, {a, b, c}, {0, 1, 2}, material, {});
   }
 
-  void add_triangles(const std::string& origin, std::vector<Vec3> positions,
-                     std::vector<uint32_t> indices, uint32_t material) {
+  void add_triangles(const Node& n, const std::string& origin, std::vector<Vec3> positions,
+                     std::vector<uint32_t> indices, uint32_t material, std::vector<Vec2> uvs) {
     TriangleMesh mesh;
     mesh.materials.assign(indices.size() / 3, material);
     mesh.positions = std::move(positions);
     mesh.indices = std::move(indices);
+    mesh.uvs = std::move(uvs);
     mesh.origin = origin;
+    if (auto t = n.find("transform")) transform_mesh(mesh, read_transform(*t), *t);
     scene_.meshes.push_back(std::move(mesh));
   }
 
   void read_mesh(const Node& n) {
-    n.allow_keys({"type", "file", "material"});
+    n.allow_keys({"type", "file", "material", "transform"});
     const fs::path relative = mesh_path(n.require("file"));
     std::optional<uint32_t> material;
     if (auto m = n.find("material")) material = material_ref(*m);
@@ -227,6 +252,7 @@ class SceneReader {
       n.warn("the mesh has no triangles");
       return;
     }
+    if (auto t = n.find("transform")) transform_mesh(obj.mesh, read_transform(*t), *t);
     scene_.meshes.push_back(std::move(obj.mesh));
   }
 
@@ -287,11 +313,12 @@ class SceneReader {
   fs::path folder_;
   const SceneCheck& check_;
   std::map<std::string, uint32_t> material_index_;
+  TextureReader textures_;
 };
 
 }  // namespace
 
-Scene load_scene(const fs::path& file, const SceneCheck& check) {
+Scene load_scene(const fs::path& file, const SceneCheck& check, SceneImages images) {
   const std::string name = file.string();
   const Json root = parse_json(read_text_file(file, kMaxSceneFileBytes, name), name);
   Scene scene;
@@ -299,7 +326,7 @@ Scene load_scene(const fs::path& file, const SceneCheck& check) {
   const Context context{name, &scene.warnings};
   const Node top(root, context, "");
   top.object();
-  SceneReader(&scene, context, file.parent_path(), check).read(top);
+  SceneReader(&scene, context, file.parent_path(), check, images).read(top);
   return scene;
 }
 

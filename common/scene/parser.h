@@ -7,6 +7,7 @@
 
 #include "common/scene/scene.h"
 #include "common/scene/scene_files.h"
+#include "common/scene/texture_reader.h"
 
 namespace rayfarm {
 
@@ -22,8 +23,10 @@ class SceneRefused : public SceneError {
   using SceneError::SceneError;
 };
 
-/// Loads, resolves (OBJ meshes, quads, triangles) and validates a scene file. Throws SceneError
-/// (SceneRefused when `check` refuses it).
-Scene load_scene(const std::filesystem::path& file, const SceneCheck& check = {});
+/// Loads, resolves (OBJ meshes, quads, triangles) and validates a scene file, decoding every
+/// texture image (kept, or dropped once checked: `images`). Throws SceneError (SceneRefused when
+/// `check` refuses it).
+Scene load_scene(const std::filesystem::path& file, const SceneCheck& check = {},
+                 SceneImages images = SceneImages::kKeep);
 
 }  // namespace rayfarm

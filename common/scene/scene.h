@@ -9,15 +9,21 @@
 #include <vector>
 
 #include "common/limits.h"
+#include "common/math/vec2.h"
 #include "common/math/vec3.h"
+#include "common/scene/textures.h"
 
 namespace rayfarm {
 
 /// Version of the scene format that this build reads (the file's optional "format" field).
 inline constexpr int kSceneFormatVersion = 1;
 
-/// Thin-lens perspective camera. Right-handed: the image's right is forward x up.
+/// A perspective (thin-lens) or orthographic camera. Right-handed: the image's right is
+/// forward x up.
 struct Camera {
+  enum class Projection : uint8_t { kPerspective, kOrthographic };
+  Projection projection = Projection::kPerspective;
+  float view_height = 1.f;  ///< orthographic: height of the visible region, scene units
   Vec3 eye{0.f, 0.f, 0.f};
   Vec3 look_at{0.f, 0.f, 1.f};
   Vec3 up{0.f, 1.f, 0.f};
@@ -131,6 +137,7 @@ struct Material {
   MaterialKind kind;       ///< default: diffuse, albedo 0.8
   Vec3 emission{0.f};      ///< emitted radiance; non-zero makes an area light
   bool two_sided = false;  ///< emission leaves both sides
+  bool textured = false;   ///< some parameter reads a texture (set by the scene's reader)
 
   bool is_emissive() const { return !is_black(emission); }
 };
@@ -138,17 +145,26 @@ struct Material {
 /// Triangles with one material index each. The front face is (v1-v0) x (v2-v0).
 struct TriangleMesh {
   std::vector<Vec3> positions;
-  std::vector<uint32_t> indices;    ///< 3 per triangle, into positions
+  /// Shading normals per vertex (unit length), or empty: every triangle is flat. A triangle with
+  /// a zero normal at any of its vertices is flat too.
+  std::vector<Vec3> normals;
+  /// Texture coordinates per vertex, or empty: (u, v) are then the hit's barycentrics.
+  std::vector<Vec2> uvs;
+  std::vector<uint32_t> indices;    ///< 3 per triangle, into positions (and normals, uvs)
   std::vector<uint32_t> materials;  ///< 1 per triangle, into Scene::materials
   std::string origin;               ///< where it came from, for messages ("box.obj", "shapes[3]")
 
   size_t triangle_count() const { return indices.size() / 3; }
 };
 
+/// A sphere; its front side is the outside. Its texture coordinates are taken in its own frame
+/// (the rotation of its transform): u = phi / 2pi around local +z from local +x, v = theta / pi
+/// from local +z.
 struct Sphere {
   Vec3 center;
   float radius = 1.f;
   uint32_t material = 0;
+  Vec3 axis_x{1.f, 0.f, 0.f}, axis_y{0.f, 1.f, 0.f}, axis_z{0.f, 0.f, 1.f};  ///< unit, orthogonal
 };
 
 /// Isotropic point light; intensity is radiant intensity in W/sr per RGB channel.
@@ -182,6 +198,7 @@ struct Scene {
   Camera camera;
   FilmSize film;
   std::vector<Material> materials;
+  std::vector<TextureDesc> textures;  ///< what textured material parameters read
   std::vector<TriangleMesh> meshes;
   std::vector<Sphere> spheres;
   std::vector<PointLight> point_lights;
@@ -192,5 +209,10 @@ struct Scene {
   std::vector<std::filesystem::path> referenced;     ///< files it uses, relative to its folder
   std::vector<std::string> warnings;                 ///< non-fatal problems found while loading
 };
+
+/// Releases the decoded texture images a loaded scene holds, once a renderer has taken its copy.
+inline void drop_images(Scene& scene) {
+  for (TextureDesc& t : scene.textures) t.image.reset();
+}
 
 }  // namespace rayfarm

@@ -17,6 +17,7 @@
 #include "worker/bsdfs/rough_conductor.h"
 #include "worker/bsdfs/rough_dielectric.h"
 #include "worker/bsdfs/thin_dielectric.h"
+#include "worker/textures/texture_lookup.h"
 
 namespace rayfarm {
 
@@ -49,14 +50,18 @@ class BsdfOf {
         m.kind);
   }
 
-  /// The BSDF of material m, whose kind it must know (supports(m)).
-  explicit BsdfOf(const Material& m)
+  /// The BSDF of material m, whose kind it must know (supports(m)), with its textured
+  /// parameters read through `tex` (the default lookup serves untextured materials only).
+  explicit BsdfOf(const Material& m, const TextureLookup& tex = {})
       : kind_(std::visit(
-            [](const auto& params) -> std::variant<Kinds...> {
+            [&tex](const auto& params) -> std::variant<Kinds...> {
               using P = std::decay_t<decltype(params)>;
               if constexpr (requires { typename detail::BsdfKindFor<P, Kinds...>::type; }) {
                 using K = typename detail::BsdfKindFor<P, Kinds...>::type;
-                return std::variant<Kinds...>(std::in_place_type<K>, params);
+                if constexpr (std::is_constructible_v<K, const P&, const TextureLookup&>)
+                  return std::variant<Kinds...>(std::in_place_type<K>, params, tex);
+                else
+                  return std::variant<Kinds...>(std::in_place_type<K>, params);
               } else {
                 assert(!"material kind unknown to this BSDF");
                 __builtin_unreachable();

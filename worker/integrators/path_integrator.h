@@ -54,7 +54,7 @@ class PathIntegratorFor {
   const IntegratorPlan& plan() const { return plan_; }
 
  private:
-  Vec3 sample_light(const SurfaceHit& hit, const Vec3& wo_local, const Frame& frame,
+  Vec3 sample_light(const SurfaceHit& hit, const Vec3& wo, const Vec3& wo_local, const Frame& frame,
                     const BsdfT& bsdf, Pcg32& rng, uint64_t& rays) const;
   float emission_weight(const SurfaceHit& hit, bool specular_bounce, float bsdf_pdf,
                         const Vec3& prev_p) const;
@@ -68,6 +68,24 @@ class PathIntegratorFor {
 using PathIntegrator = PathIntegratorFor<Bsdf>;
 extern template class PathIntegratorFor<Bsdf>;
 extern template class PathIntegratorFor<DiffuseOnlyBsdf>;
+
+/// Whether wi stays on the side of the surface, relative to wo, that the shading frame says it
+/// does: a reflection in the shading frame must be one of the geometric surface too, and a
+/// transmission a transmission, so that interpolated normals never carry light through a surface
+/// or reflect it from behind. Always true at flat hits (ns is n).
+inline bool same_sides(const SurfaceHit& hit, const Vec3& wo, const Vec3& wi, const Vec3& wo_local,
+                       const Vec3& wi_local) {
+  if (hit.ns == hit.n) return true;
+  return (dot(wo, hit.n) * dot(wi, hit.n) > 0.f) == (wo_local.z * wi_local.z > 0.f);
+}
+
+/// The geometric normal on the side that wi leaves through, for offsetting its ray. At flat hits
+/// the shading frame's z decides (it is the geometric one); at smooth hits the geometric normal
+/// does, since wo may lie on different sides of the two.
+inline Vec3 leaving_side(const SurfaceHit& hit, const Vec3& wi, float wi_local_z) {
+  const bool front = hit.ns == hit.n ? wi_local_z > 0.f : dot(wi, hit.n) > 0.f;
+  return front ? hit.n : -hit.n;
+}
 
 /// Power heuristic (beta = 2) weight of a strategy with density a against one with density b.
 inline float power_heuristic(float a, float b) {

@@ -1,0 +1,51 @@
+#pragma once
+// The "textures" section of the JSON format and the parameters that may read a texture
+// (docs/scene-format.md, "Textures").
+#include <filesystem>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "common/scene/json_reader.h"
+#include "common/scene/scene.h"
+
+namespace rayfarm {
+
+/// What happens to the images a scene's textures name: every one is decoded (a broken image is
+/// a SceneError); kept in the Scene for rendering, or dropped once checked (the master, which
+/// only needs to know that they are sound).
+enum class SceneImages { kKeep, kCheckOnly };
+
+/// Reads the textures of the scene in `folder` and their images; each file is decoded once,
+/// however many textures name it. `referenced` gets the image files.
+class TextureReader {
+ public:
+  TextureReader(std::filesystem::path folder, SceneImages images)
+      : folder_(std::move(folder)), images_(images) {}
+
+  /// The "textures" object: name -> texture.
+  void read(const scene_json::Node& n, std::vector<TextureDesc>& out,
+            std::vector<std::filesystem::path>& referenced);
+
+  /// A reflectance: an RGB in [0, 1], or {"texture": NAME, "scale": RGB or number in [0, 1]}
+  /// (the texture's value, clamped to [0, 1], times the scale).
+  TexturedRgb reflectance(const scene_json::Node& n) const;
+  /// A number in [lo, hi], or {"texture": NAME, "channel": "r"|"g"|"b"|"a"|"mean", "scale": x}.
+  TexturedFloat number(const scene_json::Node& n, float lo, float hi) const;
+  /// How many textured parameters have been read: a material whose reading raised it is
+  /// textured.
+  uint64_t textured_reads() const { return textured_reads_; }
+
+ private:
+  int32_t texture_ref(const scene_json::Node& n) const;
+  std::shared_ptr<const DecodedImage> image(const scene_json::Node& n,
+                                            const std::filesystem::path& file);
+
+  std::filesystem::path folder_;
+  SceneImages images_;
+  std::map<std::string, int32_t> index_;
+  std::map<std::filesystem::path, std::shared_ptr<const DecodedImage>> decoded_;
+  mutable uint64_t textured_reads_ = 0;
+};
+
+}  // namespace rayfarm
