@@ -98,7 +98,9 @@ std::array<float, 2> EnvironmentLight::uv(const Vec3& dir) const {
                    m[2] * dir.x + m[5] * dir.y + m[8] * dir.z);
   float u = std::atan2(local.x, -local.z) * (0.5f / kPi);
   if (u < 0.f) u += 1.f;
-  const float v = std::acos(std::clamp(local.y, -1.f, 1.f)) / kPi;
+  // theta from atan2, not acos(y): acos loses most digits near the poles, where the density's
+  // 1 / sin(theta) needs them.
+  const float v = std::atan2(std::sqrt(local.x * local.x + local.z * local.z), local.y) / kPi;
   return {u, v};
 }
 
