@@ -1,5 +1,6 @@
 #pragma once
-// Thin-lens perspective camera. Right-handed: the image's right is forward x up; row 0 is the top.
+// Thin-lens perspective and orthographic cameras. Right-handed: the image's right is forward x up;
+// row 0 is the top.
 #include <cmath>
 
 #include "common/math/wide.h"
@@ -25,12 +26,19 @@ class CameraModel {
     inv_h_ = 1.f / static_cast<float>(film.height);
     lens_ = c.aperture_radius;
     focus_ = c.focus_distance > 0.f ? c.focus_distance : length(c.look_at - c.eye);
+    ortho_half_ = c.projection == Camera::Projection::kOrthographic ? 0.5f * c.view_height : 0.f;
   }
 
   /// Ray through film position (x + jx, y + jy) in pixels; (lu, lv) pick the lens point.
   Ray generate(float fx, float fy, float lu, float lv) const {
     const float sx = (2.f * fx * inv_w_ - 1.f) * tan_half_ * aspect_;
     const float sy = (1.f - 2.f * fy * inv_h_) * tan_half_;
+    if (ortho_half_ > 0.f) {
+      // Parallel rays from the film's points on the plane through eye; the lens plays no part.
+      const float ox = (2.f * fx * inv_w_ - 1.f) * ortho_half_ * aspect_;
+      const float oy = (1.f - 2.f * fy * inv_h_) * ortho_half_;
+      return Ray{eye_ + right_ * ox + up_ * oy, forward_};
+    }
     Vec3 dir = forward_ + right_ * sx + up_ * sy;  // forward component 1: a point at depth 1
     Ray ray;
     ray.org = eye_;
@@ -47,6 +55,7 @@ class CameraModel {
  private:
   Vec3 eye_, forward_, right_, up_;
   float tan_half_ = 1.f, aspect_ = 1.f, inv_w_ = 1.f, inv_h_ = 1.f, lens_ = 0.f, focus_ = 1.f;
+  float ortho_half_ = 0.f;  // orthographic: half the view height; 0 for perspective
 };
 
 }  // namespace rayfarm

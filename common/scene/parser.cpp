@@ -68,14 +68,26 @@ class SceneReader {
   }
 
   void read_camera(const Node& n) {
-    n.allow_keys({"type", "eye", "look_at", "up", "fov_y", "aperture_radius", "focus_distance"});
-    if (auto type = n.find("type"); type && read_string(*type) != "perspective") {
-      type->fail("unknown camera type " + as_written(type->json()) + "; expected \"perspective\"");
-    }
     Camera& c = scene_.camera;
+    if (auto type = n.find("type")) {
+      const std::string kind = read_string(*type);
+      if (kind == "orthographic") {
+        c.projection = Camera::Projection::kOrthographic;
+      } else if (kind != "perspective") {
+        type->fail("unknown camera type " + as_written(type->json()) +
+                   "; expected \"perspective\" or \"orthographic\"");
+      }
+    }
     c.eye = read_point(n.require("eye"));
     c.look_at = read_point(n.require("look_at"));
     if (auto up = n.find("up")) c.up = read_point(*up);
+    if (c.projection == Camera::Projection::kOrthographic) {
+      n.allow_keys({"type", "eye", "look_at", "up", "view_height"});
+      c.view_height = read_length(n.require("view_height"));
+      check_view(n, c);
+      return;
+    }
+    n.allow_keys({"type", "eye", "look_at", "up", "fov_y", "aperture_radius", "focus_distance"});
     const Node fov = n.require("fov_y");
     c.fov_y_deg = read_float(fov);
     if (!(c.fov_y_deg > 0.f && c.fov_y_deg < 180.f)) fov.fail("fov_y must lie in (0, 180) degrees");

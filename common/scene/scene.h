@@ -19,8 +19,12 @@ namespace rayfarm {
 /// Version of the scene format that this build reads (the file's optional "format" field).
 inline constexpr int kSceneFormatVersion = 1;
 
-/// Thin-lens perspective camera. Right-handed: the image's right is forward x up.
+/// A perspective (thin-lens) or orthographic camera. Right-handed: the image's right is
+/// forward x up.
 struct Camera {
+  enum class Projection : uint8_t { kPerspective, kOrthographic };
+  Projection projection = Projection::kPerspective;
+  float view_height = 1.f;  ///< orthographic: height of the visible region, scene units
   Vec3 eye{0.f, 0.f, 0.f};
   Vec3 look_at{0.f, 0.f, 1.f};
   Vec3 up{0.f, 1.f, 0.f};

@@ -190,5 +190,21 @@ TEST(ObjAttributesTest, PlainFacesKeepThePositionsAsWritten) {
   EXPECT_TRUE(mesh.normals.empty());
 }
 
+TEST(CameraInputTest, OrthographicTakesAViewHeightInsteadOfAFieldOfView) {
+  TempDir dir;
+  const std::string head = R"({"film": {"width": 8, "height": 8}, "camera": {"type": "orthographic",
+      "eye": [0, 0, -5], "look_at": [0, 0, 0])";
+  const Scene scene = load_scene(dir.write("a.json", head + R"(, "view_height": 3}})"));
+  EXPECT_EQ(scene.camera.projection, Camera::Projection::kOrthographic);
+  EXPECT_EQ(scene.camera.view_height, 3.f);
+  try {
+    load_scene(dir.write("b.json", head + "}}"));
+    ADD_FAILURE() << "an orthographic camera without view_height loaded";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("/camera: missing key \"view_height\""), std::string::npos)
+        << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace rayfarm

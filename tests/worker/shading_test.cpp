@@ -7,6 +7,7 @@
 
 #include <cmath>
 
+#include "worker/camera.h"
 #include "worker/renderer.h"
 #include "worker/scene_data.h"
 
@@ -119,6 +120,26 @@ TEST(ShadingNormalTest, FlatMeshesRenderExactlyAsBefore) {
   const TileResult b = Renderer(zeros, settings).render({0, 0, 8, 8}, {0, 16});
   EXPECT_EQ(a.sum, b.sum);
   EXPECT_EQ(a.sum_sq, b.sum_sq);
+}
+
+TEST(OrthographicCameraTest, RaysAreParallelAndCoverTheViewHeight) {
+  Camera c;
+  c.projection = Camera::Projection::kOrthographic;
+  c.eye = {1.f, 2.f, -10.f};
+  c.look_at = {1.f, 2.f, 0.f};
+  c.view_height = 4.f;
+  const CameraModel model(c, {200, 100});  // aspect 2: 8 units wide
+  const Ray top_left = model.generate(0.f, 0.f, 0.5f, 0.5f);
+  const Ray bottom_right = model.generate(200.f, 100.f, 0.5f, 0.5f);
+  const Ray centre = model.generate(100.f, 50.f, 0.9f, 0.1f);  // the lens numbers play no part
+  for (const Ray& r : {top_left, bottom_right, centre}) EXPECT_EQ(r.dir, Vec3(0.f, 0.f, 1.f));
+  EXPECT_EQ(centre.org, c.eye);
+  // Right is forward x up = +z x +y = -x; the top row is +y.
+  EXPECT_NEAR(top_left.org.x, 1.f + 4.f, 1e-5f);
+  EXPECT_NEAR(top_left.org.y, 2.f + 2.f, 1e-5f);
+  EXPECT_NEAR(bottom_right.org.x, 1.f - 4.f, 1e-5f);
+  EXPECT_NEAR(bottom_right.org.y, 2.f - 2.f, 1e-5f);
+  EXPECT_EQ(top_left.org.z, -10.f);
 }
 
 }  // namespace
