@@ -126,5 +126,18 @@ TEST(LightReaderTest, BadLightsAreErrorsThatSayWhere) {
                      {"/lights/0/type", "point, spot, directional, environment, constant"});
 }
 
+TEST(LightReaderTest, BundledEnvironmentSceneLoadsWithItsSky) {
+  const Scene s =
+      load_scene(fs::path(RAYFARM_SOURCE_DIR) / "scenes" / "environment" / "scene.json");
+  EXPECT_TRUE(s.warnings.empty());
+  ASSERT_TRUE(s.environment);
+  ASSERT_TRUE(s.environment->image);
+  EXPECT_EQ(s.environment->image->width, 64u);
+  EXPECT_EQ(s.environment->image->height, 32u);
+  EXPECT_STREQ(s.environment->image->format, "Radiance HDR");
+  EXPECT_EQ(s.referenced, std::vector<fs::path>{"sky.hdr"});
+  EXPECT_EQ(s.spheres.size(), 3u);
+}
+
 }  // namespace
 }  // namespace rayfarm

@@ -68,7 +68,8 @@ TEST_P(BundledScene, RendersFiniteNonBlackImage) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Scenes, BundledScene,
-                         ::testing::Values("cornell-box", "phong", "furnace", "embree-cornell"),
+                         ::testing::Values("cornell-box", "phong", "furnace", "embree-cornell",
+                                           "environment"),
                          [](const auto& test_info) {
                            std::string name = test_info.param;
                            for (char& ch : name) ch = ch == '-' ? '_' : ch;
