@@ -447,7 +447,7 @@ TEST(SceneErrors, UnknownMaterialName) {
 TEST(SceneErrors, UnknownShapeAndLightTypes) {
   expect_scene_error(R"("shapes": [{"type": "cube"}])", {"/shapes/0/type", "\"cube\""});
   expect_scene_error(R"("shapes": [{"radius": 1}])", {"/shapes/0", "missing key \"type\""});
-  expect_scene_error(R"("lights": [{"type": "spot"}])", {"/lights/0/type", "\"spot\""});
+  expect_scene_error(R"("lights": [{"type": "area"}])", {"/lights/0/type", "\"area\""});
 }
 
 TEST(SceneErrors, FilmTooLarge) {
