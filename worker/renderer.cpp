@@ -191,17 +191,29 @@ TileResult Renderer::render(const TileRect& rect, const SampleRange& samples,
 std::string Renderer::plan() const {
   const IntegratorPlan& p = impl_->plan();
   std::string out = std::string("integrator ") + integrator_name(p.integrator);
-  const size_t area = impl_->lights.area_light_count(), point = impl_->lights.point_light_count();
-  if (impl_->lights.empty()) {
+  const LightSet& lights = impl_->lights;
+  const size_t area = lights.area_light_count(), point = lights.point_light_count();
+  const size_t delta = point + lights.spot_light_count() + lights.directional_light_count();
+  if (lights.empty()) {
     out += "; no lights, no light sampling";
   } else {
-    out += "; " + std::to_string(area) + " emitters, " + std::to_string(point) + " point lights";
+    out += "; " + std::to_string(area) + " emitters, " + std::to_string(point) + " point, " +
+           std::to_string(lights.spot_light_count()) + " spot, " +
+           std::to_string(lights.directional_light_count()) + " directional lights";
     out += p.sample_lights ? ", power-sampled" : ", not sampled";
-    if (p.integrator == IntegratorType::kNaive && point > 0) {
-      out += " (BSDF sampling never reaches point lights: they add nothing under naive)";
+    if (p.integrator == IntegratorType::kNaive && delta > 0) {
+      out +=
+          " (BSDF sampling never reaches point, spot or directional lights: they add nothing "
+          "under naive)";
     }
     if (p.integrator == IntegratorType::kMis && !p.weight_emission && p.sample_lights) {
-      out += " (no MIS weights: no area lights)";
+      out += " (no MIS weights: no area lights or environment)";
+    }
+    if (const EnvironmentLight* env = lights.environment()) {
+      out += "; environment " + std::to_string(env->width()) + "x" + std::to_string(env->height()) +
+             (p.sample_lights ? ", sampled by luminance x sin(theta)" +
+                                    std::string(p.weight_emission ? ", MIS-weighted" : "")
+                              : ", found by escaping rays only");
     }
   }
   std::set<std::string> kinds;

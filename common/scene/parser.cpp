@@ -10,6 +10,7 @@
 #include "common/limits.h"
 #include "common/math/wide.h"
 #include "common/scene/json_reader.h"
+#include "common/scene/light_reader.h"
 #include "common/scene/material_reader.h"
 #include "common/scene/obj_loader.h"
 #include "common/scene/texture_reader.h"
@@ -37,6 +38,7 @@ class SceneReader {
         context_(context),
         folder_(std::move(folder)),
         check_(check),
+        images_(images),
         textures_(folder_, images) {}
 
   void read(const Node& root) {
@@ -53,7 +55,7 @@ class SceneReader {
     if (auto n = root.find("textures")) textures_.read(*n, scene_.textures, scene_.referenced);
     if (auto n = root.find("materials")) read_materials(*n);
     if (auto n = root.find("shapes")) read_shapes(*n);
-    if (auto n = root.find("lights")) read_lights(*n);
+    if (auto n = root.find("lights")) read_lights(*n, folder_, images_, scene_);
     if (auto n = root.find("background")) scene_.background = read_radiance(*n);
   }
 
@@ -278,20 +280,7 @@ class SceneReader {
     scene_.referenced.push_back(file);
   }
 
-  // ---- lights and render settings ----
-
-  void read_lights(const Node& n) {
-    for (size_t i = 0; i < n.array().size(); ++i) {
-      const Node light = n.child(i);
-      const Node type = light.require("type");
-      if (read_string(type) != "point") {
-        type.fail("unknown light type " + as_written(type.json()) + "; expected \"point\"");
-      }
-      light.allow_keys({"type", "position", "intensity"});
-      scene_.point_lights.push_back(
-          {read_point(light.require("position")), read_radiance(light.require("intensity"))});
-    }
-  }
+  // ---- render settings ----
 
   void read_render(const Node& n) {
     n.allow_keys({"spp", "max_depth", "integrator", "seed"});
@@ -312,6 +301,7 @@ class SceneReader {
   const Context& context_;
   fs::path folder_;
   const SceneCheck& check_;
+  SceneImages images_;
   std::map<std::string, uint32_t> material_index_;
   TextureReader textures_;
 };

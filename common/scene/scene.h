@@ -1,6 +1,7 @@
 #pragma once
 // The scene as the renderer sees it: every shape resolved to triangles or spheres, every material
 // and light validated. Produced by load_scene() (parser.h); see docs/scene-format.md.
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <optional>
@@ -173,6 +174,33 @@ struct PointLight {
   Vec3 intensity;
 };
 
+/// A point light emitting into a cone: full intensity (W/sr) within beam_width of the axis,
+/// falling linearly in angle to zero at cutoff (docs/scene-format.md, "Lights").
+struct SpotLight {
+  Vec3 position;
+  Vec3 direction{0.f, 0.f, 1.f};  ///< unit axis of the cone, away from the light
+  Vec3 intensity;
+  float cutoff_deg = 20.f;      ///< half-angle of the cone; no light beyond it
+  float beam_width_deg = 15.f;  ///< half-angle of full intensity, <= cutoff_deg
+};
+
+/// Parallel light from infinitely far away.
+struct DirectionalLight {
+  Vec3 direction{0.f, -1.f, 0.f};  ///< unit direction the light travels
+  Vec3 irradiance;                 ///< W/m^2 on a surface facing the light
+};
+
+/// Light arriving from every direction at infinity: an equirectangular image (radiance = texel
+/// times scale), or a constant radiance. Its orientation is in docs/scene-format.md, "Lights".
+struct EnvironmentMap {
+  std::filesystem::path file;  ///< image, relative to the scene's folder; empty: constant
+  /// The decoded image; null for a constant or when the scene was loaded only to be checked.
+  std::shared_ptr<const DecodedImage> image;
+  Vec3 scale{1.f};  ///< image: factor on every texel; constant: the radiance
+  /// World from map (a rotation), row-major: the map's own +y is up, its centre looks along +z.
+  std::array<double, 9> rotation{1, 0, 0, 0, 1, 0, 0, 0, 1};
+};
+
 enum class IntegratorType : uint8_t { kNaive, kNee, kMis };
 
 /// Name used in scene files and on the command line ("naive", "nee", "mis").
@@ -202,6 +230,9 @@ struct Scene {
   std::vector<TriangleMesh> meshes;
   std::vector<Sphere> spheres;
   std::vector<PointLight> point_lights;
+  std::vector<SpotLight> spot_lights;
+  std::vector<DirectionalLight> directional_lights;
+  std::optional<EnvironmentMap> environment;  ///< at most one per scene
   Vec3 background{0.f};  ///< radiance of rays that escape
   RenderSettings render;
 
@@ -213,6 +244,7 @@ struct Scene {
 /// Releases the decoded texture images a loaded scene holds, once a renderer has taken its copy.
 inline void drop_images(Scene& scene) {
   for (TextureDesc& t : scene.textures) t.image.reset();
+  if (scene.environment) scene.environment->image.reset();
 }
 
 }  // namespace rayfarm

@@ -99,24 +99,29 @@ void TextureReader::read(const Node& n, std::vector<TextureDesc>& out,
   }
 }
 
-std::shared_ptr<const DecodedImage> TextureReader::image(const Node& n, const fs::path& file) {
-  if (auto it = decoded_.find(file); it != decoded_.end()) return it->second;
-  const fs::path full = folder_ / file;
+std::shared_ptr<const DecodedImage> decode_scene_image(const Node& n, const fs::path& folder,
+                                                       const fs::path& file, SceneImages images,
+                                                       const char* what) {
+  const fs::path full = folder / file;
   std::string bytes;
   try {
     bytes = read_whole_file(full, kMaxTextureFileBytes);
   } catch (const FileReadError& e) {
-    n.fail("texture image " + printable(full.string()) + ": " + e.what());
+    n.fail(std::string(what) + " " + printable(full.string()) + ": " + e.what());
   }
-  std::shared_ptr<const DecodedImage> decoded;
   try {
     const auto* data = reinterpret_cast<const uint8_t*>(bytes.data());
     DecodedImage image = decode_image(std::span<const uint8_t>(data, bytes.size()), full.string());
-    if (images_ == SceneImages::kKeep)
-      decoded = std::make_shared<const DecodedImage>(std::move(image));
+    if (images == SceneImages::kKeep) return std::make_shared<const DecodedImage>(std::move(image));
   } catch (const SceneError& e) {
     n.fail(e.what());
   }
+  return nullptr;
+}
+
+std::shared_ptr<const DecodedImage> TextureReader::image(const Node& n, const fs::path& file) {
+  if (auto it = decoded_.find(file); it != decoded_.end()) return it->second;
+  auto decoded = decode_scene_image(n, folder_, file, images_, "texture image");
   decoded_[file] = decoded;
   return decoded;
 }

@@ -16,6 +16,13 @@ namespace rayfarm {
 /// only needs to know that they are sound).
 enum class SceneImages { kKeep, kCheckOnly };
 
+/// Decodes the image `file` (relative to `folder`) that node n names; a file that cannot be read
+/// or decoded fails at n, naming the file. Null when `images` only asks for the check.
+std::shared_ptr<const DecodedImage> decode_scene_image(const scene_json::Node& n,
+                                                       const std::filesystem::path& folder,
+                                                       const std::filesystem::path& file,
+                                                       SceneImages images, const char* what);
+
 /// Reads the textures of the scene in `folder` and their images; each file is decoded once,
 /// however many textures name it. `referenced` gets the image files.
 class TextureReader {

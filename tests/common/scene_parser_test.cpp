@@ -463,7 +463,7 @@ TEST(SceneErrors, UnknownMaterialName) {
 TEST(SceneErrors, UnknownShapeAndLightTypes) {
   expect_scene_error(R"("shapes": [{"type": "cube"}])", {"/shapes/0/type", "\"cube\""});
   expect_scene_error(R"("shapes": [{"radius": 1}])", {"/shapes/0", "missing key \"type\""});
-  expect_scene_error(R"("lights": [{"type": "spot"}])", {"/lights/0/type", "\"spot\""});
+  expect_scene_error(R"("lights": [{"type": "area"}])", {"/lights/0/type", "\"area\""});
 }
 
 TEST(SceneErrors, FilmTooLarge) {
@@ -487,8 +487,11 @@ TEST(SceneErrors, BadCamera) {
                {"/camera/up", "parallel"});
   expect_error(camera(R"({"eye": [0, 0, 0], "look_at": [0, 0, 1], "fov_y": 180})"),
                {"/camera/fov_y", "(0, 180)"});
-  expect_error(camera(R"({"type": "orthographic", "eye": [0, 0, 0], "look_at": [0, 0, 1]})"),
-               {"/camera/type", "\"orthographic\""});
+  expect_error(camera(R"({"type": "fisheye", "eye": [0, 0, 0], "look_at": [0, 0, 1]})"),
+               {"/camera/type", "\"fisheye\"", "perspective", "orthographic"});
+  expect_error(camera(R"({"type": "orthographic", "eye": [0, 0, 0], "look_at": [0, 0, 1],
+                          "view_height": -1})"),
+               {"/camera/view_height"});
   expect_error(camera(R"({"eye": [0, 0, 0], "look_at": [0, 0, 1]})"),
                {"/camera", "missing key \"fov_y\""});
   expect_error(dir.write("scene.json", R"({"film": {"width": 1, "height": 1}})"),

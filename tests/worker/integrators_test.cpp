@@ -69,7 +69,7 @@ TEST_P(BundledScene, RendersFiniteNonBlackImage) {
 
 INSTANTIATE_TEST_SUITE_P(Scenes, BundledScene,
                          ::testing::Values("cornell-box", "phong", "furnace", "embree-cornell",
-                                           "materials"),
+                                           "environment", "materials"),
                          [](const auto& test_info) {
                            std::string name = test_info.param;
                            for (char& ch : name) ch = ch == '-' ? '_' : ch;

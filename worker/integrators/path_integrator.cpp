@@ -15,10 +15,12 @@ PathIntegratorFor<BsdfT>::PathIntegratorFor(const SceneData& data, const LightSe
   for (const Material& m : data.scene().materials) any_diffuse |= !BsdfT(m).is_specular();
   // Light sampling only where there are lights and surfaces that light sampling can serve.
   plan_.sample_lights = settings.integrator != IntegratorType::kNaive && !lights.empty() && any_diffuse;
-  // MIS weights matter only when BSDF rays can also find the sampled emitters (area lights).
-  plan_.weight_emission = plan_.sample_lights && settings.integrator == IntegratorType::kMis &&
-                          lights.area_light_count() > 0;
-  plan_.emitters_reachable = lights.area_light_count() > 0 || !is_black(background_);
+  // MIS weights matter only when BSDF rays can also find the sampled emitters (area lights and
+  // the environment).
+  const bool hittable = lights.area_light_count() > 0 || lights.environment() != nullptr;
+  plan_.weight_emission =
+      plan_.sample_lights && settings.integrator == IntegratorType::kMis && hittable;
+  plan_.emitters_reachable = hittable || !is_black(background_);
 }
 
 template <class BsdfT>
@@ -34,6 +36,17 @@ float PathIntegratorFor<BsdfT>::emission_weight(const SurfaceHit& hit, bool spec
 }
 
 template <class BsdfT>
+float PathIntegratorFor<BsdfT>::environment_weight(bool specular_bounce, float bsdf_pdf,
+                                                   const Vec3& dir) const {
+  // As emission_weight(), for the light that escaped rays find.
+  if (specular_bounce || !plan_.sample_lights ||
+      !(lights_.selection_probability(lights_.environment_index()) > 0.f))
+    return 1.f;
+  if (!plan_.weight_emission) return 0.f;
+  return power_heuristic(bsdf_pdf, lights_.environment_pdf(dir));
+}
+
+template <class BsdfT>
 Vec3 PathIntegratorFor<BsdfT>::sample_light(const SurfaceHit& hit, const Vec3& wo,
                                             const Vec3& wo_local, const Frame& frame,
                                             const BsdfT& bsdf, Pcg32& rng, uint64_t& rays) const {
@@ -44,10 +57,12 @@ Vec3 PathIntegratorFor<BsdfT>::sample_light(const SurfaceHit& hit, const Vec3& w
   if (!same_sides(hit, wo, ls.wi, wo_local, wi_local)) return Vec3(0.f);
   const Vec3 f = bsdf.eval(wo_local, wi_local);
   if (is_black(f)) return Vec3(0.f);
-  // Shadow ray from the offset origin to the (offset) light point.
+  // Shadow ray from the offset origin to the (offset) light point, or without end to a light at
+  // infinity.
   const Vec3 origin = offset_ray_origin(hit.p, hit.p_error, leaving_side(hit, ls.wi, wi_local.z));
   ++rays;
-  if (data_.bvh().occluded(Ray{origin, ls.target - origin, 0.f, 1.f})) return Vec3(0.f);
+  const Ray shadow = ls.infinite ? Ray{origin, ls.wi} : Ray{origin, ls.target - origin, 0.f, 1.f};
+  if (data_.bvh().occluded(shadow)) return Vec3(0.f);
   const float w = (ls.delta || !plan_.weight_emission)
                       ? 1.f
                       : power_heuristic(ls.pdf, bsdf.pdf(wo_local, wi_local));
@@ -75,6 +90,11 @@ Vec3 PathIntegratorFor<BsdfT>::li(Ray ray, Pcg32& rng, PathStats& stats) const {
     const std::optional<RayHit> rh = data_.bvh().intersect(ray);
     if (!rh) {
       radiance += beta * background_;
+      if (const EnvironmentLight* env = lights_.environment()) {
+        const Vec3 le = env->eval(ray.dir);
+        if (!is_black(le))
+          radiance += beta * le * environment_weight(specular_bounce, bsdf_pdf, ray.dir);
+      }
       break;
     }
     const SurfaceHit hit = data_.resolve(ray, *rh);
@@ -119,7 +139,7 @@ Vec3 PathIntegratorFor<BsdfT>::li(Ray ray, Pcg32& rng, PathStats& stats) const {
     const bool last_ray_useless =
         !plan_.emitters_reachable ||
         (!specular_bounce && plan_.sample_lights && !plan_.weight_emission &&
-         is_black(background_));  // NEE: diffuse-bounce emitter hits are not counted
+         is_black(background_));  // NEE: diffuse-bounce emitter and environment hits not counted
     if (depth + 1 == plan_.max_depth && last_ray_useless) {
       truncate(beta);
       break;

@@ -58,6 +58,7 @@ class PathIntegratorFor {
                     const BsdfT& bsdf, Pcg32& rng, uint64_t& rays) const;
   float emission_weight(const SurfaceHit& hit, bool specular_bounce, float bsdf_pdf,
                         const Vec3& prev_p) const;
+  float environment_weight(bool specular_bounce, float bsdf_pdf, const Vec3& dir) const;
 
   const SceneData& data_;
   const LightSet& lights_;

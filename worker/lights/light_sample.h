@@ -12,6 +12,9 @@ struct LightSample {
   Vec3 target;      ///< end of the shadow ray (offset off the light's surface)
   float pdf = 0.f;  ///< solid-angle density times selection probability; selection only if delta
   bool delta = false;
+  /// The light is at infinity (environment, directional): the shadow ray runs along wi without
+  /// end, and `target` is unused.
+  bool infinite = false;
 };
 
 /// Radiance leaving an emitter of material m at a point with front normal n towards direction w.

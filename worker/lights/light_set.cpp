@@ -1,6 +1,33 @@
 #include "worker/lights/light_set.h"
 
+#include <algorithm>
+#include <cmath>
+
 namespace rayfarm {
+
+namespace {
+
+/// Radius of a sphere around the centre of the geometry's bounding box that holds all of it;
+/// 1 for a scene without geometry (lights at infinity then still get a power).
+double scene_radius(const Scene& scene) {
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  const auto grow = [&](const Vec3& p, double r) {
+    for (int i = 0; i < 3; ++i) {
+      lo[i] = std::min(lo[i], double(p[i]) - r);
+      hi[i] = std::max(hi[i], double(p[i]) + r);
+    }
+  };
+  for (const TriangleMesh& m : scene.meshes) {
+    for (const Vec3& p : m.positions) grow(p, 0.0);
+  }
+  for (const Sphere& s : scene.spheres) grow(s.center, s.radius);
+  if (!(hi[0] >= lo[0])) return 1.0;
+  const double dx = hi[0] - lo[0], dy = hi[1] - lo[1], dz = hi[2] - lo[2];
+  const double r = 0.5 * std::sqrt(dx * dx + dy * dy + dz * dz);
+  return r > 0.0 && std::isfinite(r) ? r : 1.0;
+}
+
+}  // namespace
 
 LightSet::LightSet(SceneData& data) {
   const Scene& scene = data.scene();
@@ -8,6 +35,7 @@ LightSet::LightSet(SceneData& data) {
   const auto add_area = [&](const auto& light) {
     data.set_light_index(light.geom(), light.prim(), static_cast<int32_t>(lights_.size()));
     lights_.emplace_back(light);
+    ++area_count_;
   };
   for (uint32_t m = 0; m < scene.meshes.size(); ++m) {
     for (uint32_t t = 0; t < scene.meshes[m].triangle_count(); ++t) {
@@ -22,6 +50,23 @@ LightSet::LightSet(SceneData& data) {
       lights_.emplace_back(*light);
       ++point_count_;
     }
+  }
+  for (uint32_t i = 0; i < scene.spot_lights.size(); ++i) {
+    if (auto light = DeltaSpotLight::make(scene, i)) {
+      lights_.emplace_back(*light);
+      ++spot_count_;
+    }
+  }
+  const double radius = scene_radius(scene);
+  for (uint32_t i = 0; i < scene.directional_lights.size(); ++i) {
+    if (auto light = DeltaDirectionalLight::make(scene, i, radius)) {
+      lights_.emplace_back(*light);
+      ++directional_count_;
+    }
+  }
+  if (auto env = EnvironmentLight::make(scene, radius)) {
+    environment_ = static_cast<int32_t>(lights_.size());
+    lights_.emplace_back(std::move(*env));
   }
   std::vector<double> powers;
   for (const Light& light : lights_) {

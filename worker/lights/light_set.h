@@ -1,15 +1,19 @@
 #pragma once
-// Every light of a scene, one type per kind (emissive triangles, emissive spheres, point lights),
-// and the choice of one light per shading point (light_selection.h).
+// Every light of a scene, one type per kind (emissive triangles and spheres, point, spot and
+// directional lights, the environment), and the choice of one light per shading point
+// (light_selection.h).
 #include <cstdint>
 #include <variant>
 #include <vector>
 
 #include "common/math/vec3.h"
+#include "worker/lights/directional_light.h"
+#include "worker/lights/environment_light.h"
 #include "worker/lights/light_sample.h"
 #include "worker/lights/light_selection.h"
 #include "worker/lights/point_light.h"
 #include "worker/lights/sphere_light.h"
+#include "worker/lights/spot_light.h"
 #include "worker/lights/triangle_light.h"
 #include "worker/scene_data.h"
 
@@ -19,15 +23,32 @@ class LightSet {
  public:
   /// Every light kind. Adding one: its header, one line here, and its collection in the
   /// constructor (light_set.cpp).
-  using Light = std::variant<TriangleLight, SphereLight, DeltaPointLight>;
+  using Light = std::variant<TriangleLight, SphereLight, DeltaPointLight, DeltaSpotLight,
+                             DeltaDirectionalLight, EnvironmentLight>;
 
   /// Collects the lights of `data` and registers each emitter with data.set_light_index().
   explicit LightSet(SceneData& data);
 
   bool empty() const { return lights_.empty(); }
   size_t size() const { return lights_.size(); }
-  size_t area_light_count() const { return lights_.size() - point_count_; }
+  /// Emissive triangles and spheres.
+  size_t area_light_count() const { return area_count_; }
   size_t point_light_count() const { return point_count_; }
+  size_t spot_light_count() const { return spot_count_; }
+  size_t directional_light_count() const { return directional_count_; }
+  /// The environment, or null when the scene has none (or it emits nothing).
+  const EnvironmentLight* environment() const {
+    return environment_ < 0 ? nullptr : &std::get<EnvironmentLight>(lights_[environment_]);
+  }
+  /// Density with which sample() draws the escaping unit direction `dir` from the environment,
+  /// selection included; 0 without one.
+  float environment_pdf(const Vec3& dir) const {
+    const EnvironmentLight* env = environment();
+    if (env == nullptr) return 0.f;
+    return selection_.probability(environment_) * env->pdf_direction(dir);
+  }
+  /// Index of the environment among the lights, or -1.
+  int32_t environment_index() const { return environment_; }
 
   /// Chooses a light and a point on it. False when the sample carries nothing.
   bool sample(const Vec3& ref, float u_select, float u1, float u2, LightSample& out) const {
@@ -50,7 +71,8 @@ class LightSet {
  private:
   std::vector<Light> lights_;
   PowerLightSelection selection_;
-  size_t point_count_ = 0;
+  size_t area_count_ = 0, point_count_ = 0, spot_count_ = 0, directional_count_ = 0;
+  int32_t environment_ = -1;
 };
 
 }  // namespace rayfarm

@@ -1,0 +1,156 @@
+#include "common/scene/light_reader.h"
+
+#include <cmath>
+#include <string>
+
+#include "common/math/transform.h"
+#include "common/math/wide.h"
+#include "common/scene/scene_files.h"
+#include "common/scene/transform_reader.h"
+#include "common/util/text.h"
+
+namespace rayfarm {
+namespace fs = std::filesystem;
+using namespace scene_json;  // NOLINT(google-build-using-namespace): the JSON readers
+
+namespace {
+
+/// A direction: three numbers, not all zero, returned unit length.
+Vec3 read_direction(const Node& n) {
+  const Vec3 d = read_point(n);
+  const double len = length(wide(d));
+  if (!(len > 0.0)) n.fail("the direction must not be zero");
+  return Vec3(float(d.x / len), float(d.y / len), float(d.z / len));
+}
+
+/// An angle in degrees in (0, 90]: a cone wider than a hemisphere is not a spot.
+float read_half_angle(const Node& n) {
+  const float deg = read_float(n);
+  if (!(deg > 0.f && deg <= 90.f)) n.fail("expected an angle in (0, 90] degrees");
+  return deg;
+}
+
+/// A rotation: the environment has no position and no size, so anything else is an error.
+std::array<double, 9> read_rotation(const Node& n) {
+  const Transform t = read_transform(n);
+  std::array<double, 9> r{};
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) r[3 * i + j] = t.at(i, j);
+    if (t.at(i, 3) != 0.0) n.fail("an environment's transform must be a rotation (no translation)");
+  }
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) {
+      // Rows orthonormal: R R^T = I.
+      const double d =
+          r[3 * i] * r[3 * j] + r[3 * i + 1] * r[3 * j + 1] + r[3 * i + 2] * r[3 * j + 2];
+      if (std::fabs(d - (i == j ? 1.0 : 0.0)) > 1e-6)
+        n.fail("an environment's transform must be a rotation (no scale or shear)");
+    }
+  }
+  if (!(t.determinant() > 0.0)) n.fail("an environment's transform must be a rotation (no mirror)");
+  return r;
+}
+
+/// RGB or a single number >= 0, for a scale applied to every channel.
+Vec3 read_scale(const Node& n) {
+  if (n.json().is_number()) return Vec3(read_non_negative(n));
+  return read_radiance(n);
+}
+
+PointLight read_point_light(const Node& n) {
+  n.allow_keys({"type", "position", "intensity"});
+  return {read_point(n.require("position")), read_radiance(n.require("intensity"))};
+}
+
+SpotLight read_spot(const Node& n) {
+  n.allow_keys(
+      {"type", "position", "direction", "look_at", "intensity", "cutoff_angle", "beam_width"});
+  SpotLight s;
+  s.position = read_point(n.require("position"));
+  s.intensity = read_radiance(n.require("intensity"));
+  const auto direction = n.find("direction");
+  const auto look_at = n.find("look_at");
+  if (direction && look_at) n.fail("give either \"direction\" or \"look_at\", not both");
+  if (direction) {
+    s.direction = read_direction(*direction);
+  } else if (look_at) {
+    const Vec3 target = read_point(*look_at);
+    const WideVec3 d = wide(target) - wide(s.position);
+    const double len = length(d);
+    if (!(len > 0.0)) look_at->fail("look_at equals position: no direction");
+    s.direction = Vec3(float(d.x / len), float(d.y / len), float(d.z / len));
+  } else {
+    n.fail("missing key \"direction\" (or \"look_at\")");
+  }
+  if (auto c = n.find("cutoff_angle")) s.cutoff_deg = read_half_angle(*c);
+  s.beam_width_deg = 0.75f * s.cutoff_deg;
+  if (auto b = n.find("beam_width")) {
+    s.beam_width_deg = read_half_angle(*b);
+    if (s.beam_width_deg > s.cutoff_deg) b->fail("beam_width must not exceed cutoff_angle");
+  }
+  return s;
+}
+
+DirectionalLight read_directional(const Node& n) {
+  n.allow_keys({"type", "direction", "irradiance"});
+  return {read_direction(n.require("direction")), read_radiance(n.require("irradiance"))};
+}
+
+EnvironmentMap read_environment(const Node& n, const fs::path& folder, SceneImages images) {
+  n.allow_keys({"type", "file", "scale", "transform"});
+  EnvironmentMap env;
+  const Node file = n.require("file");
+  std::string why;
+  const auto relative = resolve_scene_path(fs::path(), read_string(file), &why);
+  if (!relative) file.fail(as_written(file.json()) + ": " + why);
+  env.file = *relative;
+  env.image = decode_scene_image(file, folder, env.file, images, "environment image");
+  if (env.image && !(env.image->width > 0 && env.image->height > 0))
+    file.fail("the image is empty");
+  if (auto s = n.find("scale")) env.scale = read_scale(*s);
+  if (auto t = n.find("transform")) env.rotation = read_rotation(*t);
+  return env;
+}
+
+EnvironmentMap read_constant(const Node& n) {
+  n.allow_keys({"type", "radiance"});
+  EnvironmentMap env;
+  env.scale = read_radiance(n.require("radiance"));
+  return env;
+}
+
+}  // namespace
+
+void read_lights(const Node& n, const fs::path& folder, SceneImages images, Scene& scene) {
+  std::string first_environment;
+  for (size_t i = 0; i < n.array().size(); ++i) {
+    const Node light = n.child(i);
+    const Node type = light.require("type");
+    const std::string kind = read_string(type);
+    if (kind == "point") {
+      scene.point_lights.push_back(read_point_light(light));
+    } else if (kind == "spot") {
+      scene.spot_lights.push_back(read_spot(light));
+    } else if (kind == "directional") {
+      scene.directional_lights.push_back(read_directional(light));
+    } else if (kind == "environment" || kind == "constant") {
+      if (scene.environment) {
+        light.fail("a scene has at most one environment (\"environment\" or \"constant\"); " +
+                   first_environment + " is one already");
+      }
+      first_environment = "lights[" + std::to_string(i) + "]";
+      scene.environment =
+          kind == "constant" ? read_constant(light) : read_environment(light, folder, images);
+      if (!scene.environment->file.empty()) {
+        bool known = false;
+        for (const fs::path& r : scene.referenced) known = known || r == scene.environment->file;
+        if (!known) scene.referenced.push_back(scene.environment->file);
+      }
+    } else {
+      type.fail("unknown light type " + as_written(type.json()) +
+                "; expected one of point, spot, directional, environment, constant");
+    }
+  }
+}
+
+}  // namespace rayfarm

@@ -1,0 +1,17 @@
+#pragma once
+// The "lights" section of the JSON format (docs/scene-format.md, "Lights"): point, spot and
+// directional lights, and the one environment (an image or a constant) that a scene may have.
+#include <filesystem>
+
+#include "common/scene/json_reader.h"
+#include "common/scene/scene.h"
+#include "common/scene/texture_reader.h"
+
+namespace rayfarm {
+
+/// Reads the "lights" array into `scene`; an environment's image (relative to `folder`) is
+/// decoded here, kept or only checked as `images` says, and added to scene.referenced.
+void read_lights(const scene_json::Node& n, const std::filesystem::path& folder, SceneImages images,
+                 Scene& scene);
+
+}  // namespace rayfarm

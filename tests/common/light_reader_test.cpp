@@ -1,0 +1,143 @@
+// The "lights" section: point, spot, directional, environment and constant lights, their keys
+// and defaults, the environment's image decoded at load (a broken one is an error naming the
+// file and the place), and every refusal saying where.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+
+#include "common/image/png.h"
+#include "common/scene/parser.h"
+#include "tests/support/temp_dir.h"
+
+namespace rayfarm {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::TempDir;
+
+fs::path write_scene(TempDir& dir, const std::string& lights) {
+  write_png_rgb8(dir.path() / "sky.png", {255, 0, 0, 0, 0, 255}, 2, 1);
+  return dir.write("scene.json", R"({
+  "camera": {"eye": [0, 0, -5], "look_at": [0, 0, 0], "fov_y": 40},
+  "film": {"width": 8, "height": 8},
+  "lights": )" + lights + "}");
+}
+
+TEST(LightReaderTest, EveryKindWithItsKeysAndDefaults) {
+  TempDir dir;
+  const fs::path file = write_scene(dir, R"([
+    {"type": "point", "position": [1, 2, 3], "intensity": [1, 1, 1]},
+    {"type": "spot", "position": [0, 4, 0], "look_at": [0, 0, 0], "intensity": [5, 5, 5],
+     "cutoff_angle": 30},
+    {"type": "spot", "position": [0, 4, 0], "direction": [0, 0, 2], "intensity": [7, 7, 7],
+     "cutoff_angle": 30, "beam_width": 10},
+    {"type": "directional", "direction": [0, -3, 0], "irradiance": [2, 2, 2]},
+    {"type": "environment", "file": "sky.png", "scale": 2.5,
+     "transform": {"rotate": {"axis": [0, 1, 0], "angle": 90}}}])");
+  const Scene s = load_scene(file);
+  ASSERT_EQ(s.point_lights.size(), 1u);
+  ASSERT_EQ(s.spot_lights.size(), 2u);
+  EXPECT_EQ(s.spot_lights[0].direction, Vec3(0.f, -1.f, 0.f));
+  EXPECT_FLOAT_EQ(s.spot_lights[0].cutoff_deg, 30.f);
+  EXPECT_FLOAT_EQ(s.spot_lights[0].beam_width_deg, 22.5f) << "default: 3/4 of the cutoff";
+  EXPECT_EQ(s.spot_lights[1].direction, Vec3(0.f, 0.f, 1.f));
+  EXPECT_FLOAT_EQ(s.spot_lights[1].beam_width_deg, 10.f);
+  EXPECT_EQ(s.spot_lights[1].intensity, Vec3(7.f));
+  ASSERT_EQ(s.directional_lights.size(), 1u);
+  EXPECT_EQ(s.directional_lights[0].direction, Vec3(0.f, -1.f, 0.f));
+  ASSERT_TRUE(s.environment);
+  EXPECT_EQ(s.environment->file, fs::path("sky.png"));
+  ASSERT_TRUE(s.environment->image);
+  EXPECT_EQ(s.environment->image->width, 2u);
+  EXPECT_EQ(s.environment->scale, Vec3(2.5f));
+  EXPECT_NEAR(s.environment->rotation[2], 1.0, 1e-12) << "90 degrees about +y takes z to x";
+  ASSERT_EQ(s.referenced.size(), 1u);
+  EXPECT_EQ(s.referenced[0], fs::path("sky.png"));
+
+  const Scene checked = load_scene(file, {}, SceneImages::kCheckOnly);
+  ASSERT_TRUE(checked.environment);
+  EXPECT_FALSE(checked.environment->image);
+  EXPECT_EQ(checked.referenced, s.referenced);
+}
+
+TEST(LightReaderTest, ConstantEnvironment) {
+  TempDir dir;
+  const Scene s =
+      load_scene(write_scene(dir, R"([{"type": "constant", "radiance": [0.5, 1, 2]}])"));
+  ASSERT_TRUE(s.environment);
+  EXPECT_TRUE(s.environment->file.empty());
+  EXPECT_EQ(s.environment->scale, Vec3(0.5f, 1.f, 2.f));
+  EXPECT_TRUE(s.referenced.empty());
+}
+
+void expect_light_error(const std::string& lights, std::initializer_list<std::string> parts,
+                        const std::string& corrupt = "") {
+  TempDir dir;
+  const fs::path file = write_scene(dir, lights);
+  if (!corrupt.empty()) dir.write(corrupt, "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 4 +X");
+  for (SceneImages images : {SceneImages::kKeep, SceneImages::kCheckOnly}) {
+    try {
+      load_scene(file, {}, images);
+      ADD_FAILURE() << "expected an error for " << lights;
+    } catch (const SceneError& e) {
+      for (const std::string& part : parts)
+        EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what();
+    }
+  }
+}
+
+TEST(LightReaderTest, BadLightsAreErrorsThatSayWhere) {
+  expect_light_error(R"([{"type": "environment", "file": "missing.hdr"}])",
+                     {"/lights/0/file", "missing.hdr"});
+  expect_light_error(R"([{"type": "environment", "file": "bad.hdr"}])",
+                     {"/lights/0/file", "bad.hdr"}, "bad.hdr");
+  expect_light_error(R"([{"type": "environment"}])", {"/lights/0", "file"});
+  expect_light_error(R"([{"type": "constant", "radiance": [1, 1, 1]},
+                         {"type": "environment", "file": "sky.png"}])",
+                     {"/lights/1", "at most one environment", "lights[0]"});
+  expect_light_error(R"([{"type": "environment", "file": "sky.png",
+                          "transform": {"scale": [2, 2, 2]}}])",
+                     {"/lights/0/transform", "rotation"});
+  expect_light_error(R"([{"type": "environment", "file": "sky.png",
+                          "transform": {"translate": [0, 1, 0]}}])",
+                     {"/lights/0/transform", "translation"});
+  expect_light_error(R"([{"type": "environment", "file": "sky.png", "scale": -1}])",
+                     {"/lights/0/scale"});
+  expect_light_error(R"([{"type": "constant", "radiance": [-1, 0, 0]}])", {"/lights/0/radiance"});
+  expect_light_error(R"([{"type": "spot", "position": [0, 0, 0], "direction": [0, 0, 1],
+                          "intensity": [1, 1, 1], "cutoff_angle": 120}])",
+                     {"/lights/0/cutoff_angle", "(0, 90]"});
+  expect_light_error(R"([{"type": "spot", "position": [0, 0, 0], "direction": [0, 0, 1],
+                          "intensity": [1, 1, 1], "cutoff_angle": 20, "beam_width": 30}])",
+                     {"/lights/0/beam_width", "must not exceed cutoff_angle"});
+  expect_light_error(R"([{"type": "spot", "position": [0, 0, 0], "direction": [0, 0, 0],
+                          "intensity": [1, 1, 1]}])",
+                     {"/lights/0/direction", "zero"});
+  expect_light_error(R"([{"type": "spot", "position": [0, 0, 0], "intensity": [1, 1, 1]}])",
+                     {"/lights/0", "direction"});
+  expect_light_error(R"([{"type": "spot", "position": [1, 1, 1], "look_at": [1, 1, 1],
+                          "intensity": [1, 1, 1]}])",
+                     {"/lights/0/look_at", "equals position"});
+  expect_light_error(
+      R"([{"type": "directional", "direction": [0, 0, 0], "irradiance": [1, 1, 1]}])",
+      {"/lights/0/direction", "zero"});
+  expect_light_error(R"([{"type": "area"}])",
+                     {"/lights/0/type", "point, spot, directional, environment, constant"});
+}
+
+TEST(LightReaderTest, BundledEnvironmentSceneLoadsWithItsSky) {
+  const Scene s =
+      load_scene(fs::path(RAYFARM_SOURCE_DIR) / "scenes" / "environment" / "scene.json");
+  EXPECT_TRUE(s.warnings.empty());
+  ASSERT_TRUE(s.environment);
+  ASSERT_TRUE(s.environment->image);
+  EXPECT_EQ(s.environment->image->width, 64u);
+  EXPECT_EQ(s.environment->image->height, 32u);
+  EXPECT_STREQ(s.environment->image->format, "Radiance HDR");
+  EXPECT_EQ(s.referenced, std::vector<fs::path>{"sky.hdr"});
+  EXPECT_EQ(s.spheres.size(), 3u);
+}
+
+}  // namespace
+}  // namespace rayfarm
