@@ -70,7 +70,7 @@ SceneData::SceneData(const Scene& scene) : scene_(scene) {
 }
 
 void SceneData::build_textures() {
-  uses_uv_ = !scene_.textures.empty();
+  for (const Material& m : scene_.materials) uses_uv_ = uses_uv_ || m.textured;
   for (const TextureDesc& t : scene_.textures) {
     if (t.kind == TextureDesc::Kind::kCheckerboard) {
       textures_.add_checkerboard(CheckerboardTexture(Vec4(t.color0.x, t.color0.y, t.color0.z, 1.f),

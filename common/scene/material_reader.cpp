@@ -8,12 +8,12 @@
 namespace rayfarm::scene_json {
 namespace {
 
-void read_params(const Node& n, DiffuseMaterial& d) {
+void read_params(const Node& n, DiffuseMaterial& d, const TextureReader& tex) {
   n.allow_keys({"type", "albedo", "emission", "two_sided"});
-  if (auto a = n.find("albedo")) d.albedo = read_reflectance(*a);
+  if (auto a = n.find("albedo")) d.albedo = tex.reflectance(*a);
 }
 
-void read_params(const Node& n, PhongMaterial& p) {
+void read_params(const Node& n, PhongMaterial& p, const TextureReader& tex) {
   n.allow_keys({"type", "kd", "ks", "exponent", "emission", "two_sided"});
   p.kd = read_reflectance(n.require("kd"));
   p.ks = read_reflectance(n.require("ks"));
@@ -27,15 +27,15 @@ void read_params(const Node& n, PhongMaterial& p) {
   }
 }
 
-void read_params(const Node& n, MirrorMaterial& m) {
+void read_params(const Node& n, MirrorMaterial& m, const TextureReader& tex) {
   n.allow_keys({"type", "reflectance", "emission", "two_sided"});
-  if (auto r = n.find("reflectance")) m.reflectance = read_reflectance(*r);
+  if (auto r = n.find("reflectance")) m.reflectance = tex.reflectance(*r);
 }
 
-void read_params(const Node& n, DielectricMaterial& d) {
+void read_params(const Node& n, DielectricMaterial& d, const TextureReader& tex) {
   n.allow_keys({"type", "ior", "tint", "emission", "two_sided"});
   if (auto ior = n.find("ior")) d.ior = read_positive(*ior);
-  if (auto tint = n.find("tint")) d.tint = read_reflectance(*tint);
+  if (auto tint = n.find("tint")) d.tint = tex.reflectance(*tint);
 }
 
 /// A number in [lo, hi].
@@ -50,23 +50,26 @@ float read_in_range(const Node& n, float lo, float hi) {
 }
 
 /// A GGX roughness: in [0, 1] (alpha above 1 is a surface rougher than any the model describes).
-float read_alpha(const Node& n) { return read_in_range(n, 0.f, 1.f); }
+TexturedFloat read_alpha(const Node& n, const TextureReader& tex) {
+  return tex.number(n, 0.f, 1.f);
+}
 
 /// "alpha" (isotropic) or "alpha_u" with "alpha_v", not both; unchanged when neither is given.
-void read_alphas(const Node& n, float& alpha_u, float& alpha_v) {
+void read_alphas(const Node& n, TexturedFloat& alpha_u, TexturedFloat& alpha_v,
+                 const TextureReader& tex) {
   const auto alpha = n.find("alpha");
   const auto u = n.find("alpha_u"), v = n.find("alpha_v");
   if (alpha && (u || v)) (u ? *u : *v).fail("give either \"alpha\" or \"alpha_u\" and \"alpha_v\"");
-  if (alpha) alpha_u = alpha_v = read_alpha(*alpha);
+  if (alpha) alpha_u = alpha_v = read_alpha(*alpha, tex);
   if (u || v) {
     if (!u) n.fail("\"alpha_v\" needs \"alpha_u\"");
     if (!v) n.fail("\"alpha_u\" needs \"alpha_v\"");
-    alpha_u = read_alpha(*u);
-    alpha_v = read_alpha(*v);
+    alpha_u = read_alpha(*u, tex);
+    alpha_v = read_alpha(*v, tex);
   }
 }
 
-void read_params(const Node& n, RoughConductorMaterial& c) {
+void read_params(const Node& n, RoughConductorMaterial& c, const TextureReader& tex) {
   n.allow_keys({"type", "eta", "k", "f0", "alpha", "alpha_u", "alpha_v", "specular_reflectance",
                 "emission", "two_sided"});
   const auto f0 = n.find("f0");
@@ -74,7 +77,7 @@ void read_params(const Node& n, RoughConductorMaterial& c) {
     if (auto e = n.find("eta")) e->fail("give either \"f0\" or \"eta\" and \"k\"");
     if (auto k = n.find("k")) k->fail("give either \"f0\" or \"eta\" and \"k\"");
     c.use_f0 = true;
-    c.f0 = read_reflectance(*f0);
+    c.f0 = tex.reflectance(*f0);
   }
   if (auto e = n.find("eta")) {
     c.eta = read_vec3(*e);
@@ -86,63 +89,64 @@ void read_params(const Node& n, RoughConductorMaterial& c) {
     for (int i = 0; i < 3; ++i)
       if (!(c.k[i] >= 0.f)) k->fail("every channel of k must be >= 0");
   }
-  read_alphas(n, c.alpha_u, c.alpha_v);
-  if (auto s = n.find("specular_reflectance")) c.specular_reflectance = read_reflectance(*s);
+  read_alphas(n, c.alpha_u, c.alpha_v, tex);
+  if (auto s = n.find("specular_reflectance")) c.specular_reflectance = tex.reflectance(*s);
 }
 
-void read_params(const Node& n, RoughDielectricMaterial& d) {
+void read_params(const Node& n, RoughDielectricMaterial& d, const TextureReader& tex) {
   n.allow_keys({"type", "ior", "alpha", "alpha_u", "alpha_v", "tint", "emission", "two_sided"});
   if (auto ior = n.find("ior")) d.ior = read_positive(*ior);
-  read_alphas(n, d.alpha_u, d.alpha_v);
-  if (auto tint = n.find("tint")) d.tint = read_reflectance(*tint);
+  read_alphas(n, d.alpha_u, d.alpha_v, tex);
+  if (auto tint = n.find("tint")) d.tint = tex.reflectance(*tint);
 }
 
-void read_params(const Node& n, ThinDielectricMaterial& d) {
+void read_params(const Node& n, ThinDielectricMaterial& d, const TextureReader& tex) {
   n.allow_keys({"type", "ior", "tint", "emission", "two_sided"});
   if (auto ior = n.find("ior")) d.ior = read_positive(*ior);
-  if (auto tint = n.find("tint")) d.tint = read_reflectance(*tint);
+  if (auto tint = n.find("tint")) d.tint = tex.reflectance(*tint);
 }
 
-void read_params(const Node& n, PlasticMaterial& p) {
+void read_params(const Node& n, PlasticMaterial& p, const TextureReader& tex) {
   n.allow_keys(
       {"type", "diffuse_reflectance", "ior", "alpha", "nonlinear", "emission", "two_sided"});
-  if (auto r = n.find("diffuse_reflectance")) p.diffuse_reflectance = read_reflectance(*r);
+  if (auto r = n.find("diffuse_reflectance")) p.diffuse_reflectance = tex.reflectance(*r);
   if (auto ior = n.find("ior")) p.ior = read_positive(*ior);
-  if (auto a = n.find("alpha")) p.alpha = read_alpha(*a);
+  if (auto a = n.find("alpha")) p.alpha = read_alpha(*a, tex);
   if (auto nl = n.find("nonlinear")) p.nonlinear = read_bool(*nl);
 }
 
-void read_params(const Node& n, MetallicRoughnessMaterial& m) {
+void read_params(const Node& n, MetallicRoughnessMaterial& m, const TextureReader& tex) {
   n.allow_keys({"type", "base_color", "metallic", "roughness", "ior", "transmission", "emission",
                 "two_sided"});
-  if (auto b = n.find("base_color")) m.base_color = read_reflectance(*b);
-  if (auto v = n.find("metallic")) m.metallic = read_in_range(*v, 0.f, 1.f);
-  if (auto r = n.find("roughness")) m.roughness = read_in_range(*r, 0.f, 1.f);
+  if (auto b = n.find("base_color")) m.base_color = tex.reflectance(*b);
+  if (auto v = n.find("metallic")) m.metallic = tex.number(*v, 0.f, 1.f);
+  if (auto r = n.find("roughness")) m.roughness = tex.number(*r, 0.f, 1.f);
   if (auto ior = n.find("ior")) m.ior = read_positive(*ior);
-  if (auto t = n.find("transmission")) m.transmission = read_in_range(*t, 0.f, 1.f);
+  if (auto t = n.find("transmission")) m.transmission = tex.number(*t, 0.f, 1.f);
 }
 
 /// "roughplastic": plastic whose coating must be rough (alpha 0.1 unless given).
-void read_rough_plastic(const Node& n, PlasticMaterial& p) {
+void read_rough_plastic(const Node& n, PlasticMaterial& p, const TextureReader& tex) {
   p.alpha = 0.1f;
-  read_params(n, p);
-  if (!(p.alpha > 0.f))
+  read_params(n, p, tex);
+  if (!p.alpha.is_textured() && !(p.alpha.value > 0.f))
     n.require("alpha").fail("roughplastic needs alpha > 0 (plastic is the smooth one)");
 }
 
 /// "conductor": the smooth conductor, the same keys less the roughness.
-void read_smooth_conductor(const Node& n, RoughConductorMaterial& c) {
+void read_smooth_conductor(const Node& n, RoughConductorMaterial& c, const TextureReader& tex) {
   n.allow_keys({"type", "eta", "k", "f0", "specular_reflectance", "emission", "two_sided"});
-  read_params(n, c);
+  read_params(n, c, tex);
   c.alpha_u = c.alpha_v = 0.f;
 }
 
 template <size_t I = 0>
-bool read_kind(const Node& n, const std::string& type, MaterialKind& out) {
+bool read_kind(const Node& n, const std::string& type, MaterialKind& out,
+               const TextureReader& tex) {
   if constexpr (I < std::variant_size_v<MaterialKind>) {
     using Params = std::variant_alternative_t<I, MaterialKind>;
-    if (type != Params::kName) return read_kind<I + 1>(n, type, out);
-    read_params(n, out.emplace<I>());
+    if (type != Params::kName) return read_kind<I + 1>(n, type, out, tex);
+    read_params(n, out.emplace<I>(), tex);
     return true;
   } else {
     return false;
@@ -161,16 +165,17 @@ std::string kind_names() {
 
 }  // namespace
 
-bool read_material_kind(const Node& n, const std::string& type, MaterialKind& out) {
+bool read_material_kind(const Node& n, const std::string& type, MaterialKind& out,
+                        const TextureReader& tex) {
   if (type == "conductor") {
-    read_smooth_conductor(n, out.emplace<RoughConductorMaterial>());
+    read_smooth_conductor(n, out.emplace<RoughConductorMaterial>(), tex);
     return true;
   }
   if (type == "roughplastic") {
-    read_rough_plastic(n, out.emplace<PlasticMaterial>());
+    read_rough_plastic(n, out.emplace<PlasticMaterial>(), tex);
     return true;
   }
-  return read_kind(n, type, out);
+  return read_kind(n, type, out, tex);
 }
 
 std::string material_type_names() { return kind_names() + ", conductor, roughplastic"; }

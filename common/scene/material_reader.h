@@ -4,12 +4,15 @@
 
 #include "common/scene/json_reader.h"
 #include "common/scene/scene.h"
+#include "common/scene/texture_reader.h"
 
 namespace rayfarm::scene_json {
 
 /// Reads the parameters of the material type `type` (a kind's name or a synonym such as
-/// "conductor") from `n`; false when no kind has that name.
-bool read_material_kind(const Node& n, const std::string& type, MaterialKind& out);
+/// "conductor") from `n`, textured parameters naming the textures `tex` has read; false when no
+/// kind has that name.
+bool read_material_kind(const Node& n, const std::string& type, MaterialKind& out,
+                        const rayfarm::TextureReader& tex);
 
 /// "diffuse, phong, ...": every accepted type name, for messages.
 std::string material_type_names();

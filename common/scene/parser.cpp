@@ -139,16 +139,18 @@ class SceneReader {
     return it->second;
   }
 
-  static Material read_material(const Node& n, const std::string& name) {
+  Material read_material(const Node& n, const std::string& name) const {
     Material m;
     m.name = name;
     const Node type = n.require("type");
-    if (!read_material_kind(n, read_string(type), m.kind)) {
+    const uint64_t textured_before = textures_.textured_reads();
+    if (!read_material_kind(n, read_string(type), m.kind, textures_)) {
       type.fail("unknown material type " + as_written(type.json()) + "; expected one of " +
                 material_type_names());
     }
     if (auto e = n.find("emission")) m.emission = read_radiance(*e);
     if (auto s = n.find("two_sided")) m.two_sided = read_bool(*s);
+    m.textured = textures_.textured_reads() != textured_before;
     return m;
   }
 

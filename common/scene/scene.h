@@ -45,7 +45,8 @@ struct FilmSize {
 /// Lambertian reflection.
 struct DiffuseMaterial {
   static constexpr const char* kName = "diffuse";
-  Vec3 albedo{0.8f};  ///< reflectance
+  TexturedRgb albedo{Vec3(0.8f)};  ///< reflectance
+  static constexpr auto textured() { return std::make_tuple(&DiffuseMaterial::albedo); }
 };
 
 /// Normalised Phong: a diffuse and a glossy lobe, kd + ks <= 1 in every channel.
@@ -54,19 +55,22 @@ struct PhongMaterial {
   Vec3 kd{0.f};          ///< diffuse reflectance
   Vec3 ks{0.f};          ///< specular reflectance
   float exponent = 1.f;  ///< specular exponent
+  static constexpr auto textured() { return std::tuple<>(); }
 };
 
 /// Perfect specular reflection.
 struct MirrorMaterial {
   static constexpr const char* kName = "mirror";
-  Vec3 reflectance{1.f};
+  TexturedRgb reflectance{Vec3(1.f)};
+  static constexpr auto textured() { return std::make_tuple(&MirrorMaterial::reflectance); }
 };
 
 /// Smooth glass: Fresnel reflection and refraction.
 struct DielectricMaterial {
   static constexpr const char* kName = "dielectric";
-  float ior = 1.5f;  ///< index of refraction inside / outside
-  Vec3 tint{1.f};    ///< transmission colour
+  float ior = 1.5f;             ///< index of refraction inside / outside
+  TexturedRgb tint{Vec3(1.f)};  ///< transmission colour
+  static constexpr auto textured() { return std::make_tuple(&DielectricMaterial::tint); }
 };
 
 /// A metal with GGX microfacets: exact conductor Fresnel from eta + i k, or Schlick's from f0.
@@ -78,10 +82,15 @@ struct RoughConductorMaterial {
   Vec3 eta{0.143119f, 0.374957f, 1.44248f};
   Vec3 k{3.98316f, 2.38572f, 1.60322f};
   bool use_f0 = false;             ///< Schlick's approximation with f0 instead of eta, k
-  Vec3 f0{1.f};                    ///< reflectance at normal incidence, when use_f0
-  float alpha_u = 0.1f;            ///< GGX roughness along the surface tangent
-  float alpha_v = 0.1f;            ///< GGX roughness along the bitangent
-  Vec3 specular_reflectance{1.f};  ///< multiplier
+  TexturedRgb f0{Vec3(1.f)};       ///< reflectance at normal incidence, when use_f0
+  TexturedFloat alpha_u = 0.1f;    ///< GGX roughness along the surface tangent
+  TexturedFloat alpha_v = 0.1f;    ///< GGX roughness along the bitangent
+  TexturedRgb specular_reflectance{Vec3(1.f)};  ///< multiplier
+  static constexpr auto textured() {
+    return std::make_tuple(&RoughConductorMaterial::f0, &RoughConductorMaterial::alpha_u,
+                           &RoughConductorMaterial::alpha_v,
+                           &RoughConductorMaterial::specular_reflectance);
+  }
 };
 
 /// Glass with GGX microfacets: rough reflection and refraction (Walter et al. 2007). alpha 0 is
@@ -89,9 +98,13 @@ struct RoughConductorMaterial {
 struct RoughDielectricMaterial {
   static constexpr const char* kName = "roughdielectric";
   float ior = 1.5f;
-  float alpha_u = 0.1f;
-  float alpha_v = 0.1f;
-  Vec3 tint{1.f};  ///< transmission colour
+  TexturedFloat alpha_u = 0.1f;
+  TexturedFloat alpha_v = 0.1f;
+  TexturedRgb tint{Vec3(1.f)};  ///< transmission colour
+  static constexpr auto textured() {
+    return std::make_tuple(&RoughDielectricMaterial::alpha_u, &RoughDielectricMaterial::alpha_v,
+                           &RoughDielectricMaterial::tint);
+  }
 };
 
 /// A pane of glass of zero thickness: specular reflection including the pane's inner bounces,
@@ -99,26 +112,35 @@ struct RoughDielectricMaterial {
 struct ThinDielectricMaterial {
   static constexpr const char* kName = "thindielectric";
   float ior = 1.5f;
-  Vec3 tint{1.f};
+  TexturedRgb tint{Vec3(1.f)};
+  static constexpr auto textured() { return std::make_tuple(&ThinDielectricMaterial::tint); }
 };
 
 /// A diffuse base under a smooth (alpha 0) or GGX-rough dielectric coating.
 struct PlasticMaterial {
   static constexpr const char* kName = "plastic";
-  Vec3 diffuse_reflectance{0.5f};
-  float ior = 1.49f;       ///< of the coating (polypropylene)
-  float alpha = 0.f;       ///< GGX roughness of the coating; 0 = smooth
+  TexturedRgb diffuse_reflectance{Vec3(0.5f)};
+  float ior = 1.49f;          ///< of the coating (polypropylene)
+  TexturedFloat alpha = 0.f;  ///< GGX roughness of the coating; 0 = smooth
   bool nonlinear = false;  ///< internal reflections darken and saturate the base's colour
+  static constexpr auto textured() {
+    return std::make_tuple(&PlasticMaterial::diffuse_reflectance, &PlasticMaterial::alpha);
+  }
 };
 
 /// The glTF 2.0 metallic-roughness BRDF (with KHR_materials_ior and _transmission).
 struct MetallicRoughnessMaterial {
   static constexpr const char* kName = "metallic_roughness";
-  Vec3 base_color{1.f};
-  float metallic = 1.f;
-  float roughness = 1.f;  ///< GGX alpha = roughness^2
+  TexturedRgb base_color{Vec3(1.f)};
+  TexturedFloat metallic = 1.f;
+  TexturedFloat roughness = 1.f;  ///< GGX alpha = roughness^2
   float ior = 1.5f;
-  float transmission = 0.f;
+  TexturedFloat transmission = 0.f;
+  static constexpr auto textured() {
+    return std::make_tuple(
+        &MetallicRoughnessMaterial::base_color, &MetallicRoughnessMaterial::metallic,
+        &MetallicRoughnessMaterial::roughness, &MetallicRoughnessMaterial::transmission);
+  }
 };
 
 /// Every material kind, in the order the scene format lists them.

@@ -137,6 +137,9 @@ int32_t TextureReader::texture_ref(const Node& n) const {
 
 TexturedRgb TextureReader::reflectance(const Node& n) const {
   if (!n.json().is_object()) return read_reflectance(n);
+  if (!n.json().contains("texture"))
+    n.fail(
+        "expected an array of 3 numbers or {\"texture\": NAME}, got an object without \"texture\"");
   n.allow_keys({"texture", "scale"});
   TexturedRgb p(Vec3(1.f));
   p.texture = texture_ref(n.require("texture"));
@@ -156,10 +159,13 @@ TexturedRgb TextureReader::reflectance(const Node& n) const {
 TexturedFloat TextureReader::number(const Node& n, float lo, float hi) const {
   auto in_range = [&](const Node& at, float v) {
     if (!(v >= lo && v <= hi))
-      at.fail("expected a number in [" + format_number(lo) + ", " + format_number(hi) + "]");
+      at.fail("expected a number in [" + format_number(lo) + ", " + format_number(hi) + "], got " +
+              as_written(at.json()));
     return v;
   };
   if (!n.json().is_object()) return in_range(n, read_float(n));
+  if (!n.json().contains("texture"))
+    n.fail("expected a number or {\"texture\": NAME}, got an object without \"texture\"");
   n.allow_keys({"texture", "channel", "scale"});
   TexturedFloat p(1.f);
   p.texture = texture_ref(n.require("texture"));

@@ -2,10 +2,13 @@
 // Textures as the scene describes them, and material parameters that are either a constant or a
 // texture (docs/scene-format.md, "Textures"). The worker turns the descriptions into lookups
 // (worker/textures/).
+#include <cassert>
 #include <cstdint>
 #include <filesystem>
 #include <memory>
 #include <string>
+#include <tuple>
+#include <type_traits>
 
 #include "common/image/decoded_image.h"
 #include "common/image/texture_options.h"
@@ -40,9 +43,37 @@ struct Textured {
   Textured() = default;
   Textured(const T& v) : value(v) {}  // NOLINT(google-explicit-constructor): a constant is a T
   bool is_textured() const { return texture >= 0; }
+  /// The constant. A textured parameter has none until resolve_textures() has looked it up:
+  /// BSDFs read their parameters through this only after that.
+  operator const T&() const {  // NOLINT(google-explicit-constructor): BSDFs read constants as T
+    assert(texture < 0 && "a textured parameter read without its lookup");
+    return value;
+  }
 };
 
 using TexturedRgb = Textured<Vec3>;
 using TexturedFloat = Textured<float>;
+
+/// `params` with every textured parameter (those P::textured() lists) replaced by its value at
+/// one surface point: `lookup.reflectance(rgb)` for colours, `lookup.number(x)` kept in [0, 1]
+/// for numbers (every textured number of the format lies there).
+template <class P, class Lookup>
+P resolve_textures(const P& params, const Lookup& lookup) {
+  P out = params;
+  std::apply(
+      [&](auto... field) {
+        auto resolve = [&](auto& p) {
+          if constexpr (std::is_same_v<std::decay_t<decltype(p)>, TexturedRgb>) {
+            p = TexturedRgb(lookup.reflectance(p));
+          } else {
+            const float v = lookup.number(p);
+            p = TexturedFloat(v >= 0.f ? (v <= 1.f ? v : 1.f) : 0.f);
+          }
+        };
+        (resolve(out.*field), ...);
+      },
+      P::textured());
+  return out;
+}
 
 }  // namespace rayfarm

@@ -359,7 +359,7 @@ TEST(BsdfIntegralTest, EnergyIsConserved) {
     const Bsdf bsdf(m);
     const auto* diffuse = std::get_if<DiffuseMaterial>(&m.kind);
     const auto* phong = std::get_if<PhongMaterial>(&m.kind);
-    const Vec3 bound = diffuse != nullptr ? diffuse->albedo : phong->kd + phong->ks;
+    const Vec3 bound = diffuse != nullptr ? diffuse->albedo.value : phong->kd + phong->ks;
     for (double theta : kWoThetaDeg) {
       SCOPED_TRACE(m.name + ", wo theta " + std::to_string(theta));
       const Vec3 wo = wo_at(theta);

@@ -4,6 +4,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
+#include <string>
+#include <vector>
 
 #include "common/scene/parser.h"
 #include "tests/worker/mc_stats.h"
@@ -40,7 +43,7 @@ TEST(Integrators, AgreeOnTheCornellBoxWithinTheirStatisticalError) {
 }
 
 // Every bundled scene loads, renders at a few samples without a NaN, and is not black.
-class BundledScene : public ::testing::TestWithParam<const char*> {};
+class BundledScene : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(BundledScene, RendersFiniteNonBlackImage) {
   Scene scene = load_scene(std::string(RAYFARM_SOURCE_DIR) + "/scenes/" + GetParam() + "/scene.json");
@@ -67,9 +70,25 @@ TEST_P(BundledScene, RendersFiniteNonBlackImage) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Scenes, BundledScene,
-                         ::testing::Values("cornell-box", "phong", "furnace", "embree-cornell",
-                                           "environment", "materials"),
+/// Every folder of scenes/ with a scene.json: a scene added there is rendered here too.
+std::vector<std::string> bundled_scene_names() {
+  std::vector<std::string> names;
+  for (const auto& entry :
+       std::filesystem::directory_iterator(std::filesystem::path(RAYFARM_SOURCE_DIR) / "scenes")) {
+    if (std::filesystem::exists(entry.path() / "scene.json"))
+      names.push_back(entry.path().filename().string());
+  }
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+TEST(BundledScenes, AllAreFound) {
+  const std::vector<std::string> names = bundled_scene_names();
+  for (const char* expected : {"cornell-box", "materials", "textured", "environment"})
+    EXPECT_NE(std::find(names.begin(), names.end(), expected), names.end()) << expected;
+}
+
+INSTANTIATE_TEST_SUITE_P(Scenes, BundledScene, ::testing::ValuesIn(bundled_scene_names()),
                          [](const auto& test_info) {
                            std::string name = test_info.param;
                            for (char& ch : name) ch = ch == '-' ? '_' : ch;

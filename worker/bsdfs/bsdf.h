@@ -58,10 +58,10 @@ class BsdfOf {
               using P = std::decay_t<decltype(params)>;
               if constexpr (requires { typename detail::BsdfKindFor<P, Kinds...>::type; }) {
                 using K = typename detail::BsdfKindFor<P, Kinds...>::type;
-                if constexpr (std::is_constructible_v<K, const P&, const TextureLookup&>)
-                  return std::variant<Kinds...>(std::in_place_type<K>, params, tex);
-                else
-                  return std::variant<Kinds...>(std::in_place_type<K>, params);
+                if (tex.has_textures())
+                  return std::variant<Kinds...>(std::in_place_type<K>,
+                                                resolve_textures(params, tex));
+                return std::variant<Kinds...>(std::in_place_type<K>, params);
               } else {
                 assert(!"material kind unknown to this BSDF");
                 __builtin_unreachable();

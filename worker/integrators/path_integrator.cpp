@@ -12,7 +12,8 @@ PathIntegratorFor<BsdfT>::PathIntegratorFor(const SceneData& data, const LightSe
   plan_.integrator = settings.integrator;
   plan_.max_depth = settings.max_depth;
   bool any_diffuse = false;
-  for (const Material& m : data.scene().materials) any_diffuse |= !BsdfT(m).is_specular();
+  for (const Material& m : data.scene().materials)
+    any_diffuse |= m.textured || !BsdfT(m).is_specular();
   // Light sampling only where there are lights and surfaces that light sampling can serve.
   plan_.sample_lights = settings.integrator != IntegratorType::kNaive && !lights.empty() && any_diffuse;
   // MIS weights matter only when BSDF rays can also find the sampled emitters (area lights and

@@ -16,6 +16,8 @@ class TextureLookup {
   /// For constant parameters only.
   TextureLookup() = default;
   TextureLookup(const TextureSet* set, Vec2 uv) : set_(set), uv_(uv) {}
+  /// Whether this lookup reads textures (else every parameter must be a constant).
+  bool has_textures() const { return set_ != nullptr; }
 
   /// A reflectance: the texture's RGB clamped to [0, 1], times the factor.
   Vec3 reflectance(const TexturedRgb& p) const {
