@@ -15,6 +15,9 @@ inline constexpr std::uintmax_t kMaxSceneFileBytes = std::uintmax_t{64} << 20;
 inline constexpr std::uintmax_t kMaxObjFileBytes = std::uintmax_t{1} << 30;
 /// Largest texture image file read (PNG, JPEG, OpenEXR, HDR).
 inline constexpr std::uintmax_t kMaxTextureFileBytes = std::uintmax_t{1} << 28;
+/// Most bytes of samples that a scene's texture images may hold together, once decoded (8-bit
+/// files one byte per sample, 16-bit PNG, OpenEXR and HDR four): what a worker keeps in memory.
+inline constexpr uint64_t kMaxSceneTextureBytes = uint64_t{2} << 30;
 /// Largest MTL file read, in bytes.
 inline constexpr std::uintmax_t kMaxMtlFileBytes = std::uintmax_t{16} << 20;
 /// Deepest nesting of JSON arrays and objects read.

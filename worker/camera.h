@@ -26,14 +26,15 @@ class CameraModel {
     inv_h_ = 1.f / static_cast<float>(film.height);
     lens_ = c.aperture_radius;
     focus_ = c.focus_distance > 0.f ? c.focus_distance : length(c.look_at - c.eye);
-    ortho_half_ = c.projection == Camera::Projection::kOrthographic ? 0.5f * c.view_height : 0.f;
+    ortho_ = c.projection == Camera::Projection::kOrthographic;
+    ortho_half_ = 0.5f * c.view_height;
   }
 
   /// Ray through film position (x + jx, y + jy) in pixels; (lu, lv) pick the lens point.
   Ray generate(float fx, float fy, float lu, float lv) const {
     const float sx = (2.f * fx * inv_w_ - 1.f) * tan_half_ * aspect_;
     const float sy = (1.f - 2.f * fy * inv_h_) * tan_half_;
-    if (ortho_half_ > 0.f) {
+    if (ortho_) {
       // Parallel rays from the film's points on the plane through eye; the lens plays no part.
       const float ox = (2.f * fx * inv_w_ - 1.f) * ortho_half_ * aspect_;
       const float oy = (1.f - 2.f * fy * inv_h_) * ortho_half_;
@@ -55,7 +56,8 @@ class CameraModel {
  private:
   Vec3 eye_, forward_, right_, up_;
   float tan_half_ = 1.f, aspect_ = 1.f, inv_w_ = 1.f, inv_h_ = 1.f, lens_ = 0.f, focus_ = 1.f;
-  float ortho_half_ = 0.f;  // orthographic: half the view height; 0 for perspective
+  bool ortho_ = false;
+  float ortho_half_ = 0.f;  // orthographic: half the view height
 };
 
 }  // namespace rayfarm

@@ -18,6 +18,7 @@ namespace {
 struct JpegJob {
   jpeg_decompress_struct cinfo;
   jpeg_error_mgr errors;
+  jpeg_progress_mgr progress;
   std::jmp_buf jump;
   char error[JMSG_LENGTH_MAX];
   bool created;
@@ -38,11 +39,25 @@ void on_jpeg_message(j_common_ptr cinfo, int level) {
   if (level < 0) on_jpeg_error(cinfo);
 }
 
+/// A progressive JPEG may hold thousands of nearly empty scans, each a pass over the whole image:
+/// a few kilobytes that take minutes to decode. No encoder writes more than a few dozen.
+constexpr int kMaxJpegScans = 500;
+
+void on_jpeg_progress(j_common_ptr cinfo) {
+  const auto* d = reinterpret_cast<j_decompress_ptr>(cinfo);
+  if (d->is_decompressor && d->input_scan_number > kMaxJpegScans) {
+    auto* job = static_cast<JpegJob*>(cinfo->client_data);
+    std::snprintf(job->error, sizeof(job->error), "more than %d progressive scans", kMaxJpegScans);
+    std::longjmp(job->jump, 1);
+  }
+}
+
 bool read_jpeg_header(JpegJob* job, const uint8_t* data, size_t size) {
   if (setjmp(job->jump)) return false;
   jpeg_create_decompress(&job->cinfo);
   job->created = true;
   job->cinfo.client_data = job;
+  job->cinfo.progress = &job->progress;
   jpeg_mem_src(&job->cinfo, data, static_cast<unsigned long>(size));
   if (jpeg_read_header(&job->cinfo, TRUE) != JPEG_HEADER_OK) {
     std::snprintf(job->error, sizeof(job->error), "no image in the data stream");
@@ -99,6 +114,7 @@ DecodedImage decode_jpeg(std::span<const uint8_t> bytes, const std::string& name
   job.errors.error_exit = on_jpeg_error;
   job.errors.emit_message = on_jpeg_message;
   job.cinfo.client_data = &job;
+  job.progress.progress_monitor = on_jpeg_progress;
   JpegGuard guard{&job};
   if (!read_jpeg_header(&job, bytes.data(), bytes.size())) fail(name, "JPEG", job.error);
   if (job.unsupported_colour) {

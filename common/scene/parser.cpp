@@ -84,7 +84,10 @@ class SceneReader {
     if (auto up = n.find("up")) c.up = read_point(*up);
     if (c.projection == Camera::Projection::kOrthographic) {
       n.allow_keys({"type", "eye", "look_at", "up", "view_height"});
-      c.view_height = read_length(n.require("view_height"));
+      const Node height = n.require("view_height");
+      c.view_height = read_length(height);
+      if (!(c.view_height > 0.f))
+        height.fail("view_height is too small to represent (below ~1e-38)");
       check_view(n, c);
       return;
     }

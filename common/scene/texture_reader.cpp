@@ -101,7 +101,7 @@ void TextureReader::read(const Node& n, std::vector<TextureDesc>& out,
 
 std::shared_ptr<const DecodedImage> decode_scene_image(const Node& n, const fs::path& folder,
                                                        const fs::path& file, SceneImages images,
-                                                       const char* what) {
+                                                       const char* what, uint64_t* sample_bytes) {
   const fs::path full = folder / file;
   std::string bytes;
   try {
@@ -112,6 +112,8 @@ std::shared_ptr<const DecodedImage> decode_scene_image(const Node& n, const fs::
   try {
     const auto* data = reinterpret_cast<const uint8_t*>(bytes.data());
     DecodedImage image = decode_image(std::span<const uint8_t>(data, bytes.size()), full.string());
+    if (sample_bytes != nullptr)
+      *sample_bytes = image.bytes.size() + image.floats.size() * sizeof(float);
     if (images == SceneImages::kKeep) return std::make_shared<const DecodedImage>(std::move(image));
   } catch (const SceneError& e) {
     n.fail(e.what());
@@ -121,7 +123,14 @@ std::shared_ptr<const DecodedImage> decode_scene_image(const Node& n, const fs::
 
 std::shared_ptr<const DecodedImage> TextureReader::image(const Node& n, const fs::path& file) {
   if (auto it = decoded_.find(file); it != decoded_.end()) return it->second;
-  auto decoded = decode_scene_image(n, folder_, file, images_, "texture image");
+  uint64_t bytes = 0;
+  auto decoded = decode_scene_image(n, folder_, file, images_, "texture image", &bytes);
+  decoded_bytes_ += bytes;
+  if (decoded_bytes_ > kMaxSceneTextureBytes) {
+    n.fail("the scene's texture images hold " + human_bytes(decoded_bytes_) +
+           " of samples with this one, more than the limit of " +
+           human_bytes(kMaxSceneTextureBytes));
+  }
   decoded_[file] = decoded;
   return decoded;
 }

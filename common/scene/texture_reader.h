@@ -18,10 +18,12 @@ enum class SceneImages { kKeep, kCheckOnly };
 
 /// Decodes the image `file` (relative to `folder`) that node n names; a file that cannot be read
 /// or decoded fails at n, naming the file. Null when `images` only asks for the check.
+/// `sample_bytes`, when given, receives the size of the decoded samples.
 std::shared_ptr<const DecodedImage> decode_scene_image(const scene_json::Node& n,
                                                        const std::filesystem::path& folder,
                                                        const std::filesystem::path& file,
-                                                       SceneImages images, const char* what);
+                                                       SceneImages images, const char* what,
+                                                       uint64_t* sample_bytes = nullptr);
 
 /// Reads the textures of the scene in `folder` and their images; each file is decoded once,
 /// however many textures name it. `referenced` gets the image files.
@@ -53,6 +55,7 @@ class TextureReader {
   std::map<std::string, int32_t> index_;
   std::map<std::filesystem::path, std::shared_ptr<const DecodedImage>> decoded_;
   mutable uint64_t textured_reads_ = 0;
+  uint64_t decoded_bytes_ = 0;  ///< samples of every distinct image decoded so far
 };
 
 }  // namespace rayfarm

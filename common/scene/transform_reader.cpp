@@ -109,10 +109,12 @@ Transform read_transform(const Node& n) {
 void transform_mesh(TriangleMesh& mesh, const Transform& t, const Node& where) {
   if (t.is_identity()) return;
   for (Vec3& p : mesh.positions) p = to_point(t.point(wide(p)), where);
+  // The cofactor matrix is det * M^-T: it turns normals inwards when the transform mirrors.
+  const double outward = t.determinant() < 0.0 ? -1.0 : 1.0;
   for (Vec3& n : mesh.normals) {
     if (is_black(n)) continue;  // "no normal here" stays so
     const WideVec3 m = t.normal(wide(n));
-    const double len = length(m);
+    const double len = outward * length(m);
     n = Vec3(static_cast<float>(m.x / len), static_cast<float>(m.y / len),
              static_cast<float>(m.z / len));
   }

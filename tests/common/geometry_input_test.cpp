@@ -95,6 +95,17 @@ TEST(ShapeTransformTest, QuadMovesAndKeepsItsFrontUnderAMirror) {
     expect_near(triangle_normal_of(mesh, t), {0, 0, 1});
 }
 
+TEST(ShapeTransformTest, VertexNormalsStayOnTheFrontUnderAMirror) {
+  TempDir dir;
+  dir.write("m.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//1\n");
+  const Scene scene = load_one_shape(dir, R"({"type": "mesh", "file": "m.obj",
+      "transform": {"scale": [-1, 2, 1]}})");
+  const TriangleMesh& mesh = scene.meshes.at(0);
+  const Vec3 front = triangle_normal_of(mesh, 0);
+  expect_near(front, {0, 0, 1});
+  for (const Vec3& n : mesh.normals) expect_near(n, front);
+}
+
 TEST(ShapeTransformTest, MatrixFormEqualsTheOperations) {
   TempDir dir;
   const Scene a = load_one_shape(dir, R"({"type": "triangle", "material": "m",

@@ -492,6 +492,9 @@ TEST(SceneErrors, BadCamera) {
   expect_error(camera(R"({"type": "orthographic", "eye": [0, 0, 0], "look_at": [0, 0, 1],
                           "view_height": -1})"),
                {"/camera/view_height"});
+  expect_error(camera(R"({"type": "orthographic", "eye": [0, 0, 0], "look_at": [0, 0, 1],
+                          "view_height": 1e-50})"),
+               {"/camera/view_height", "positive"});
   expect_error(camera(R"({"eye": [0, 0, 0], "look_at": [0, 0, 1]})"),
                {"/camera", "missing key \"fov_y\""});
   expect_error(dir.write("scene.json", R"({"film": {"width": 1, "height": 1}})"),

@@ -105,8 +105,11 @@ std::array<float, 2> EnvironmentLight::uv(const Vec3& dir) const {
 }
 
 uint32_t EnvironmentLight::cell(float u, float v) const {
-  const auto x = std::min(static_cast<uint32_t>(std::max(u, 0.f) * width_), width_ - 1);
-  const auto y = std::min(static_cast<uint32_t>(std::max(v, 0.f) * height_), height_ - 1);
+  // NaN (a degenerate direction) reads as 0: converting it to an integer is undefined.
+  if (!(u >= 0.f)) u = 0.f;
+  if (!(v >= 0.f)) v = 0.f;
+  const auto x = std::min(static_cast<uint32_t>(std::min(u, 1.f) * width_), width_ - 1);
+  const auto y = std::min(static_cast<uint32_t>(std::min(v, 1.f) * height_), height_ - 1);
   return y * width_ + x;
 }
 

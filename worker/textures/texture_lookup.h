@@ -25,7 +25,8 @@ class TextureLookup {
     const Vec4 t = lookup(p.texture);
     return p.value * Vec3(clamp01(t[0]), clamp01(t[1]), clamp01(t[2]));
   }
-  /// A number: the chosen channel (or the RGB mean) times the factor; non-finite texels read 0.
+  /// A number: the chosen channel (or the RGB mean) times the factor; a NaN texel reads 0 (an
+  /// infinite one stays infinite, and resolve_textures() keeps it at the top of the range).
   float number(const TexturedFloat& p) const {
     if (p.texture < 0) return p.value;
     const Vec4 t = lookup(p.texture);
@@ -47,7 +48,8 @@ class TextureLookup {
         v = (t[0] + t[1] + t[2]) * (1.f / 3.f);
         break;
     }
-    return std::isfinite(v) ? v * p.value : 0.f;
+    const float scaled = v * p.value;
+    return std::isnan(scaled) ? 0.f : scaled;
   }
 
  private:
