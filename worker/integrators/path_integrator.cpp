@@ -125,8 +125,7 @@ Vec3 PathIntegratorFor<BsdfT>::li(Ray ray, Pcg32& rng, PathStats& stats) const {
     const float u_lobe = rng.next_float(), u1 = rng.next_float(), u2 = rng.next_float();
     BsdfSample bs;
     if (!bsdf.sample(wo_local, u_lobe, u1, u2, bs)) break;
-    const Vec3 wi = frame.to_world(bs.wi);
-    if (!same_sides(hit, wo, wi, wo_local, bs.wi)) break;
+    if (!same_sides(hit, wo, frame.to_world(bs.wi), wo_local, bs.wi)) break;
 
     // Russian roulette with survival probability min(1, max component of the update).
     const float survive = std::min(1.f, max_component(bs.weight));
@@ -145,6 +144,7 @@ Vec3 PathIntegratorFor<BsdfT>::li(Ray ray, Pcg32& rng, PathStats& stats) const {
       truncate(beta);
       break;
     }
+    const Vec3 wi = frame.to_world(bs.wi);
     ray = Ray{offset_ray_origin(hit.p, hit.p_error, leaving_side(hit, wi, bs.wi.z)), wi};
   }
   return radiance;
