@@ -13,6 +13,8 @@ namespace rayfarm {
 inline constexpr std::uintmax_t kMaxSceneFileBytes = std::uintmax_t{64} << 20;
 /// Largest OBJ file read, in bytes.
 inline constexpr std::uintmax_t kMaxObjFileBytes = std::uintmax_t{1} << 30;
+/// Largest PLY file read, in bytes.
+inline constexpr std::uintmax_t kMaxPlyFileBytes = std::uintmax_t{1} << 30;
 /// Largest texture image file read (PNG, JPEG, OpenEXR, HDR).
 inline constexpr std::uintmax_t kMaxTextureFileBytes = std::uintmax_t{1} << 28;
 /// Most bytes of samples that a scene's texture images may hold together, once decoded (8-bit

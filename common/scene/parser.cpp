@@ -13,6 +13,7 @@
 #include "common/scene/light_reader.h"
 #include "common/scene/material_reader.h"
 #include "common/scene/obj_loader.h"
+#include "common/scene/ply_loader.h"
 #include "common/scene/texture_reader.h"
 #include "common/scene/transform_reader.h"
 #include "common/util/text.h"
@@ -248,19 +249,20 @@ class SceneReader {
     const fs::path relative = mesh_path(n.require("file"));
     std::optional<uint32_t> material;
     if (auto m = n.find("material")) material = material_ref(*m);
-    ObjMesh obj = load_obj(folder_, relative);
-    for (const fs::path& file : obj.files) add_referenced(file);
-    for (std::string& w : obj.warnings) scene_.warnings.push_back(std::move(w));
+    MeshFile loaded =
+        is_ply_file(relative) ? load_ply(folder_, relative) : load_obj(folder_, relative);
+    for (const fs::path& file : loaded.files) add_referenced(file);
+    for (std::string& w : loaded.warnings) scene_.warnings.push_back(std::move(w));
     std::vector<uint32_t> remap;
-    for (Material& m : obj.materials)
+    for (Material& m : loaded.materials)
       remap.push_back(material ? *material : add_material(std::move(m)));
-    for (uint32_t& index : obj.mesh.materials) index = remap.at(index);
-    if (obj.mesh.triangle_count() == 0) {
+    for (uint32_t& index : loaded.mesh.materials) index = remap.at(index);
+    if (loaded.mesh.triangle_count() == 0) {
       n.warn("the mesh has no triangles");
       return;
     }
-    if (auto t = n.find("transform")) transform_mesh(obj.mesh, read_transform(*t), *t);
-    scene_.meshes.push_back(std::move(obj.mesh));
+    if (auto t = n.find("transform")) transform_mesh(loaded.mesh, read_transform(*t), *t);
+    scene_.meshes.push_back(std::move(loaded.mesh));
   }
 
   /// The mesh file, relative to the scene's folder; it must stay inside and exist.
