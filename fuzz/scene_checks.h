@@ -55,6 +55,16 @@ inline void check_scene(const Scene& s) {
     for (uint32_t i : mesh.indices) require(i < mesh.positions.size(), "vertex index");
     for (uint32_t m : mesh.materials) require(m < s.materials.size(), "material index");
     for (const Vec3& p : mesh.positions) require(finite_within(p, 1e17f), "vertex range");
+    require(mesh.normals.empty() || mesh.normals.size() == mesh.positions.size(), "normals");
+    require(mesh.uvs.empty() || mesh.uvs.size() == mesh.positions.size(), "uvs");
+    for (const Vec3& n : mesh.normals) {
+      const float length = std::sqrt(dot(n, n));
+      require(is_black(n) || (std::isfinite(length) && std::fabs(length - 1.f) < 1e-3f),
+              "normal unit or zero");
+    }
+    for (const Vec2& uv : mesh.uvs) {
+      require(std::isfinite(uv.x) && std::isfinite(uv.y), "uv finite");
+    }
   }
   for (const Sphere& sp : s.spheres) {
     require(sp.material < s.materials.size(), "sphere material");

@@ -369,6 +369,21 @@ std::string triangle_with_face(Format f, std::vector<std::vector<double>> faces,
 
 size_t body_start(const std::string& ply) { return ply.find("end_header\n") + 11; }
 
+TEST(PlyErrors, AFileClaimingGigabytesIsRefusedBeforeReading) {
+  TempDir dir;
+  const fs::path big = dir.write("big.ply", "ply\n");
+  fs::resize_file(big, std::uintmax_t{2} << 30);  // sparse: nothing is written
+  try {
+    load_scene(dir.write("scene.json", scene_json(R"("file": "big.ply")")));
+    ADD_FAILURE() << "a 2 GiB PLY file loaded";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("big.ply: the file has 2147483648 bytes, more than the "
+                                         "limit of 1073741824"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(PlyErrors, BadFacesNameTheRecord) {
   // face 1 is the second face: on line 11 in ASCII, 36 + 13 bytes into a binary body.
   expect_ply_error(triangle_with_face(Format::kAscii, {{3, 0, 1, 2}, {3, 0, 1, 3}}),
@@ -468,6 +483,39 @@ TEST(PlyErrors, BadNumbers) {
       head + "0 0 0\n1 0 0\n0 1 0\n3 0 1.5 2\n",
       {"m.ply:13: face 0: property \"vertex_indices\": \"1.5\" is not a value of type int"});
   expect_ply_error(head + "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\xc3\n", {"m.ply:13: invalid UTF-8"});
+}
+
+// The fuzzer's seeds (fuzz/make_ply_seeds.py) are what they claim: meshes that load, and files
+// that each fail for their own reason.
+TEST(PlyMesh, TheFuzzSeedsLoadOrFailAsNamed) {
+  const fs::path seeds = fs::path(RAYFARM_SOURCE_DIR) / "fuzz" / "corpus" / "ply";
+  TempDir dir;
+  const auto load = [&](const std::string& name) {
+    return load_ply_scene(dir, testing::read_file(seeds / name));
+  };
+  for (const std::string name : {"cube-ascii.ply", "cube-le.ply"}) {
+    const Scene scene = load(name);
+    EXPECT_TRUE(scene.warnings.empty()) << name;
+    EXPECT_EQ(scene.meshes.at(0).triangle_count(), 12u) << name;
+  }
+  EXPECT_EQ(load("cube-ascii.ply").meshes[0].normals.size(), 8u);
+  EXPECT_EQ(load("tri-be.ply").meshes.at(0).triangle_count(), 4u);
+  EXPECT_EQ(load("tri-be.ply").meshes[0].uvs.size(), 5u);
+  EXPECT_NE(load("trailing-le.ply").warnings.at(0).find("14 byte(s) after the last element"),
+            std::string::npos);
+  const std::pair<const char*, const char*> broken[] = {
+      {"truncated-le.ply", "bytes are left"},
+      {"lying-count.ply", "4000000000 records"},
+      {"negative-list.ply", "negative length, -3"},
+      {"no-format.ply", "element before any format line"}};
+  for (const auto& [name, what] : broken) {
+    try {
+      load(name);
+      ADD_FAILURE() << name << " loaded";
+    } catch (const SceneError& e) {
+      EXPECT_NE(std::string(e.what()).find(what), std::string::npos) << e.what();
+    }
+  }
 }
 
 TEST(PlyMesh, ABundleCarriesThePlyFile) {
