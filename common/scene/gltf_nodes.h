@@ -1,8 +1,8 @@
 #pragma once
 // The node hierarchy of a glTF scene: each node's world transform, and the meshes, camera and
 // KHR_lights_punctual lights it places. Internal to the glTF loader.
-#include "common/scene/gltf_loader.h"
 #include "common/scene/gltf_materials.h"
+#include "common/scene/gltf_options.h"
 
 namespace rayfarm::gltf {
 

@@ -47,13 +47,25 @@ class SceneReader {
                      "lights", "background", "render"});
     if (auto n = root.find("format")) read_format(*n);
     // The film and the render settings first: the caller's limits on them come before the rest.
-    read_film(root.require("film"));
+    // A scene built on a glTF file may leave the film to the glTF camera's aspect ratio.
+    const auto film = root.find("film");
+    const auto gltf = root.find("gltf");
+    if (film || !gltf) read_film(root.require("film"));
     if (auto n = root.find("render")) read_render(*n);
-    if (check_) {
+    if (film && check_) {
       if (auto refusal = check_(scene_.film, scene_.render)) throw SceneRefused(*refusal);
     }
     bool has_camera = false;
-    if (auto n = root.find("gltf")) has_camera = read_gltf(*n);
+    if (gltf) {
+      const GltfResult result = read_gltf(*gltf);
+      has_camera = result.has_camera;
+      if (!film) {
+        scene_.film = default_gltf_film(result.aspect);
+        if (check_) {
+          if (auto refusal = check_(scene_.film, scene_.render)) throw SceneRefused(*refusal);
+        }
+      }
+    }
     if (auto n = root.find("camera"); n || !has_camera) read_camera(root.require("camera"));
     if (auto n = root.find("textures")) textures_.read(*n, scene_.textures, scene_.referenced);
     if (auto n = root.find("materials")) read_materials(*n);
@@ -145,8 +157,8 @@ class SceneReader {
   // ---- glTF ----
 
   /// "gltf": {"file": NAME, "camera": NAME}: the file's meshes, materials (which "materials"
-  /// may then override by name) and lights join the scene. True when it set the camera.
-  bool read_gltf(const Node& n) {
+  /// may then override by name) and lights join the scene.
+  GltfResult read_gltf(const Node& n) {
     n.allow_keys({"file", "camera"});
     const Node file = n.require("file");
     const fs::path relative = mesh_path(file);
@@ -156,7 +168,7 @@ class SceneReader {
     const GltfResult result = load_gltf(folder_, relative, options, images_, scene_);
     for (uint32_t i = 0; i < scene_.materials.size(); ++i)
       material_index_.try_emplace(scene_.materials[i].name, i);
-    return result.has_camera;
+    return result;
   }
 
   /// Adds a material, or returns the index of the one already named so.
