@@ -12,7 +12,8 @@ namespace rayfarm {
 class SphereLight {
  public:
   /// The light of sphere `index`; nullopt when its material does not emit or its area overflows.
-  static std::optional<SphereLight> make(const Scene& scene, uint32_t index) {
+  static std::optional<SphereLight> make(const Scene& scene, uint32_t index,
+                                         const EmissionTextures* tex = nullptr) {
     const Sphere& s = scene.spheres[index];
     const Material& mat = scene.materials[s.material];
     if (!mat.is_emissive()) return std::nullopt;
@@ -27,7 +28,11 @@ class SphereLight {
     light.p_error_ = sphere_point_error(s.center, s.radius);
     light.material_ = &mat;
     light.index_ = index;
-    light.power_ = double(luminance(mat.emission)) * area * kPi * sides;
+    light.power_ = double(luminance(power_radiance(mat, s.material, tex))) * area * kPi * sides;
+    if (mat.emission.is_textured() && tex != nullptr) {
+      light.textures_ = tex->textures;
+      light.axes_[0] = s.axis_x, light.axes_[1] = s.axis_y, light.axes_[2] = s.axis_z;
+    }
     return light;
   }
 
@@ -40,7 +45,15 @@ class SphereLight {
   bool sample(const Vec3& ref, float p_select, float u1, float u2, LightSample& out) const {
     const Vec3 n = sample_uniform_sphere(u1, u2);
     const Vec3 p = center_ + n * radius_;
-    return finish_area_sample(ref, p, n, p_error_, area_, *material_, p_select, out);
+    TextureLookup tex;
+    if (textures_) {
+      // The same angles as a hit's (SceneData::resolve).
+      float phi = std::atan2(dot(n, axes_[1]), dot(n, axes_[0]));
+      if (phi < 0.f) phi += 2.f * kPi;
+      const float theta = std::acos(std::clamp(dot(n, axes_[2]), -1.f, 1.f));
+      tex = TextureLookup(textures_, {phi * (0.5f * kInvPi), theta * kInvPi});
+    }
+    return finish_area_sample(ref, p, n, p_error_, area_, *material_, p_select, out, tex);
   }
   /// Density sample() has for reaching (p, n) from `ref`.
   float pdf(float p_select, const Vec3& ref, const Vec3& p, const Vec3& n) const {
@@ -62,6 +75,8 @@ class SphereLight {
   const Material* material_ = nullptr;
   uint32_t index_ = 0;
   double power_ = 0.0;
+  const TextureSet* textures_ = nullptr;  // set for textured emission only
+  Vec3 axes_[3];
 };
 
 }  // namespace rayfarm
