@@ -73,6 +73,13 @@ Vec3 PathIntegratorFor<BsdfT>::sample_light(const SurfaceHit& hit, const Vec3& w
 
 template <class BsdfT>
 Vec3 PathIntegratorFor<BsdfT>::li(Ray ray, Pcg32& rng, PathStats& stats) const {
+  // Two loops: scenes without surface features run one with no trace of them.
+  return plan_.surface ? trace<true>(ray, rng, stats) : trace<false>(ray, rng, stats);
+}
+
+template <class BsdfT>
+template <bool kSurface>
+Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, Pcg32& rng, PathStats& stats) const {
   uint64_t& rays = stats.rays;
   // The cap stops a path that could still gather light: count it and the weight it carried.
   const auto truncate = [&stats](const Vec3& throughput) {
@@ -115,9 +122,12 @@ Vec3 PathIntegratorFor<BsdfT>::li(Ray ray, Pcg32& rng, PathStats& stats) const {
     }
 
     // Light sampling (NEE / MIS) at non-specular vertices, in the shading frame.
-    if (plan_.surface && (data_.surface_needs(hit.material) & kOneSided) && dot(wo, hit.n) < 0.f)
-      break;  // a one-sided surface seen from behind scatters nothing
-    const Frame frame = plan_.surface ? shade_surface(data_, *rh, hit) : Frame(hit.ns);
+    Frame frame(hit.ns);
+    if constexpr (kSurface) {
+      // A one-sided surface seen from behind scatters nothing.
+      if ((data_.surface_needs(hit.material) & kOneSided) && dot(wo, hit.n) < 0.f) break;
+      frame = shade_surface(data_, *rh, hit);
+    }
     const Vec3 wo_local = frame.to_local(wo);
     const BsdfT bsdf = material.textured ? BsdfT(material, TextureLookup(&data_.textures(), hit.uv))
                                          : BsdfT(material);

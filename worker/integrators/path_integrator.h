@@ -58,6 +58,8 @@ class PathIntegratorFor {
   const IntegratorPlan& plan() const { return plan_; }
 
  private:
+  template <bool kSurface>
+  Vec3 trace(Ray ray, Pcg32& rng, PathStats& stats) const;
   Vec3 sample_light(const SurfaceHit& hit, const Vec3& wo, const Vec3& wo_local, const Frame& frame,
                     const BsdfT& bsdf, Pcg32& rng, uint64_t& rays) const;
   float emission_weight(const SurfaceHit& hit, bool specular_bounce, float bsdf_pdf,

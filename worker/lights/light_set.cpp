@@ -51,11 +51,19 @@ LightSet::LightSet(SceneData& data) {
   };
   for (uint32_t m = 0; m < scene.meshes.size(); ++m) {
     for (uint32_t t = 0; t < scene.meshes[m].triangle_count(); ++t) {
-      if (auto light = TriangleLight::make(scene, m, t, &emission)) add_area(*light);
+      if (auto light = TexturedTriangleLight::make(scene, m, t, emission)) {
+        add_area(*light);
+      } else if (auto plain = TriangleLight::make(scene, m, t, &emission)) {
+        add_area(*plain);
+      }
     }
   }
   for (uint32_t s = 0; s < scene.spheres.size(); ++s) {
-    if (auto light = SphereLight::make(scene, s, &emission)) add_area(*light);
+    if (auto light = TexturedSphereLight::make(scene, s, emission)) {
+      add_area(*light);
+    } else if (auto plain = SphereLight::make(scene, s, &emission)) {
+      add_area(*plain);
+    }
   }
   for (uint32_t i = 0; i < scene.point_lights.size(); ++i) {
     if (auto light = DeltaPointLight::make(scene, i)) {

@@ -29,20 +29,11 @@ class TriangleLight {
     light.v0_ = a, light.v1_ = b, light.v2_ = c, light.n_ = n;
     light.area_ = static_cast<float>(area);
     light.p_error_ = triangle_point_error(a, b, c);
-    light.material_ = &mat;
+    light.emission_ = mat.emission.value;
+    light.two_sided_ = mat.two_sided;
     light.geom_ = mesh, light.prim_ = tri;
     light.power_ =
         double(luminance(power_radiance(mat, m.materials[tri], tex))) * area * kPi * sides;
-    if (mat.emission.is_textured() && tex != nullptr) {
-      // Texture coordinates as the hits on it have them: the mesh's, else the barycentrics.
-      light.textures_ = tex->textures;
-      if (!m.uvs.empty()) {
-        for (int i = 0; i < 3; ++i) light.uv_[i] = m.uvs[m.indices[3 * tri + i]];
-      } else {
-        light.uv_[1] = {1.f, 0.f};
-        light.uv_[2] = {0.f, 1.f};
-      }
-    }
     return light;
   }
 
@@ -54,13 +45,18 @@ class TriangleLight {
 
   /// A uniform point on the triangle as seen from `ref`; p_select: the selection probability.
   bool sample(const Vec3& ref, float p_select, float u1, float u2, LightSample& out) const {
+    return sample_with(ref, p_select, u1, u2, out,
+                       [this](float, float, float) { return emission_; });
+  }
+  /// As sample(), the radiance at the point being radiance_at(b0, b1, b2) of its barycentrics.
+  template <class RadianceAt>
+  bool sample_with(const Vec3& ref, float p_select, float u1, float u2, LightSample& out,
+                   const RadianceAt& radiance_at) const {
     const float su = std::sqrt(u1);
     const float b0 = 1.f - su, b1 = u2 * su, b2 = 1.f - b0 - b1;
     const Vec3 p = v0_ * b0 + v1_ * b1 + v2_ * b2;
-    const TextureLookup tex =
-        textures_ ? TextureLookup(textures_, uv_[0] * b0 + uv_[1] * b1 + uv_[2] * b2)
-                  : TextureLookup();
-    return finish_area_sample(ref, p, n_, p_error_, area_, *material_, p_select, out, tex);
+    return finish_area_sample(ref, p, n_, p_error_, area_, radiance_at(b0, b1, b2), two_sided_,
+                              p_select, out);
   }
   /// Density sample() has for reaching (p, n) from `ref`.
   float pdf(float p_select, const Vec3& ref, const Vec3& p, const Vec3& n) const {
@@ -73,11 +69,10 @@ class TriangleLight {
   Vec3 v0_, v1_, v2_;
   Vec3 n_;  // unit normal, front side
   float area_ = 0.f, p_error_ = 0.f;
-  const Material* material_ = nullptr;
+  Vec3 emission_;  // the constant emission (the factor, when textured)
+  bool two_sided_ = false;
   uint32_t geom_ = 0, prim_ = 0;
   double power_ = 0.0;
-  const TextureSet* textures_ = nullptr;  // set for textured emission only
-  Vec2 uv_[3];
 };
 
 }  // namespace rayfarm
