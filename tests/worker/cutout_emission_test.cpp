@@ -8,6 +8,7 @@
 #include <string>
 
 #include "tests/worker/surface_scenes.h"
+#include "worker/lights/light_set.h"
 
 namespace rayfarm {
 namespace {
@@ -185,6 +186,30 @@ TEST(TexturedEmissionTest, LightSamplingAgreesWithBsdfSampling) {
         << integrator_name(integrator) << ": standard error " << se;
     EXPECT_LT(se, 0.02 * naive.image_mean()) << "too few samples for a meaningful test";
   }
+}
+
+TEST(TexturedEmissionTest, LightSelectionWeighsTheTexturesMean) {
+  testing::TempDir dir;
+  // Equal quads: constant 1; a checkerboard of 0 and 2 (mean 1); the same times 3 (mean 3).
+  const Scene s = scene_from(dir, R"(
+    "camera": {"eye": [0, 0, 5], "look_at": [0, 0, 0], "fov_y": 20},
+    "film": {"width": 4, "height": 4},
+    "textures": {"e": {"type": "checkerboard", "color0": [0, 0, 0], "color1": [2, 2, 2]}},
+    "materials": {"a": {"type": "diffuse", "emission": [1, 1, 1]},
+                  "b": {"type": "diffuse", "emission": {"texture": "e"}},
+                  "c": {"type": "diffuse", "emission": {"texture": "e", "scale": 3}}},
+    "shapes": [{"type": "quad", "corner": [0, 0, 0], "edge1": [1, 0, 0], "edge2": [0, 1, 0],
+                "material": "a"},
+               {"type": "quad", "corner": [2, 0, 0], "edge1": [1, 0, 0], "edge2": [0, 1, 0],
+                "material": "b"},
+               {"type": "quad", "corner": [4, 0, 0], "edge1": [1, 0, 0], "edge2": [0, 1, 0],
+                "material": "c"}])");
+  SceneData data(s);
+  const LightSet lights(data);
+  ASSERT_EQ(lights.area_light_count(), 6u);
+  // Two triangles per quad, in shape order: 1 : 1 : 3.
+  for (int32_t i = 0; i < 6; ++i)
+    EXPECT_NEAR(lights.selection_probability(i), (i < 4 ? 1.0 : 3.0) / 10.0, 1e-6) << i;
 }
 
 }  // namespace
