@@ -179,17 +179,23 @@ class SceneReader {
   }
 
   Material read_material(const Node& n, const std::string& name) const {
+    const Node type = n.require("type");
+    // Both sides of every opaque kind reflect already: the wrapper is the identity.
+    if (read_string(type) == "twosided") {
+      n.allow_keys({"type", "material"});
+      Material m = read_material(n.require("material"), name);
+      m.one_sided = false;
+      return m;
+    }
     Material m;
     m.name = name;
-    const Node type = n.require("type");
     const uint64_t textured_before = textures_.textured_reads();
     if (!read_material_kind(n, read_string(type), m.kind, textures_)) {
       type.fail("unknown material type " + as_written(type.json()) + "; expected one of " +
-                material_type_names());
+                material_type_names() + ", twosided");
     }
-    if (auto e = n.find("emission")) m.emission = read_radiance(*e);
-    if (auto s = n.find("two_sided")) m.two_sided = read_bool(*s);
     m.textured = textures_.textured_reads() != textured_before;
+    read_surface(n, m, textures_, scene_.textures);
     return m;
   }
 
