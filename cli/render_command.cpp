@@ -25,6 +25,7 @@ namespace {
 
 struct RenderArgs {
   std::string scene;
+  std::string camera;
   std::string output;
   std::optional<uint32_t> spp, max_depth, tile, pass_spp;
   std::optional<uint64_t> seed;
@@ -79,7 +80,13 @@ int run_render(const RenderArgs& args) {
   auto log = get_logger("render");
   const OutputFormat format = check_output_path(args.output);  // before any work
   log->info("{}", protocol::kBuildVersion);
-  Scene scene = load_scene(args.scene);
+  if (!args.camera.empty() && !is_gltf_path(args.scene))
+    throw std::invalid_argument(
+        "--camera chooses among a glTF file's cameras; a JSON scene names "
+        "its glTF camera in \"gltf\" (docs/gltf.md)");
+  GltfOptions gltf;
+  gltf.camera = args.camera;
+  Scene scene = load_scene(args.scene, {}, SceneImages::kKeep, gltf);
   for (const std::string& w : scene.warnings) log->warn("{}", w);
   if (const auto film = args.film.resolve(scene.film)) scene.film = *film;
 
@@ -201,7 +208,10 @@ int run_render(const RenderArgs& args) {
 void add_render_command(CLI::App& app, int& exit_code) {
   auto args = std::make_shared<RenderArgs>();
   CLI::App* cmd = app.add_subcommand("render", "Render a scene on this machine to an EXR (+ PNG preview)");
-  cmd->add_option("scene", args->scene, "Scene file (JSON)")->required();
+  cmd->add_option("scene", args->scene, "Scene file: JSON, or glTF 2.0 (.gltf, .glb)")->required();
+  cmd->add_option("--camera", args->camera,
+                  "glTF scenes: the camera (its or its node's name) to render through; default: "
+                  "the first in the scene");
   cmd->add_option("-o,--output", args->output,
                   "Output: x.exr (float EXR, and an sRGB preview x.png beside it) or x.png (the "
                   "preview alone); checked before rendering")

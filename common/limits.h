@@ -15,6 +15,12 @@ inline constexpr std::uintmax_t kMaxSceneFileBytes = std::uintmax_t{64} << 20;
 inline constexpr std::uintmax_t kMaxObjFileBytes = std::uintmax_t{1} << 30;
 /// Largest PLY file read, in bytes.
 inline constexpr std::uintmax_t kMaxPlyFileBytes = std::uintmax_t{1} << 30;
+/// Most bytes a glTF scene reads: its .gltf or .glb file and every buffer and image file it names.
+inline constexpr std::uintmax_t kMaxGltfBytes = std::uintmax_t{1} << 30;
+/// Most triangles a glTF file's nodes may place (a mesh placed by many nodes counts each time).
+inline constexpr uint64_t kMaxGltfTriangles = uint64_t{1} << 26;
+/// Most nodes of a glTF file that are visited (each may place a mesh, a camera or a light).
+inline constexpr size_t kMaxGltfNodes = size_t{1} << 20;
 /// Largest texture image file read (PNG, JPEG, OpenEXR, HDR).
 inline constexpr std::uintmax_t kMaxTextureFileBytes = std::uintmax_t{1} << 28;
 /// Most bytes of samples that a scene's texture images may hold together, once decoded (8-bit

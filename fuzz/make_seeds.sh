@@ -13,7 +13,7 @@ if [ ! -x "$build/fuzz/fuzz_image_seeds" ]; then
   echo "make_seeds: $build/fuzz/fuzz_image_seeds is missing: cmake --build $build --target fuzz_image_seeds" >&2
   exit 1
 fi
-rm -rf "$c" && mkdir -p "$c"/{scene,obj,ply,wire,bundle,image}
+rm -rf "$c" && mkdir -p "$c"/{scene,obj,ply,wire,bundle,image,gltf}
 
 # Scenes: the bundled ones, one with a mesh and every shape and material, and broken ones.
 for s in cornell-box phong furnace; do cp "$root/scenes/$s/scene.json" "$c/scene/$s.json"; done
@@ -83,4 +83,7 @@ printf '../escape\tx\n' > "$c/bundle/escape.txt"
 printf 'a/./b\tx\na\\b\ty\n/abs\tz\n' > "$c/bundle/odd-paths.txt"
 # Images: tiny valid PNG, JPEG, OpenEXR and Radiance HDR files, and broken ones.
 "$build/fuzz/fuzz_image_seeds" "$c/image"
+# glTF: the bundled product shot (.glb) and small text files with data-URI buffers.
+cp "$root/scenes/product/product.glb" "$c/gltf/product.glb"
+python3 "$here/make_gltf_seeds.py" "$c/gltf"
 echo "seeds: $(find "$c" -type f | wc -l) files in $c"

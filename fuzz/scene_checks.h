@@ -22,7 +22,7 @@ inline void check_scene(const Scene& s) {
   require(s.camera.fov_y_deg > 0.f && s.camera.fov_y_deg < 180.f, "fov");
   require(s.render.spp >= 1 && s.render.max_depth <= 1024, "render settings");
   for (const Material& m : s.materials) {
-    require(is_finite(m.emission) && min_component(m.emission) >= 0.f, "emission");
+    require(is_finite(m.emission.value) && min_component(m.emission.value) >= 0.f, "emission");
     if (const auto* d = std::get_if<DiffuseMaterial>(&m.kind)) {
       require(min_component(d->albedo) >= 0.f && max_component(d->albedo) <= 1.f, "albedo");
     }

@@ -219,6 +219,42 @@ PackedScene pack_scene(const fs::path& scene_file) {
   return packed;
 }
 
+PackedScene pack_gltf_scene(const fs::path& gltf_file, const std::string& camera) {
+  GltfOptions options;
+  options.camera = camera;
+  (void)load_scene(gltf_file, {}, SceneImages::kCheckOnly, options);  // the camera exists
+  PackedScene packed = pack_scene(gltf_file);
+  std::string name;  // the camera's name as a JSON string
+  for (const unsigned char c : camera) {
+    if (c == '"' || c == '\\') {
+      name += '\\';
+      name += static_cast<char>(c);
+    } else if (c < 0x20) {
+      static const char* hex = "0123456789abcdef";
+      name += "\\u00";
+      name += hex[c >> 4];
+      name += hex[c & 15];
+    } else {
+      name += static_cast<char>(c);
+    }
+  }
+  const fs::path gltf(packed.scene_path);
+  const std::string json = "{\"gltf\": {\"file\": \"" + gltf.filename().generic_string() +
+                           "\", \"camera\": \"" + name + "\"}}\n";
+  std::string wrapper =
+      (gltf.parent_path() / (gltf.filename().string() + ".camera.json")).generic_string();
+  std::vector<BundleFile> files = packed.bundle.files;
+  while (std::any_of(files.begin(), files.end(),
+                     [&](const BundleFile& f) { return f.path == wrapper; })) {
+    wrapper.insert(wrapper.size() - 5, "_");
+  }
+  files.push_back({wrapper, json});
+  packed.scene_path = wrapper;
+  packed.bundle = make_bundle(std::move(files));
+  packed.hash = bundle_hash(packed.bundle);
+  return packed;
+}
+
 fs::path unpack_bundle(const Bundle& bundle, const fs::path& cache_dir,
                        const std::string& expected_hash) {
   if (!is_bundle_hash(expected_hash)) {

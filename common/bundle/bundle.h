@@ -65,6 +65,9 @@ std::string bundle_hash(const Bundle& bundle);
 /// naming the file and the cause on a link, on anything but a regular file, or on an unreadable
 /// file.
 PackedScene pack_scene(const std::filesystem::path& scene_file);
+/// pack_scene() of a glTF file rendered through the camera named `camera`: the bundle's scene is
+/// then a JSON file beside the glTF that names both (docs/gltf.md).
+PackedScene pack_gltf_scene(const std::filesystem::path& gltf_file, const std::string& camera);
 
 /// Unpacks `bundle` into cache_dir/expected_hash/ and returns that folder. Verifies the hash
 /// first (BundleError on a mismatch) and writes into a temporary folder that is renamed into

@@ -2,6 +2,7 @@
 // read through json_reader.h so that every message can say where the problem is.
 #include "common/scene/parser.h"
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <string_view>
@@ -43,16 +44,30 @@ class SceneReader {
         textures_(folder_, images) {}
 
   void read(const Node& root) {
-    root.allow_keys({"format", "camera", "film", "textures", "materials", "shapes", "lights",
-                     "background", "render"});
+    root.allow_keys({"format", "gltf", "camera", "film", "textures", "materials", "shapes",
+                     "lights", "background", "render"});
     if (auto n = root.find("format")) read_format(*n);
     // The film and the render settings first: the caller's limits on them come before the rest.
-    read_film(root.require("film"));
+    // A scene built on a glTF file may leave the film to the glTF camera's aspect ratio.
+    const auto film = root.find("film");
+    const auto gltf = root.find("gltf");
+    if (film || !gltf) read_film(root.require("film"));
     if (auto n = root.find("render")) read_render(*n);
-    if (check_) {
+    if (film && check_) {
       if (auto refusal = check_(scene_.film, scene_.render)) throw SceneRefused(*refusal);
     }
-    read_camera(root.require("camera"));
+    bool has_camera = false;
+    if (gltf) {
+      const GltfResult result = read_gltf(*gltf);
+      has_camera = result.has_camera;
+      if (!film) {
+        scene_.film = default_gltf_film(result.aspect);
+        if (check_) {
+          if (auto refusal = check_(scene_.film, scene_.render)) throw SceneRefused(*refusal);
+        }
+      }
+    }
+    if (auto n = root.find("camera"); n || !has_camera) read_camera(root.require("camera"));
     if (auto n = root.find("textures")) textures_.read(*n, scene_.textures, scene_.referenced);
     if (auto n = root.find("materials")) read_materials(*n);
     if (auto n = root.find("shapes")) read_shapes(*n);
@@ -132,8 +147,29 @@ class SceneReader {
     for (const auto& [name, value] : n.object().items()) {
       const Node m = n.child(name);
       if (name.empty()) m.fail("a material name must not be empty");
+      if (auto it = material_index_.find(name); it != material_index_.end()) {
+        scene_.materials[it->second] = read_material(m, name);  // overrides the glTF's
+        continue;
+      }
       add_material(read_material(m, name));
     }
+  }
+
+  // ---- glTF ----
+
+  /// "gltf": {"file": NAME, "camera": NAME}: the file's meshes, materials (which "materials"
+  /// may then override by name) and lights join the scene.
+  GltfResult read_gltf(const Node& n) {
+    n.allow_keys({"file", "camera"});
+    const Node file = n.require("file");
+    const fs::path relative = mesh_path(file);
+    if (!is_gltf_path(relative)) file.fail("expected a .gltf or .glb file");
+    GltfOptions options;
+    if (auto c = n.find("camera")) options.camera = read_string(*c);
+    const GltfResult result = load_gltf(folder_, relative, options, images_, scene_);
+    for (uint32_t i = 0; i < scene_.materials.size(); ++i)
+      material_index_.try_emplace(scene_.materials[i].name, i);
+    return result;
   }
 
   /// Adds a material, or returns the index of the one already named so.
@@ -144,17 +180,23 @@ class SceneReader {
   }
 
   Material read_material(const Node& n, const std::string& name) const {
+    const Node type = n.require("type");
+    // Both sides of every opaque kind reflect already: the wrapper is the identity.
+    if (read_string(type) == "twosided") {
+      n.allow_keys({"type", "material"});
+      Material m = read_material(n.require("material"), name);
+      m.one_sided = false;
+      return m;
+    }
     Material m;
     m.name = name;
-    const Node type = n.require("type");
     const uint64_t textured_before = textures_.textured_reads();
     if (!read_material_kind(n, read_string(type), m.kind, textures_)) {
       type.fail("unknown material type " + as_written(type.json()) + "; expected one of " +
-                material_type_names());
+                material_type_names() + ", twosided");
     }
-    if (auto e = n.find("emission")) m.emission = read_radiance(*e);
-    if (auto s = n.find("two_sided")) m.two_sided = read_bool(*s);
     m.textured = textures_.textured_reads() != textured_before;
+    read_surface(n, m, textures_, scene_.textures);
     return m;
   }
 
@@ -315,7 +357,59 @@ class SceneReader {
 
 }  // namespace
 
-Scene load_scene(const fs::path& file, const SceneCheck& check, SceneImages images) {
+FilmSize default_gltf_film(double aspect) {
+  if (!(aspect > 0.0)) aspect = 16.0 / 9.0;
+  aspect = std::clamp(aspect, 1.0 / 16.0, 16.0);
+  const auto width = static_cast<uint32_t>(std::max(1.0, std::round(540.0 * aspect)));
+  return {width, 540};
+}
+
+namespace {
+
+/// A camera for a glTF file that has none: looking down -z at the middle of its meshes' bounds,
+/// from far enough that they fit the view.
+Camera default_camera(const Scene& scene) {
+  WideVec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+  for (const TriangleMesh& m : scene.meshes) {
+    for (const Vec3& p : m.positions) {
+      lo = {std::min(lo.x, double(p.x)), std::min(lo.y, double(p.y)), std::min(lo.z, double(p.z))};
+      hi = {std::max(hi.x, double(p.x)), std::max(hi.y, double(p.y)), std::max(hi.z, double(p.z))};
+    }
+  }
+  Camera c;
+  if (!(lo.x <= hi.x)) return c;  // no meshes: whatever lights there are, seen from the origin
+  const WideVec3 mid{(lo.x + hi.x) / 2, (lo.y + hi.y) / 2, (lo.z + hi.z) / 2};
+  const double radius = std::max(length(hi - lo) / 2, 1e-6);
+  const double distance = radius / std::sin(c.fov_y_deg * 3.14159265358979323846 / 360.0);
+  c.eye = Vec3(float(mid.x), float(mid.y), float(std::min(mid.z + distance, kMaxCoordinate)));
+  c.look_at = Vec3(float(mid.x), float(mid.y), float(mid.z));
+  if (c.eye == c.look_at) c.look_at.z -= 1.f;
+  return c;
+}
+
+Scene load_gltf_scene(const fs::path& file, const SceneCheck& check, SceneImages images,
+                      const GltfOptions& options) {
+  Scene scene;
+  scene.source = file;
+  const GltfResult result = load_gltf(file.parent_path(), file.filename(), options, images, scene);
+  scene.film = default_gltf_film(result.aspect);
+  if (check) {
+    if (auto refusal = check(scene.film, scene.render)) throw SceneRefused(*refusal);
+  }
+  if (!result.has_camera) {
+    scene.camera = default_camera(scene);
+    scene.warnings.push_back(file.string() +
+                             ": the file has no camera; a default one looks down -z at the "
+                             "middle of the meshes");
+  }
+  return scene;
+}
+
+}  // namespace
+
+Scene load_scene(const fs::path& file, const SceneCheck& check, SceneImages images,
+                 const GltfOptions& gltf) {
+  if (is_gltf_path(file)) return load_gltf_scene(file, check, images, gltf);
   const std::string name = file.string();
   const Json root = parse_json(read_text_file(file, kMaxSceneFileBytes, name), name);
   Scene scene;

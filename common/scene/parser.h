@@ -5,6 +5,7 @@
 #include <optional>
 #include <string>
 
+#include "common/scene/gltf_loader.h"
 #include "common/scene/scene.h"
 #include "common/scene/scene_files.h"
 #include "common/scene/texture_reader.h"
@@ -24,9 +25,14 @@ class SceneRefused : public SceneError {
 };
 
 /// Loads, resolves (OBJ meshes, quads, triangles) and validates a scene file, decoding every
-/// texture image (kept, or dropped once checked: `images`). Throws SceneError (SceneRefused when
-/// `check` refuses it).
+/// texture image (kept, or dropped once checked: `images`). A ".gltf" or ".glb" file is read as
+/// glTF 2.0 (docs/gltf.md), through the camera `gltf` names; a JSON scene names its glTF file
+/// itself. Throws SceneError (SceneRefused when `check` refuses it).
 Scene load_scene(const std::filesystem::path& file, const SceneCheck& check = {},
-                 SceneImages images = SceneImages::kKeep);
+                 SceneImages images = SceneImages::kKeep, const GltfOptions& gltf = {});
+
+/// Film of a glTF file rendered directly: 540 rows, as wide as its camera's aspect ratio says
+/// (16:9 when it says none).
+FilmSize default_gltf_film(double aspect);
 
 }  // namespace rayfarm

@@ -22,6 +22,7 @@
 #include "common/net/keys.h"
 #include "common/protocol/version.h"
 #include "tests/e2e/farm_fixture.h"
+#include "tests/support/gltf_builder.h"
 #include "tests/support/read_png.h"
 
 namespace rayfarm::test {
@@ -237,6 +238,47 @@ TEST_F(CliTest, ResOverridesTheFilmLocallyAndOnTheFarmAlike) {
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.err.find("wrote " + (dir() / "farm.exr").string()), std::string::npos) << r.err;
   EXPECT_TRUE(bit_identical(dir() / "farm.exr", local));
+}
+
+TEST_F(CliTest, AGlbRendersThroughTheNamedCameraLocallyAndOnTheFarmAlike) {
+  // An emissive quad seen by two cameras: "near" (the first) and "far".
+  testing::GltfBuilder b;
+  const int lamp =
+      b.push("materials", {{"name", "lamp"},
+                           {"emissiveFactor", {1.0, 0.5, 0.25}},
+                           {"pbrMetallicRoughness", {{"baseColorFactor", {0.5, 0.5, 0.5, 1}}}}});
+  b.push("nodes", {{"mesh", b.add_quad(lamp)}, {"translation", {-0.5, -0.5, 0}}});
+  b.push("cameras", {{"name", "near"},
+                     {"type", "perspective"},
+                     {"perspective", {{"yfov", 0.5}, {"znear", 0.1}}}});
+  b.push(
+      "cameras",
+      {{"name", "far"}, {"type", "perspective"}, {"perspective", {{"yfov", 0.5}, {"znear", 0.1}}}});
+  b.push("nodes", {{"camera", 0}, {"translation", {0, 0, 2}}});
+  b.push("nodes", {{"camera", 1}, {"translation", {0, 0, 6}}});
+  const fs::path glb = dir() / "model" / "lamp.glb";
+  fs::create_directories(glb.parent_path());
+  std::ofstream(glb, std::ios::binary) << b.glb();
+
+  const std::vector<std::string> settings{"--spp", "4", "--res", "24x16"};
+  const fs::path near = local_render(glb, settings);
+  std::vector<std::string> far_settings = settings;
+  far_settings.insert(far_settings.end(), {"--camera", "far"});
+  const fs::path far = local_render(glb, far_settings);
+  EXPECT_FALSE(bit_identical(near, far));  // the camera changed the view
+  const RunResult unknown =
+      cli({"render", glb.string(), "-o", (dir() / "x.exr").string(), "--camera", "side"}, false);
+  EXPECT_EQ(unknown.code, 1);
+  EXPECT_NE(unknown.err.find("no camera named \"side\""), std::string::npos) << unknown.err;
+
+  start_master();
+  start_worker();
+  std::vector<std::string> args{"submit", glb.string(), "--wait", "-o",
+                                (dir() / "farm.exr").string()};
+  args.insert(args.end(), far_settings.begin(), far_settings.end());
+  const RunResult r = cli(args);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(bit_identical(dir() / "farm.exr", far));
 }
 
 TEST_F(CliTest, ClampIsOffByDefaultRecordedWhenOnAndTheSameOnTheFarm) {

@@ -84,7 +84,7 @@ std::vector<std::string> bundled_scene_names() {
 
 TEST(BundledScenes, AllAreFound) {
   const std::vector<std::string> names = bundled_scene_names();
-  for (const char* expected : {"cornell-box", "materials", "textured", "environment"})
+  for (const char* expected : {"cornell-box", "materials", "textured", "environment", "product"})
     EXPECT_NE(std::find(names.begin(), names.end(), expected), names.end()) << expected;
 }
 

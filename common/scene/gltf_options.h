@@ -1,0 +1,21 @@
+#pragma once
+// What a caller chooses about a glTF file, and what reading one found besides the scene.
+#include <string>
+
+namespace rayfarm {
+
+/// What the caller chooses about a glTF file.
+struct GltfOptions {
+  /// The camera to render through: a camera's or its node's name. Empty: the first camera met in
+  /// the scene's node hierarchy (depth first, in the order the nodes list their children).
+  std::string camera;
+};
+
+/// What load_gltf() found besides what it added to the scene.
+struct GltfResult {
+  bool has_camera = false;  ///< a camera was found and set in Scene::camera
+  /// The camera's aspect ratio (width / height) when the file states one, else 0.
+  double aspect = 0.0;
+};
+
+}  // namespace rayfarm

@@ -1,0 +1,315 @@
+// glTF 2.0 import: what each part of a file becomes in the scene, .gltf and .glb alike, the JSON
+// format's "gltf" key, and malformed files (each a SceneError naming the file and the object).
+#include <cmath>
+#include <variant>
+
+#include <gtest/gtest.h>
+
+#include "common/scene/parser.h"
+#include "tests/support/gltf_builder.h"
+#include "tests/support/image_writers.h"
+#include "tests/support/temp_dir.h"
+
+namespace rayfarm {
+namespace {
+
+using testing::GltfBuilder;
+using testing::TempDir;
+using Json = nlohmann::json;
+
+constexpr double kPi = 3.14159265358979323846;
+
+/// A quad placed by a node (translation, 90 degrees about +y, scale 2), a material, a camera
+/// and a point light.
+GltfBuilder sample_scene() {
+  GltfBuilder b;
+  const int material =
+      b.push("materials", {{"name", "paint"},
+                           {"pbrMetallicRoughness",
+                            {{"baseColorFactor", {0.5, 0.25, 0.125, 1.0}},
+                             {"metallicFactor", 0.0},
+                             {"roughnessFactor", 0.5}}},
+                           {"emissiveFactor", {0.0, 0.0, 0.0}},
+                           {"extensions", {{"KHR_materials_ior", {{"ior", 1.33}}}}}});
+  const int mesh = b.add_quad(material);
+  const double s = std::sin(kPi / 4), c = std::cos(kPi / 4);
+  b.push("nodes", {{"mesh", mesh},
+                   {"translation", {1, 2, 3}},
+                   {"rotation", {0, s, 0, c}},
+                   {"scale", {2, 2, 2}}});
+  b.push("cameras", {{"type", "perspective"},
+                     {"perspective", {{"yfov", kPi / 4}, {"aspectRatio", 2.0}, {"znear", 0.1}}}});
+  b.push("nodes", {{"camera", 0}, {"translation", {0, 0, 10}}});
+  b.doc["extensionsUsed"] = {"KHR_lights_punctual", "KHR_materials_ior"};
+  b.doc["extensions"]["KHR_lights_punctual"]["lights"] = {
+      {{"type", "point"}, {"color", {1, 0.5, 0.25}}, {"intensity", 683}}};
+  b.push("nodes",
+         {{"translation", {0, 5, 0}}, {"extensions", {{"KHR_lights_punctual", {{"light", 0}}}}}});
+  b.doc["scenes"] = {{{"nodes", {0, 1, 2}}}};
+  b.doc["scene"] = 0;
+  return b;
+}
+
+void expect_near(const Vec3& a, const Vec3& b, float tol = 1e-5f) {
+  EXPECT_NEAR(a.x, b.x, tol);
+  EXPECT_NEAR(a.y, b.y, tol);
+  EXPECT_NEAR(a.z, b.z, tol);
+}
+
+void check_sample(const Scene& scene) {
+  ASSERT_EQ(scene.meshes.size(), 1u);
+  const TriangleMesh& m = scene.meshes[0];
+  ASSERT_EQ(m.positions.size(), 4u);
+  // (1, 0, 0) scaled by 2, turned 90 degrees about +y to (0, 0, -2), moved by (1, 2, 3).
+  expect_near(m.positions[1], Vec3(1, 2, 1));
+  expect_near(m.positions[2], Vec3(1, 4, 1));
+  // The normal +z turns to +x.
+  ASSERT_EQ(m.normals.size(), 4u);
+  expect_near(m.normals[0], Vec3(1, 0, 0));
+  EXPECT_EQ(m.indices, (std::vector<uint32_t>{0, 1, 2, 0, 2, 3}));
+
+  ASSERT_EQ(scene.materials.size(), 1u);
+  EXPECT_EQ(scene.materials[0].name, "paint");
+  const auto& k = std::get<MetallicRoughnessMaterial>(scene.materials[0].kind);
+  expect_near(k.base_color.value, Vec3(0.5f, 0.25f, 0.125f));
+  EXPECT_EQ(k.metallic.value, 0.f);
+  EXPECT_EQ(k.roughness.value, 0.5f);
+  EXPECT_FLOAT_EQ(k.ior, 1.33f);
+  EXPECT_FALSE(scene.materials[0].textured);
+  EXPECT_TRUE(m.uvs.empty());  // an untextured material reads no coordinates
+
+  expect_near(scene.camera.eye, Vec3(0, 0, 10));
+  expect_near(scene.camera.look_at, Vec3(0, 0, 9));
+  EXPECT_NEAR(scene.camera.fov_y_deg, 45.f, 1e-4f);
+  EXPECT_EQ(scene.film.width, 1080u);  // 540 rows at the camera's aspect ratio 2
+  EXPECT_EQ(scene.film.height, 540u);
+
+  ASSERT_EQ(scene.point_lights.size(), 1u);
+  expect_near(scene.point_lights[0].position, Vec3(0, 5, 0));
+  // 683 cd is 1 W/sr at the luminous efficacy of 683 lm/W.
+  expect_near(scene.point_lights[0].intensity, Vec3(1, 0.5f, 0.25f));
+}
+
+TEST(Gltf, TextFileWithBufferFile) {
+  TempDir dir;
+  const GltfBuilder b = sample_scene();
+  dir.write("model.bin", b.bin);
+  const auto file = dir.write("model.gltf", b.gltf("model.bin"));
+  const Scene scene = load_scene(file);
+  check_sample(scene);
+  EXPECT_EQ(scene.referenced, (std::vector<std::filesystem::path>{"model.gltf", "model.bin"}));
+}
+
+TEST(Gltf, BinaryFileGivesTheSameScene) {
+  TempDir dir;
+  const auto file = dir.write("model.glb", sample_scene().glb());
+  const Scene scene = load_scene(file);
+  check_sample(scene);
+  EXPECT_EQ(scene.referenced, (std::vector<std::filesystem::path>{"model.glb"}));
+}
+
+TEST(Gltf, JsonSceneAddsFilmAndOverridesMaterials) {
+  TempDir dir;
+  dir.write("m.glb", sample_scene().glb());
+  const auto file = dir.write("scene.json", R"({
+    "gltf": {"file": "m.glb"},
+    "film": {"width": 64, "height": 32},
+    "materials": {"paint": {"type": "diffuse", "albedo": [0.1, 0.2, 0.3]},
+                  "extra": {"type": "diffuse"}},
+    "shapes": [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "paint"}],
+    "render": {"spp": 4}
+  })");
+  const Scene scene = load_scene(file);
+  EXPECT_EQ(scene.film.width, 64u);
+  ASSERT_EQ(scene.materials.size(), 2u);
+  EXPECT_TRUE(std::holds_alternative<DiffuseMaterial>(scene.materials[0].kind));
+  EXPECT_EQ(scene.meshes[0].materials[0], 0u);  // the glTF mesh now wears the override
+  EXPECT_EQ(scene.spheres.at(0).material, 0u);
+  expect_near(scene.camera.eye, Vec3(0, 0, 10));  // the glTF's camera
+  EXPECT_EQ(scene.render.spp, 4u);
+}
+
+TEST(Gltf, CameraChosenByName) {
+  GltfBuilder b = sample_scene();
+  b.doc["cameras"].push_back(
+      {{"type", "orthographic"},
+       {"name", "top"},
+       {"orthographic", {{"xmag", 4}, {"ymag", 2}, {"znear", 0}, {"zfar", 9}}}});
+  b.push("nodes", {{"camera", 1},
+                   {"translation", {0, 7, 0}},
+                   {"rotation", {-std::sin(kPi / 4), 0, 0, std::cos(kPi / 4)}}});
+  b.doc["scenes"][0]["nodes"].push_back(3);
+  TempDir dir;
+  const auto file = dir.write("m.glb", b.glb());
+  GltfOptions options;
+  options.camera = "top";
+  const Scene scene = load_scene(file, {}, SceneImages::kKeep, options);
+  EXPECT_EQ(scene.camera.projection, Camera::Projection::kOrthographic);
+  EXPECT_FLOAT_EQ(scene.camera.view_height, 4.f);
+  expect_near(scene.camera.eye, Vec3(0, 7, 0));
+  expect_near(scene.camera.look_at, Vec3(0, 6, 0));  // turned to look down
+  EXPECT_EQ(scene.film.width, 1080u);
+  options.camera = "nowhere";
+  EXPECT_THROW(load_scene(file, {}, SceneImages::kKeep, options), SceneError);
+}
+
+TEST(Gltf, TexturesWithSamplersAndTransforms) {
+  GltfBuilder b;
+  testing::PngSpec png;
+  png.width = 2;
+  png.height = 1;
+  png.samples = {255, 0, 0, 0, 0, 255};
+  const testing::Bytes bytes = testing::encode_png(png);
+  const int view = b.add_view(std::string(bytes.begin(), bytes.end()));
+  b.push("images", {{"bufferView", view}, {"mimeType", "image/png"}});
+  b.push("samplers", {{"magFilter", 9728}, {"wrapS", 33071}, {"wrapT", 33648}});
+  b.push("textures", {{"source", 0}, {"sampler", 0}});
+  const int material = b.push(
+      "materials", {{"pbrMetallicRoughness",
+                     {{"baseColorTexture",
+                       {{"index", 0},
+                        {"extensions",
+                         {{"KHR_texture_transform",
+                           {{"offset", {0.5, 0}}, {"rotation", 0.25}, {"scale", {2, 3}}}}}}}},
+                      {"metallicRoughnessTexture", {{"index", 0}}}}}});
+  b.push("nodes", {{"mesh", b.add_quad(material)}});
+  TempDir dir;
+  const Scene scene = load_scene(dir.write("t.glb", b.glb()));
+  ASSERT_EQ(scene.textures.size(), 2u);  // sRGB colour, linear metal-roughness
+  const TextureDesc& colour = scene.textures[0];
+  EXPECT_EQ(colour.space, ColourSpace::srgb);
+  EXPECT_EQ(colour.options.origin, UvOrigin::top_left);
+  EXPECT_EQ(colour.options.filter, TextureFilter::nearest);
+  EXPECT_EQ(colour.options.wrap_u, TextureWrap::clamp);
+  EXPECT_EQ(colour.options.wrap_v, TextureWrap::mirror);
+  EXPECT_FLOAT_EQ(colour.options.transform.rotation, -0.25f);
+  EXPECT_FLOAT_EQ(colour.options.transform.scale[1], 3.f);
+  ASSERT_TRUE(colour.image);
+  EXPECT_EQ(colour.image->width, 2u);
+  EXPECT_EQ(scene.textures[1].space, ColourSpace::linear);
+  const auto& k = std::get<MetallicRoughnessMaterial>(scene.materials[0].kind);
+  EXPECT_EQ(k.base_color.texture, 0);
+  EXPECT_EQ(k.metallic.texture, 1);
+  EXPECT_EQ(k.metallic.channel, TextureChannel::kB);
+  EXPECT_EQ(k.roughness.channel, TextureChannel::kG);
+  EXPECT_TRUE(scene.materials[0].textured);
+  EXPECT_EQ(scene.meshes[0].uvs.size(), 4u);
+  // Loaded to be checked only: the image is decoded, then dropped.
+  const Scene checked = load_scene(dir.path() / "t.glb", {}, SceneImages::kCheckOnly);
+  EXPECT_FALSE(checked.textures[0].image);
+}
+
+/// The message of the SceneError that loading `b` as a .glb throws ("" when none).
+std::string glb_error(const GltfBuilder& b) {
+  TempDir dir;
+  try {
+    load_scene(dir.write("bad.glb", b.glb()));
+  } catch (const SceneError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(Gltf, MalformedFilesNameThePlace) {
+  {
+    GltfBuilder b = sample_scene();
+    b.doc["meshes"][0]["primitives"][0]["attributes"]["NORMAL"] = 99;
+    EXPECT_NE(glb_error(b).find("accessor 99 does not exist"), std::string::npos) << glb_error(b);
+  }
+  {
+    GltfBuilder b = sample_scene();
+    b.doc["accessors"][0]["count"] = 1000;  // positions past their view
+    EXPECT_NE(glb_error(b).find("accessors[0]: 1000 elements"), std::string::npos) << glb_error(b);
+  }
+  {
+    GltfBuilder b = sample_scene();
+    b.doc["bufferViews"][3]["byteOffset"] = 1u << 20;
+    EXPECT_NE(glb_error(b).find("bufferViews[3]"), std::string::npos) << glb_error(b);
+  }
+  {
+    GltfBuilder b = sample_scene();
+    const std::string index(4, '\x09');  // 0x09090909, past the 4 vertices
+    b.doc["meshes"][0]["primitives"][0]["indices"] = b.add_indices({0, 1, 0x09090909u});
+    EXPECT_NE(glb_error(b).find("index 2 is 151587081, past the 4 vertices"), std::string::npos)
+        << glb_error(b);
+  }
+  {
+    GltfBuilder b = sample_scene();
+    b.doc["extensionsRequired"] = {"KHR_draco_mesh_compression"};
+    EXPECT_NE(glb_error(b).find("requires extension KHR_draco_mesh_compression"), std::string::npos)
+        << glb_error(b);
+  }
+  {
+    GltfBuilder b = sample_scene();
+    b.doc["nodes"][0]["children"] = {0};  // a cycle
+    EXPECT_NE(glb_error(b).find("nodes[0]: is reached twice"), std::string::npos) << glb_error(b);
+  }
+  {
+    GltfBuilder b = sample_scene();
+    b.doc["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"] = {{"index", 5}};
+    EXPECT_NE(glb_error(b).find("textures[5] does not exist"), std::string::npos) << glb_error(b);
+  }
+  {
+    GltfBuilder b = sample_scene();
+    b.push("images",
+           {{"bufferView", b.add_view("not an image at all")}, {"mimeType", "image/png"}});
+    b.push("textures", {{"source", 0}});
+    b.doc["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"] = {{"index", 0}};
+    EXPECT_NE(glb_error(b).find("images[0]"), std::string::npos) << glb_error(b);
+  }
+  {
+    GltfBuilder b = sample_scene();
+    std::string glb = b.glb();
+    glb.resize(glb.size() - 8);  // the binary chunk cut short
+    TempDir dir;
+    EXPECT_THROW(load_scene(dir.write("cut.glb", glb)), SceneError);
+    EXPECT_THROW(load_scene(dir.write("junk.glb", "not a glb file at all, really")), SceneError);
+  }
+}
+
+TEST(Gltf, BufferShorterThanDeclaredAndMissingFiles) {
+  TempDir dir;
+  const GltfBuilder b = sample_scene();
+  dir.write("short.bin", b.bin.substr(0, b.bin.size() / 2));
+  EXPECT_THROW(load_scene(dir.write("a.gltf", b.gltf("short.bin"))), SceneError);
+  EXPECT_THROW(load_scene(dir.write("b.gltf", b.gltf("missing.bin"))), SceneError);
+  EXPECT_THROW(load_scene(dir.write("c.gltf", b.gltf("../outside.bin"))), SceneError);
+  GltfBuilder with_image = sample_scene();
+  with_image.push("images", {{"uri", "absent.png"}});
+  with_image.push("textures", {{"source", 0}});
+  with_image.doc["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"] = {{"index", 0}};
+  dir.write("d.bin", with_image.bin);
+  try {
+    load_scene(dir.write("d.gltf", with_image.gltf("d.bin")));
+    ADD_FAILURE() << "a missing image loaded";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("absent.png"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Gltf, UnsupportedFeaturesAreNamedInWarnings) {
+  GltfBuilder b = sample_scene();
+  b.doc["extensionsUsed"].push_back("KHR_materials_clearcoat");
+  b.doc["materials"][0]["alphaMode"] = "BLEND";
+  b.doc["animations"] = {{{"channels", Json::array()}, {"samplers", Json::array()}}};
+  TempDir dir;
+  const Scene scene = load_scene(dir.write("w.glb", b.glb()));
+  std::string all;
+  for (const std::string& w : scene.warnings) all += w + "\n";
+  EXPECT_NE(all.find("KHR_materials_clearcoat"), std::string::npos) << all;
+  EXPECT_NE(all.find("animations"), std::string::npos) << all;
+  EXPECT_NE(all.find("BLEND"), std::string::npos) << all;
+}
+
+TEST(Gltf, NoCameraGivesADefaultView) {
+  GltfBuilder b = sample_scene();
+  b.doc["scenes"][0]["nodes"] = {0};
+  TempDir dir;
+  const Scene scene = load_scene(dir.write("n.glb", b.glb()));
+  EXPECT_GT(scene.camera.eye.z, scene.camera.look_at.z);
+  EXPECT_EQ(scene.film.width, 960u);
+  EXPECT_FALSE(scene.warnings.empty());
+}
+
+}  // namespace
+}  // namespace rayfarm
