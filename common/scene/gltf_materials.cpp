@@ -24,6 +24,17 @@ double ext_number(const Source& src, const tinygltf::Value& object, const std::s
   return x;
 }
 
+constexpr int kMaxTexcoordSet = 255;
+
+/// The "texCoord" of an extension object: an integer in [0, 255], or `fallback` when absent.
+int texcoord_set(const Source& src, const tinygltf::Value& object, int fallback,
+                 const std::string& where) {
+  const double x = ext_number(src, object, "texCoord", fallback, where);
+  if (!(x >= 0.0 && x <= kMaxTexcoordSet) || x != std::floor(x))
+    src.fail(where + "/texCoord", "must be an integer in [0, 255]");
+  return static_cast<int>(x);
+}
+
 /// Reads a factor in [0, 1].
 float unit_factor(const Source& src, double x, const std::string& where) {
   if (!(x >= 0.0 && x <= 1.0)) src.fail(where, "must lie in [0, 1], is " + std::to_string(x));
@@ -101,8 +112,8 @@ Material Materials::convert(int index) {
     int set = info.texCoord;
     const auto ext = info.extensions.find("KHR_texture_transform");
     if (ext != info.extensions.end() && ext->second.Has("texCoord"))
-      set = static_cast<int>(ext_number(src_, ext->second, "texCoord", set, at));
-    if (set < 0) src_.fail(at + "/texCoord", "must not be negative");
+      set = texcoord_set(src_, ext->second, set, at + "/extensions/KHR_texture_transform");
+    if (set < 0 || set > kMaxTexcoordSet) src_.fail(at + "/texCoord", "must lie in [0, 255]");
     note_texcoord(set, at);
     return texture(info.index, set, info.extensions, space, at);
   };
@@ -156,8 +167,7 @@ Material Materials::convert(int index) {
       const std::string tat = at + "/transmissionTexture";
       if (!info.IsObject() || !info.Has("index") || !info.Get("index").IsInt())
         src_.fail(tat, "expected a texture info with an integer index");
-      const int set = static_cast<int>(ext_number(src_, info, "texCoord", 0.0, tat));
-      if (set < 0) src_.fail(tat + "/texCoord", "must not be negative");
+      const int set = texcoord_set(src_, info, 0, tat);
       note_texcoord(set, tat);
       const tinygltf::ExtensionMap none;
       k.transmission.texture =
@@ -221,9 +231,9 @@ Material Materials::convert(int index) {
   return m;
 }
 
-int32_t Materials::texture(int index, int texcoord_set, const tinygltf::ExtensionMap& extensions,
+int32_t Materials::texture(int index, int uv_set, const tinygltf::ExtensionMap& extensions,
                            ColourSpace space, const std::string& where) {
-  (void)texcoord_set;
+  (void)uv_set;
   const auto& all = src_.model->textures;
   const std::string name = "textures[" + std::to_string(index) + "]";
   if (index < 0 || static_cast<size_t>(index) >= all.size())

@@ -37,7 +37,7 @@ class Materials {
   Material convert(int index);
   /// The scene texture for glTF texture `info_index` as read in `space`; `texcoord` receives its
   /// TEXCOORD set; `where` names the texture info for messages.
-  int32_t texture(int index, int texcoord_set, const tinygltf::ExtensionMap& extensions,
+  int32_t texture(int index, int uv_set, const tinygltf::ExtensionMap& extensions,
                   ColourSpace space, const std::string& where);
   std::shared_ptr<const DecodedImage> image(int index, const std::string& where);
 

@@ -144,14 +144,19 @@ int32_t TextureReader::texture_ref(const Node& n) const {
          (known.empty() ? "; no textures are defined" : "; defined: " + printable(known)));
 }
 
-TexturedRgb TextureReader::reflectance(const Node& n) const {
-  if (!n.json().is_object()) return read_reflectance(n);
+TexturedRgb TextureReader::colour_texture(const Node& n) const {
   if (!n.json().contains("texture"))
     n.fail(
         "expected an array of 3 numbers or {\"texture\": NAME}, got an object without \"texture\"");
   n.allow_keys({"texture", "scale"});
   TexturedRgb p(Vec3(1.f));
   p.texture = texture_ref(n.require("texture"));
+  return p;
+}
+
+TexturedRgb TextureReader::reflectance(const Node& n) const {
+  if (!n.json().is_object()) return read_reflectance(n);
+  TexturedRgb p = colour_texture(n);
   ++textured_reads_;
   if (auto s = n.find("scale")) {
     if (s->json().is_number()) {
@@ -167,12 +172,7 @@ TexturedRgb TextureReader::reflectance(const Node& n) const {
 
 TexturedRgb TextureReader::radiance(const Node& n) const {
   if (!n.json().is_object()) return read_radiance(n);
-  if (!n.json().contains("texture"))
-    n.fail(
-        "expected an array of 3 numbers or {\"texture\": NAME}, got an object without \"texture\"");
-  n.allow_keys({"texture", "scale"});
-  TexturedRgb p(Vec3(1.f));
-  p.texture = texture_ref(n.require("texture"));
+  TexturedRgb p = colour_texture(n);
   if (auto s = n.find("scale"))
     p.value = s->json().is_number() ? Vec3(read_non_negative(*s)) : read_radiance(*s);
   return p;

@@ -52,6 +52,8 @@ class TextureReader {
 
  private:
   int32_t texture_ref(const scene_json::Node& n) const;
+  /// {"texture": NAME, "scale": ...}: the texture, its scale (1) left to the caller.
+  TexturedRgb colour_texture(const scene_json::Node& n) const;
   std::shared_ptr<const DecodedImage> image(const scene_json::Node& n,
                                             const std::filesystem::path& file);
 
