@@ -13,6 +13,8 @@ namespace rayfarm {
 inline constexpr std::uintmax_t kMaxSceneFileBytes = std::uintmax_t{64} << 20;
 /// Largest OBJ file read, in bytes.
 inline constexpr std::uintmax_t kMaxObjFileBytes = std::uintmax_t{1} << 30;
+/// Largest PLY file read, in bytes.
+inline constexpr std::uintmax_t kMaxPlyFileBytes = std::uintmax_t{1} << 30;
 /// Most bytes a glTF scene reads: its .gltf or .glb file and every buffer and image file it names.
 inline constexpr std::uintmax_t kMaxGltfBytes = std::uintmax_t{1} << 30;
 /// Most triangles a glTF file's nodes may place (a mesh placed by many nodes counts each time).

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# Regenerates the seed corpus in fuzz/corpus/ from the bundled scenes and, for the wire, from
-# text-format messages encoded with protoc; the image seeds are written by the build's
-# fuzz_image_seeds (BUILD=folder, default build/; cmake --build build --target fuzz_image_seeds).
+# Regenerates the seed corpus in fuzz/corpus/ from the bundled scenes, PLY files written by
+# make_ply_seeds.py and, for the wire, text-format messages encoded with protoc; the image seeds
+# are written by the build's fuzz_image_seeds (BUILD=folder, default build/;
+# cmake --build build --target fuzz_image_seeds).
 # Run from anywhere; the seeds are committed.
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
@@ -12,7 +13,7 @@ if [ ! -x "$build/fuzz/fuzz_image_seeds" ]; then
   echo "make_seeds: $build/fuzz/fuzz_image_seeds is missing: cmake --build $build --target fuzz_image_seeds" >&2
   exit 1
 fi
-rm -rf "$c" && mkdir -p "$c"/{scene,obj,wire,bundle,image,gltf}
+rm -rf "$c" && mkdir -p "$c"/{scene,obj,ply,wire,bundle,image,gltf}
 
 # Scenes: the bundled ones, one with a mesh and every shape and material, and broken ones.
 for s in cornell-box phong furnace; do cp "$root/scenes/$s/scene.json" "$c/scene/$s.json"; done
@@ -41,6 +42,9 @@ obj="$root/scenes/embree-cornell/cornell_box.obj"
 { sed 's/^mtllib .*/mtllib f.mtl/' "$obj"; printf '\0'; cat "$root/scenes/embree-cornell/cornell_box.mtl"; } > "$c/obj/cornell.bin"
 printf 'mtllib f.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0 1\nv 1 1 0 0.5 0.5 0.5\nvt 0 0\nvn 0 0 1\no x\ng y\ns 1\nusemtl glass\nf 1/1/1 2/1/1 3/1/1\nf -1 -2 -3 -4\nl 1 2\n\0newmtl glass\nKd 0.5 0.5 0.5\nKs 0.1 0.1 0.1\nNi 1.5\nd 0.5\nTf 1 1 1\nillum 7\nNs 10\nKe 0 0 0\nmap_Kd x.png\n' > "$c/obj/small.bin"
 printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n' > "$c/obj/plain.bin"
+
+# PLY: the three formats with what the reader skips, and broken files.
+python3 "$here/make_ply_seeds.py" "$c/ply"
 
 # Wire messages: type frame, newline, body (protoc --encode of a text-format message).
 enc() {  # enc NAME TYPE TEXT

@@ -22,7 +22,7 @@ inline void check_scene(const Scene& s) {
   require(s.camera.fov_y_deg > 0.f && s.camera.fov_y_deg < 180.f, "fov");
   require(s.render.spp >= 1 && s.render.max_depth <= 1024, "render settings");
   for (const Material& m : s.materials) {
-    require(is_finite(m.emission) && min_component(m.emission) >= 0.f, "emission");
+    require(is_finite(m.emission.value) && min_component(m.emission.value) >= 0.f, "emission");
     if (const auto* d = std::get_if<DiffuseMaterial>(&m.kind)) {
       require(min_component(d->albedo) >= 0.f && max_component(d->albedo) <= 1.f, "albedo");
     }
@@ -55,6 +55,16 @@ inline void check_scene(const Scene& s) {
     for (uint32_t i : mesh.indices) require(i < mesh.positions.size(), "vertex index");
     for (uint32_t m : mesh.materials) require(m < s.materials.size(), "material index");
     for (const Vec3& p : mesh.positions) require(finite_within(p, 1e17f), "vertex range");
+    require(mesh.normals.empty() || mesh.normals.size() == mesh.positions.size(), "normals");
+    require(mesh.uvs.empty() || mesh.uvs.size() == mesh.positions.size(), "uvs");
+    for (const Vec3& n : mesh.normals) {
+      const float length = std::sqrt(dot(n, n));
+      require(is_black(n) || (std::isfinite(length) && std::fabs(length - 1.f) < 1e-3f),
+              "normal unit or zero");
+    }
+    for (const Vec2& uv : mesh.uvs) {
+      require(std::isfinite(uv.x) && std::isfinite(uv.y), "uv finite");
+    }
   }
   for (const Sphere& sp : s.spheres) {
     require(sp.material < s.materials.size(), "sphere material");

@@ -188,6 +188,41 @@ TileResult Renderer::render(const TileRect& rect, const SampleRange& samples,
   return result;
 }
 
+namespace {
+
+/// Which of the optional surface features the scene uses, by count of materials.
+std::string surface_features(const SceneData& data) {
+  size_t normal = 0, bump = 0, alpha = 0, emission = 0, tangent = 0, one_sided = 0;
+  for (uint32_t i = 0; i < data.scene().materials.size(); ++i) {
+    const Material& m = data.material(i);
+    normal += m.normal_map.has_value();
+    bump += m.bump_map.has_value();
+    alpha += m.has_alpha();
+    emission += m.emission.is_textured();
+    tangent += (data.surface_needs(i) & kNeedsTangentFrame) != 0;
+    one_sided += m.one_sided;
+  }
+  bool mesh_tangents = false;
+  for (const TriangleMesh& mesh : data.scene().meshes) mesh_tangents |= !mesh.tangents.empty();
+  std::string out;
+  const auto add = [&out](size_t count, const char* what) {
+    if (count > 0) out += (out.empty() ? "" : ", ") + std::to_string(count) + " " + what;
+  };
+  add(normal, "normal-mapped");
+  add(bump, "bump-mapped");
+  add(alpha, "with cut-outs");
+  add(emission, "with textured emission");
+  add(tangent, "anisotropic along the tangent");
+  add(one_sided, "one-sided");
+  if (out.empty()) return "plain";
+  return out + " (materials)" +
+         (normal + bump + tangent > 0
+              ? std::string(mesh_tangents ? "; tangents from meshes" : "; tangents from UVs")
+              : "");
+}
+
+}  // namespace
+
 std::string Renderer::plan() const {
   const IntegratorPlan& p = impl_->plan();
   std::string out = std::string("integrator ") + integrator_name(p.integrator);
@@ -232,6 +267,7 @@ std::string Renderer::plan() const {
            std::to_string(textures.image_count()) + " images (" +
            human_bytes(textures.memory_bytes()) + ")";
   }
+  out += "; surfaces: " + surface_features(impl_->data);
   out += "; max_depth " + std::to_string(p.max_depth);
   return out;
 }

@@ -66,11 +66,13 @@ SceneData::SceneData(const Scene& scene) : scene_(scene) {
   std::vector<Bvh::SphereInput> spheres;
   for (const Sphere& s : scene_.spheres) spheres.push_back({s.center, s.radius});
   sphere_lights_.assign(scene_.spheres.size(), -1);
-  bvh_ = std::make_unique<Bvh>(meshes, spheres);
+  const Bvh::HitFilter* sphere_filter = nullptr;
+  build_surface(meshes, sphere_filter);
+  bvh_ = std::make_unique<Bvh>(meshes, spheres, sphere_filter);
 }
 
 void SceneData::build_textures() {
-  for (const Material& m : scene_.materials) uses_uv_ = uses_uv_ || m.textured;
+  for (const Material& m : scene_.materials) uses_uv_ = uses_uv_ || m.uses_uv();
   for (const TextureDesc& t : scene_.textures) {
     if (t.kind == TextureDesc::Kind::kCheckerboard) {
       textures_.add_checkerboard(CheckerboardTexture(Vec4(t.color0.x, t.color0.y, t.color0.z, 1.f),
@@ -109,16 +111,18 @@ SurfaceHit SceneData::resolve_sphere(const Ray& ray, const RayHit& hit) const {
   s.n = n;
   s.p_error = sphere_point_error(sphere.center, sphere.radius);
   s.ns = n;
-  if (uses_uv_) {
-    // Angles in the sphere's own frame; the poles and the seam get u = 0.
-    const float x = dot(n, sphere.axis_x), y = dot(n, sphere.axis_y), z = dot(n, sphere.axis_z);
-    float phi = std::atan2(y, x);
-    if (phi < 0.f) phi += 2.f * kPi;
-    s.uv = {phi * (0.5f * kInvPi), std::acos(std::clamp(z, -1.f, 1.f)) * kInvPi};
-  }
+  if (uses_uv_) s.uv = sphere_uv(sphere, n);
   s.material = sphere.material;
   s.light = sphere_lights_[hit.prim];
   return s;
+}
+
+Vec2 SceneData::sphere_uv(const Sphere& sphere, const Vec3& n) const {
+  // Angles in the sphere's own frame; the poles and the seam get u = 0.
+  const float x = dot(n, sphere.axis_x), y = dot(n, sphere.axis_y), z = dot(n, sphere.axis_z);
+  float phi = std::atan2(y, x);
+  if (phi < 0.f) phi += 2.f * kPi;
+  return {phi * (0.5f * kInvPi), std::acos(std::clamp(z, -1.f, 1.f)) * kInvPi};
 }
 
 void SceneData::interpolate(const RayHit& hit, SurfaceHit& s) const {

@@ -29,6 +29,22 @@ struct SurfaceHit {
   int32_t light = -1;  ///< index into LightSet, or -1
 };
 
+/// Derivatives and tangent directions at a hit, for normal and bump maps and anisotropic BSDFs;
+/// computed only for materials that need them (SceneData::tangent_frame).
+struct TangentFrame {
+  Vec3 dpdu, dpdv;  ///< from the texture coordinates (or barycentrics); zero when degenerate
+  Vec3 tangent;     ///< unit: the mesh's tangent, else dpdu's direction; zero when unknown
+  Vec3 bitangent;   ///< unit: the direction of a normal map's +y (the image's up); may be zero
+};
+
+/// What shading a material needs beyond its BSDF, decided once per scene.
+enum SurfaceNeeds : uint8_t {
+  kNeedsTangentFrame = 1,  ///< an anisotropic BSDF: its frame follows the tangent
+  kNeedsSurfaceMap = 2,    ///< a normal or bump map perturbs the shading normal
+  kOneSided = 4,           ///< scatters nothing from behind
+  kFlipBitangent = 8,      ///< the normal map's image has its origin at the top (v runs down)
+};
+
 /// An origin for rays leaving `p` towards the side of `n`: moved `p_error` along n, then one ulp
 /// further away per component, so that rounding cannot bring it back. Scale independent, since
 /// p_error follows the floating-point error of p.
@@ -85,6 +101,14 @@ class SceneData {
   }
   /// True when hits carry texture coordinates (some material looks them up).
   bool uses_uv() const { return uses_uv_; }
+  /// True when some material has a SurfaceNeeds flag (scene_surface.cpp).
+  bool uses_surface() const { return uses_surface_; }
+  uint8_t surface_needs(uint32_t material) const { return surface_needs_[material]; }
+  /// Derivatives and tangents at a resolved hit.
+  TangentFrame tangent_frame(const RayHit& hit, const SurfaceHit& s) const;
+  /// Whether the candidate hit (geom, prim, barycentrics u v, point p) is there: false where its
+  /// material's opacity falls below its cutoff.
+  bool covered(uint32_t geom, uint32_t prim, float u, float v, const Vec3& p) const;
   /// Light index of a primitive (-1 when it does not emit); set by LightSet.
   void set_light_index(uint32_t geom, uint32_t prim, int32_t light);
   /// Number of triangles dropped because they have no area.
@@ -102,6 +126,9 @@ class SceneData {
   };
   SurfaceHit resolve_sphere(const Ray& ray, const RayHit& hit) const;
   void build_textures();
+  // Surface needs per material, and the cut-out filters of the BVH's geometries.
+  void build_surface(std::vector<Bvh::Mesh>& meshes, const Bvh::HitFilter*& sphere_filter);
+  Vec2 sphere_uv(const Sphere& sphere, const Vec3& n) const;
   // Shading normal and texture coordinates from a mesh's vertex attributes.
   void interpolate(const RayHit& hit, SurfaceHit& s) const;
 
@@ -110,6 +137,9 @@ class SceneData {
   std::vector<int32_t> sphere_lights_;
   std::vector<uint8_t> interpolates_;  // per mesh: its hits read vertex attributes
   bool uses_uv_ = false;
+  bool uses_surface_ = false;
+  std::vector<uint8_t> surface_needs_;  // per material
+  Bvh::HitFilter cut_out_filter_{};
   std::unique_ptr<Bvh> bvh_;
   TextureSet textures_;
   uint64_t degenerate_ = 0;

@@ -181,21 +181,42 @@ Material Materials::convert(int index) {
                               strength);
   m.emission = Vec3(e[0], e[1], e[2]);
   if (g.emissiveTexture.index >= 0) {
-    src_.warn(where + "/emissiveTexture",
-              "textured emission is not supported; the material emits emissiveFactor");
+    m.emission.texture = textured(g.emissiveTexture, ColourSpace::srgb, where + "/emissiveTexture");
   }
   if (g.normalTexture.index >= 0) {
-    src_.warn(where + "/normalTexture", "normal maps are not supported; the texture is ignored");
+    NormalMap& map = m.normal_map.emplace();
+    map.texture = static_cast<uint32_t>(
+        textured(g.normalTexture, ColourSpace::linear, where + "/normalTexture"));
+    if (!(std::fabs(g.normalTexture.scale) <= 1e3))
+      src_.fail(where + "/normalTexture/scale", "must lie in [-1000, 1000]");
+    map.scale = static_cast<float>(g.normalTexture.scale);
   }
   if (g.alphaMode == "MASK" || g.alphaMode == "BLEND") {
-    src_.warn(where + "/alphaMode",
-              "alpha mode " + g.alphaMode + " is not supported; the surface is rendered opaque");
+    // Coverage: the base colour's alpha times its texture's; below the cutoff, not there.
+    m.alpha = TexturedFloat(
+        unit_factor(src_, pbr.baseColorFactor[3], where + "/pbrMetallicRoughness/baseColorFactor"));
+    if (k.base_color.is_textured()) {
+      m.alpha.texture = k.base_color.texture;
+      m.alpha.channel = TextureChannel::kA;
+    }
+    m.alpha_cutoff = 0.5f;
+    if (g.alphaMode == "MASK") {
+      m.alpha_cutoff = unit_factor(src_, g.alphaCutoff, where + "/alphaCutoff");
+    } else {
+      src_.warn(where + "/alphaMode",
+                "BLEND is rendered as MASK: a surface is there where its alpha is 0.5 or more");
+    }
+    if (m.has_alpha() && m.is_emissive()) {
+      src_.warn(where + "/alphaMode", "an emissive surface cannot be cut out; it is opaque");
+      m.alpha = TexturedFloat(1.f);
+    }
   } else if (g.alphaMode != "OPAQUE" && !g.alphaMode.empty()) {
     src_.fail(where + "/alphaMode", "unknown alpha mode \"" + g.alphaMode + "\"");
   }
   m.two_sided = g.doubleSided;  // emission leaves both sides of a double-sided surface
   m.kind = k;
-  m.textured = texcoord >= 0;
+  m.textured = k.base_color.is_textured() || k.metallic.is_textured() ||
+               k.roughness.is_textured() || k.transmission.is_textured();
   if (texcoord >= 0) texcoords_[index] = texcoord;
   return m;
 }

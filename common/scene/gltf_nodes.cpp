@@ -192,7 +192,19 @@ class NodeReader {
     }
     const uint32_t material = materials_.material(prim.material);
     out.materials.assign(out.indices.size() / 3, material);
-    if (scene_.materials[material].textured) {
+    const Material& mat = scene_.materials[material];
+    if (mat.normal_map) {
+      if (auto it = prim.attributes.find("TANGENT"); it != prim.attributes.end()) {
+        out.tangents = read_vec4(src_, it->second, at + "/attributes/TANGENT");
+        same_count(out.tangents.size(), "TANGENT");
+        for (Vec4& t : out.tangents) {
+          const double len = std::sqrt(double(t.x) * t.x + double(t.y) * t.y + double(t.z) * t.z);
+          if (!(len > 0.0)) src_.fail(at + "/attributes/TANGENT", "a tangent is zero");
+          t = Vec4(float(t.x / len), float(t.y / len), float(t.z / len), t.w < 0.f ? -1.f : 1.f);
+        }
+      }
+    }
+    if (mat.uses_uv()) {
       const std::string set = "TEXCOORD_" + std::to_string(materials_.texcoord(prim.material));
       if (auto it = prim.attributes.find(set); it != prim.attributes.end()) {
         out.uvs = read_vec2(src_, it->second, at + "/attributes/" + set);

@@ -8,13 +8,16 @@
 namespace rayfarm::scene_json {
 namespace {
 
+// What every kind accepts besides its own parameters (read by read_surface()).
+#define SURFACE_KEYS "one_sided", "normal_map", "bump_map", "opacity", "alpha_cutoff"
+
 void read_params(const Node& n, DiffuseMaterial& d, const TextureReader& tex) {
-  n.allow_keys({"type", "albedo", "emission", "two_sided"});
+  n.allow_keys({"type", "albedo", "emission", "two_sided", SURFACE_KEYS});
   if (auto a = n.find("albedo")) d.albedo = tex.reflectance(*a);
 }
 
 void read_params(const Node& n, PhongMaterial& p, const TextureReader& tex) {
-  n.allow_keys({"type", "kd", "ks", "exponent", "emission", "two_sided"});
+  n.allow_keys({"type", "kd", "ks", "exponent", "emission", "two_sided", SURFACE_KEYS});
   p.kd = read_reflectance(n.require("kd"));
   p.ks = read_reflectance(n.require("ks"));
   p.exponent = read_non_negative(n.require("exponent"));
@@ -28,12 +31,12 @@ void read_params(const Node& n, PhongMaterial& p, const TextureReader& tex) {
 }
 
 void read_params(const Node& n, MirrorMaterial& m, const TextureReader& tex) {
-  n.allow_keys({"type", "reflectance", "emission", "two_sided"});
+  n.allow_keys({"type", "reflectance", "emission", "two_sided", SURFACE_KEYS});
   if (auto r = n.find("reflectance")) m.reflectance = tex.reflectance(*r);
 }
 
 void read_params(const Node& n, DielectricMaterial& d, const TextureReader& tex) {
-  n.allow_keys({"type", "ior", "tint", "emission", "two_sided"});
+  n.allow_keys({"type", "ior", "tint", "emission", "two_sided", SURFACE_KEYS});
   if (auto ior = n.find("ior")) d.ior = read_positive(*ior);
   if (auto tint = n.find("tint")) d.tint = tex.reflectance(*tint);
 }
@@ -71,7 +74,7 @@ void read_alphas(const Node& n, TexturedFloat& alpha_u, TexturedFloat& alpha_v,
 
 void read_params(const Node& n, RoughConductorMaterial& c, const TextureReader& tex) {
   n.allow_keys({"type", "eta", "k", "f0", "alpha", "alpha_u", "alpha_v", "specular_reflectance",
-                "emission", "two_sided"});
+                "emission", "two_sided", SURFACE_KEYS});
   const auto f0 = n.find("f0");
   if (f0) {
     if (auto e = n.find("eta")) e->fail("give either \"f0\" or \"eta\" and \"k\"");
@@ -94,21 +97,22 @@ void read_params(const Node& n, RoughConductorMaterial& c, const TextureReader& 
 }
 
 void read_params(const Node& n, RoughDielectricMaterial& d, const TextureReader& tex) {
-  n.allow_keys({"type", "ior", "alpha", "alpha_u", "alpha_v", "tint", "emission", "two_sided"});
+  n.allow_keys({"type", "ior", "alpha", "alpha_u", "alpha_v", "tint", "emission", "two_sided",
+                SURFACE_KEYS});
   if (auto ior = n.find("ior")) d.ior = read_positive(*ior);
   read_alphas(n, d.alpha_u, d.alpha_v, tex);
   if (auto tint = n.find("tint")) d.tint = tex.reflectance(*tint);
 }
 
 void read_params(const Node& n, ThinDielectricMaterial& d, const TextureReader& tex) {
-  n.allow_keys({"type", "ior", "tint", "emission", "two_sided"});
+  n.allow_keys({"type", "ior", "tint", "emission", "two_sided", SURFACE_KEYS});
   if (auto ior = n.find("ior")) d.ior = read_positive(*ior);
   if (auto tint = n.find("tint")) d.tint = tex.reflectance(*tint);
 }
 
 void read_params(const Node& n, PlasticMaterial& p, const TextureReader& tex) {
-  n.allow_keys(
-      {"type", "diffuse_reflectance", "ior", "alpha", "nonlinear", "emission", "two_sided"});
+  n.allow_keys({"type", "diffuse_reflectance", "ior", "alpha", "nonlinear", "emission", "two_sided",
+                SURFACE_KEYS});
   if (auto r = n.find("diffuse_reflectance")) p.diffuse_reflectance = tex.reflectance(*r);
   if (auto ior = n.find("ior")) p.ior = read_positive(*ior);
   if (auto a = n.find("alpha")) p.alpha = read_alpha(*a, tex);
@@ -117,7 +121,7 @@ void read_params(const Node& n, PlasticMaterial& p, const TextureReader& tex) {
 
 void read_params(const Node& n, MetallicRoughnessMaterial& m, const TextureReader& tex) {
   n.allow_keys({"type", "base_color", "metallic", "roughness", "ior", "transmission", "emission",
-                "two_sided"});
+                "two_sided", SURFACE_KEYS});
   if (auto b = n.find("base_color")) m.base_color = tex.reflectance(*b);
   if (auto v = n.find("metallic")) m.metallic = tex.number(*v, 0.f, 1.f);
   if (auto r = n.find("roughness")) m.roughness = tex.number(*r, 0.f, 1.f);
@@ -135,7 +139,8 @@ void read_rough_plastic(const Node& n, PlasticMaterial& p, const TextureReader& 
 
 /// "conductor": the smooth conductor, the same keys less the roughness.
 void read_smooth_conductor(const Node& n, RoughConductorMaterial& c, const TextureReader& tex) {
-  n.allow_keys({"type", "eta", "k", "f0", "specular_reflectance", "emission", "two_sided"});
+  n.allow_keys(
+      {"type", "eta", "k", "f0", "specular_reflectance", "emission", "two_sided", SURFACE_KEYS});
   read_params(n, c, tex);
   c.alpha_u = c.alpha_v = 0.f;
 }
@@ -176,6 +181,61 @@ bool read_material_kind(const Node& n, const std::string& type, MaterialKind& ou
     return true;
   }
   return read_kind(n, type, out, tex);
+}
+
+namespace {
+
+/// The texture a normal or bump map reads, which holds data rather than colour: one whose colour
+/// space comes from the file is read linear; one declared sRGB is refused.
+uint32_t read_data_texture(const Node& n, const TextureReader& tex,
+                           std::vector<TextureDesc>& textures) {
+  const Node ref = n.require("texture");
+  const int32_t index = tex.texture_index(ref);
+  TextureDesc& desc = textures[static_cast<size_t>(index)];
+  if (desc.space == ColourSpace::srgb)
+    ref.fail("texture \"" + desc.name +
+             "\" is declared sRGB; normal and bump maps hold data and must be read linear");
+  desc.space = ColourSpace::linear;
+  return static_cast<uint32_t>(index);
+}
+
+bool is_transmissive(const MaterialKind& kind) {
+  if (const auto* m = std::get_if<MetallicRoughnessMaterial>(&kind))
+    return m->transmission.is_textured() || m->transmission.value > 0.f;
+  return std::holds_alternative<DielectricMaterial>(kind) ||
+         std::holds_alternative<RoughDielectricMaterial>(kind) ||
+         std::holds_alternative<ThinDielectricMaterial>(kind);
+}
+
+}  // namespace
+
+void read_surface(const Node& n, Material& m, const TextureReader& tex,
+                  std::vector<TextureDesc>& textures) {
+  if (auto e = n.find("emission")) m.emission = tex.radiance(*e);
+  if (auto s = n.find("two_sided")) m.two_sided = read_bool(*s);
+  if (auto s = n.find("one_sided")) {
+    m.one_sided = read_bool(*s);
+    if (m.one_sided && is_transmissive(m.kind))
+      s->fail("one_sided needs an opaque material; a " + std::string(material_kind_name(m.kind)) +
+              " one transmits light from behind");
+  }
+  const auto read_map = [&](const Node& map, auto& out) {
+    map.allow_keys({"texture", "scale"});
+    out.texture = read_data_texture(map, tex, textures);
+    if (auto s = map.find("scale")) out.scale = read_float(*s);
+  };
+  if (auto map = n.find("normal_map")) read_map(*map, m.normal_map.emplace());
+  if (auto map = n.find("bump_map")) read_map(*map, m.bump_map.emplace());
+  if (m.normal_map && m.bump_map)
+    n.child("bump_map").fail("give either \"normal_map\" or \"bump_map\", not both");
+  if (auto o = n.find("opacity")) m.alpha = tex.number(*o, 0.f, 1.f);
+  if (auto c = n.find("alpha_cutoff")) {
+    m.alpha_cutoff = read_float(*c);
+    if (!(m.alpha_cutoff >= 0.f && m.alpha_cutoff <= 1.f))
+      c->fail("alpha_cutoff must lie in [0, 1]");
+  }
+  if (m.has_alpha() && m.is_emissive())
+    n.child("opacity").fail("an emitter cannot have cut-outs (opacity below alpha_cutoff)");
 }
 
 std::string material_type_names() { return kind_names() + ", conductor, roughplastic"; }

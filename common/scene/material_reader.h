@@ -1,6 +1,7 @@
 #pragma once
 // The scene format's material kinds: one reader per kind, each checking its keys and ranges.
 #include <string>
+#include <vector>
 
 #include "common/scene/json_reader.h"
 #include "common/scene/scene.h"
@@ -13,6 +14,11 @@ namespace rayfarm::scene_json {
 /// kind has that name.
 bool read_material_kind(const Node& n, const std::string& type, MaterialKind& out,
                         const rayfarm::TextureReader& tex);
+
+/// What any kind may carry (docs/scene-format.md, "Surfaces"): emission, one_sided, a normal or
+/// bump map, an opacity cut-out. Data textures that a map reads are switched to linear.
+void read_surface(const Node& n, Material& m, const rayfarm::TextureReader& tex,
+                  std::vector<TextureDesc>& textures);
 
 /// "diffuse, phong, ...": every accepted type name, for messages.
 std::string material_type_names();

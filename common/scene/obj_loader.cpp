@@ -299,9 +299,9 @@ Material to_material(const MtlMaterial& mtl, const std::string& name, const Wher
 
 }  // namespace
 
-ObjMesh load_obj(const fs::path& scene_dir, const fs::path& relative) {
+MeshFile load_obj(const fs::path& scene_dir, const fs::path& relative) {
   const std::string display = (scene_dir / relative).string();
-  ObjMesh result;
+  MeshFile result;
   result.files.push_back(relative);
   ObjRead obj =
       ObjReader().read(read_text_file(scene_dir / relative, kMaxObjFileBytes, display), display);

@@ -14,6 +14,7 @@
 #include "common/scene/light_reader.h"
 #include "common/scene/material_reader.h"
 #include "common/scene/obj_loader.h"
+#include "common/scene/ply_loader.h"
 #include "common/scene/texture_reader.h"
 #include "common/scene/transform_reader.h"
 #include "common/util/text.h"
@@ -179,17 +180,23 @@ class SceneReader {
   }
 
   Material read_material(const Node& n, const std::string& name) const {
+    const Node type = n.require("type");
+    // Both sides of every opaque kind reflect already: the wrapper is the identity.
+    if (read_string(type) == "twosided") {
+      n.allow_keys({"type", "material"});
+      Material m = read_material(n.require("material"), name);
+      m.one_sided = false;
+      return m;
+    }
     Material m;
     m.name = name;
-    const Node type = n.require("type");
     const uint64_t textured_before = textures_.textured_reads();
     if (!read_material_kind(n, read_string(type), m.kind, textures_)) {
       type.fail("unknown material type " + as_written(type.json()) + "; expected one of " +
-                material_type_names());
+                material_type_names() + ", twosided");
     }
-    if (auto e = n.find("emission")) m.emission = read_radiance(*e);
-    if (auto s = n.find("two_sided")) m.two_sided = read_bool(*s);
     m.textured = textures_.textured_reads() != textured_before;
+    read_surface(n, m, textures_, scene_.textures);
     return m;
   }
 
@@ -284,19 +291,20 @@ class SceneReader {
     const fs::path relative = mesh_path(n.require("file"));
     std::optional<uint32_t> material;
     if (auto m = n.find("material")) material = material_ref(*m);
-    ObjMesh obj = load_obj(folder_, relative);
-    for (const fs::path& file : obj.files) add_referenced(file);
-    for (std::string& w : obj.warnings) scene_.warnings.push_back(std::move(w));
+    MeshFile loaded =
+        is_ply_file(relative) ? load_ply(folder_, relative) : load_obj(folder_, relative);
+    for (const fs::path& file : loaded.files) add_referenced(file);
+    for (std::string& w : loaded.warnings) scene_.warnings.push_back(std::move(w));
     std::vector<uint32_t> remap;
-    for (Material& m : obj.materials)
+    for (Material& m : loaded.materials)
       remap.push_back(material ? *material : add_material(std::move(m)));
-    for (uint32_t& index : obj.mesh.materials) index = remap.at(index);
-    if (obj.mesh.triangle_count() == 0) {
+    for (uint32_t& index : loaded.mesh.materials) index = remap.at(index);
+    if (loaded.mesh.triangle_count() == 0) {
       n.warn("the mesh has no triangles");
       return;
     }
-    if (auto t = n.find("transform")) transform_mesh(obj.mesh, read_transform(*t), *t);
-    scene_.meshes.push_back(std::move(obj.mesh));
+    if (auto t = n.find("transform")) transform_mesh(loaded.mesh, read_transform(*t), *t);
+    scene_.meshes.push_back(std::move(loaded.mesh));
   }
 
   /// The mesh file, relative to the scene's folder; it must stay inside and exist.

@@ -12,6 +12,7 @@
 #include "common/limits.h"
 #include "common/math/vec2.h"
 #include "common/math/vec3.h"
+#include "common/math/vec4.h"
 #include "common/scene/textures.h"
 
 namespace rayfarm {
@@ -154,15 +155,46 @@ inline const char* material_kind_name(const MaterialKind& kind) {
   return std::visit([](const auto& k) { return k.kName; }, kind);
 }
 
-/// One material: its kind's parameters, and the emission that any kind may carry.
+/// A tangent-space normal map: RGB in [0, 1] read linear, mapped to [-1, 1]; x along the tangent,
+/// y along the bitangent (the image's up), z along the shading normal; x and y times `scale`.
+struct NormalMap {
+  uint32_t texture = 0;  ///< index into Scene::textures
+  float scale = 1.f;
+};
+
+/// A height field over the surface: the texture's value (RGB mean, read linear) times `scale`,
+/// in scene units along the shading normal. Only the normal it implies is used.
+struct BumpMap {
+  uint32_t texture = 0;  ///< index into Scene::textures
+  float scale = 1.f;
+};
+
+/// One material: its kind's parameters, and what any kind may carry: emission, a normal or bump
+/// map, an alpha cut-out.
 struct Material {
   std::string name;
-  MaterialKind kind;       ///< default: diffuse, albedo 0.8
-  Vec3 emission{0.f};      ///< emitted radiance; non-zero makes an area light
-  bool two_sided = false;  ///< emission leaves both sides
-  bool textured = false;   ///< some parameter reads a texture (set by the scene's reader)
+  MaterialKind kind;                ///< default: diffuse, albedo 0.8
+  TexturedRgb emission{Vec3(0.f)};  ///< emitted radiance; non-zero makes an area light
+  bool two_sided = false;           ///< emission leaves both sides
+  bool textured = false;  ///< some BSDF parameter reads a texture (set by the scene's reader)
+  /// The BSDF scatters nothing from behind (the side against the geometric normal); opaque
+  /// kinds only. Off: every opaque kind reflects on both sides alike.
+  bool one_sided = false;
+  std::optional<NormalMap> normal_map;
+  std::optional<BumpMap> bump_map;
+  /// Coverage: a hit where alpha < alpha_cutoff is not there (rays pass straight through).
+  TexturedFloat alpha = 1.f;
+  float alpha_cutoff = 0.5f;
 
-  bool is_emissive() const { return !is_black(emission); }
+  bool is_emissive() const { return !is_black(emission.value); }
+  /// Whether some hits on it are cut out; a constant alpha of 1 never is.
+  bool has_alpha() const { return alpha.is_textured() || alpha.value < alpha_cutoff; }
+  /// Whether shading it perturbs the normal.
+  bool has_surface_map() const { return normal_map.has_value() || bump_map.has_value(); }
+  /// Whether anything of it reads texture coordinates.
+  bool uses_uv() const {
+    return textured || emission.is_textured() || has_surface_map() || alpha.is_textured();
+  }
 };
 
 /// Triangles with one material index each. The front face is (v1-v0) x (v2-v0).
@@ -173,6 +205,9 @@ struct TriangleMesh {
   std::vector<Vec3> normals;
   /// Texture coordinates per vertex, or empty: (u, v) are then the hit's barycentrics.
   std::vector<Vec2> uvs;
+  /// Tangents per vertex, or empty (then derived from the texture coordinates): xyz a unit
+  /// tangent, w = +-1 the handedness, the bitangent being w * cross(normal, tangent).
+  std::vector<Vec4> tangents;
   std::vector<uint32_t> indices;    ///< 3 per triangle, into positions (and normals, uvs)
   std::vector<uint32_t> materials;  ///< 1 per triangle, into Scene::materials
   std::string origin;               ///< where it came from, for messages ("box.obj", "shapes[3]")

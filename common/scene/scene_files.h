@@ -1,11 +1,15 @@
 #pragma once
-// What every scene format reader shares: the error it throws, the rule that keeps every file a
-// scene refers to inside the scene's folder, and bounded file reading.
+// What every scene format reader shares: the error it throws, what a mesh file reader returns,
+// the rule that keeps every file a scene refers to inside the scene's folder, and bounded file
+// reading.
 #include <cstdint>
 #include <filesystem>
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <vector>
+
+#include "common/scene/scene.h"
 
 namespace rayfarm {
 
@@ -14,6 +18,14 @@ namespace rayfarm {
 class SceneError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
+};
+
+/// A loaded mesh file (OBJ or PLY): one mesh whose material indices point into `materials`.
+struct MeshFile {
+  TriangleMesh mesh;                         ///< fan-triangulated faces, zero-area ones dropped
+  std::vector<Material> materials;           ///< named "<file>:<name>" (MTL ones, or "default")
+  std::vector<std::filesystem::path> files;  ///< files read, relative to the scene
+  std::vector<std::string> warnings;         ///< problems that were tolerated, with their place
 };
 
 /// Resolves `reference` (as written in a file) against `base_dir`, both relative to the scene

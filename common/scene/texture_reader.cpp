@@ -165,6 +165,19 @@ TexturedRgb TextureReader::reflectance(const Node& n) const {
   return p;
 }
 
+TexturedRgb TextureReader::radiance(const Node& n) const {
+  if (!n.json().is_object()) return read_radiance(n);
+  if (!n.json().contains("texture"))
+    n.fail(
+        "expected an array of 3 numbers or {\"texture\": NAME}, got an object without \"texture\"");
+  n.allow_keys({"texture", "scale"});
+  TexturedRgb p(Vec3(1.f));
+  p.texture = texture_ref(n.require("texture"));
+  if (auto s = n.find("scale"))
+    p.value = s->json().is_number() ? Vec3(read_non_negative(*s)) : read_radiance(*s);
+  return p;
+}
+
 TexturedFloat TextureReader::number(const Node& n, float lo, float hi) const {
   auto in_range = [&](const Node& at, float v) {
     if (!(v >= lo && v <= hi))

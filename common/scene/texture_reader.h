@@ -39,6 +39,11 @@ class TextureReader {
   /// A reflectance: an RGB in [0, 1], or {"texture": NAME, "scale": RGB or number in [0, 1]}
   /// (the texture's value, clamped to [0, 1], times the scale).
   TexturedRgb reflectance(const scene_json::Node& n) const;
+  /// A radiance: an RGB >= 0, or {"texture": NAME, "scale": RGB or number >= 0} (the texture's
+  /// value, unclamped, times the scale).
+  TexturedRgb radiance(const scene_json::Node& n) const;
+  /// The index of the texture that n names.
+  int32_t texture_index(const scene_json::Node& n) const { return texture_ref(n); }
   /// A number in [lo, hi], or {"texture": NAME, "channel": "r"|"g"|"b"|"a"|"mean", "scale": x}.
   TexturedFloat number(const scene_json::Node& n, float lo, float hi) const;
   /// How many textured parameters have been read: a material whose reading raised it is

@@ -118,6 +118,14 @@ void transform_mesh(TriangleMesh& mesh, const Transform& t, const Node& where) {
     n = Vec3(static_cast<float>(m.x / len), static_cast<float>(m.y / len),
              static_cast<float>(m.z / len));
   }
+  for (Vec4& tangent : mesh.tangents) {
+    const WideVec3 m = t.vector(WideVec3{tangent.x, tangent.y, tangent.z});
+    const double len = length(m);
+    if (!(len > 0.0) || !std::isfinite(len)) continue;  // unusable either way: left as it was
+    // A mirror keeps the tangent but turns the bitangent: the handedness flips with it.
+    tangent = Vec4(static_cast<float>(m.x / len), static_cast<float>(m.y / len),
+                   static_cast<float>(m.z / len), static_cast<float>(outward) * tangent.w);
+  }
   if (t.determinant() < 0.0) {
     // A mirror image reverses every triangle's winding; swapping two corners restores it.
     for (size_t i = 0; i + 2 < mesh.indices.size(); i += 3)

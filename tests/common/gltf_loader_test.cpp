@@ -199,6 +199,61 @@ TEST(Gltf, TexturesWithSamplersAndTransforms) {
   EXPECT_FALSE(checked.textures[0].image);
 }
 
+TEST(Gltf, NormalEmissiveAndAlphaTexturesAndTangents) {
+  GltfBuilder b;
+  testing::PngSpec png;
+  png.width = 1;
+  png.height = 1;
+  png.color_type = PNG_COLOR_TYPE_RGB_ALPHA;
+  png.samples = {128, 128, 255, 100};
+  const testing::Bytes bytes = testing::encode_png(png);
+  b.push("images", {{"bufferView", b.add_view(std::string(bytes.begin(), bytes.end()))},
+                    {"mimeType", "image/png"}});
+  b.push("textures", {{"source", 0}});
+  const int cutout = b.push(
+      "materials", {{"name", "leaf"},
+                    {"alphaMode", "MASK"},
+                    {"alphaCutoff", 0.25},
+                    {"normalTexture", {{"index", 0}, {"scale", 0.5}}},
+                    {"pbrMetallicRoughness",
+                     {{"baseColorFactor", {1, 1, 1, 0.8}}, {"baseColorTexture", {{"index", 0}}}}}});
+  const int glow =
+      b.push("materials", {{"name", "sign"},
+                           {"emissiveFactor", {1, 1, 1}},
+                           {"emissiveTexture", {{"index", 0}}},
+                           {"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}}}}},
+                           {"alphaMode", "BLEND"}});
+  const int leaf = b.add_quad(cutout);
+  b.doc["meshes"][leaf]["primitives"][0]["attributes"]["TANGENT"] =
+      b.add_floats({2, 0, 0, 1, 2, 0, 0, 1, 2, 0, 0, -1, 2, 0, 0, -1}, "VEC4");
+  b.push("nodes", {{"mesh", leaf}});
+  b.push("nodes", {{"mesh", b.add_quad(glow)}});
+  TempDir dir;
+  const Scene scene = load_scene(dir.write("s.glb", b.glb()));
+  ASSERT_EQ(scene.materials.size(), 2u);
+  const Material& m = scene.materials[0];
+  ASSERT_TRUE(m.normal_map);
+  EXPECT_EQ(scene.textures.at(m.normal_map->texture).space, ColourSpace::linear);
+  EXPECT_FLOAT_EQ(m.normal_map->scale, 0.5f);
+  EXPECT_FLOAT_EQ(m.alpha.value, 0.8f);
+  EXPECT_EQ(m.alpha.channel, TextureChannel::kA);
+  EXPECT_EQ(scene.textures.at(static_cast<size_t>(m.alpha.texture)).space, ColourSpace::srgb);
+  EXPECT_FLOAT_EQ(m.alpha_cutoff, 0.25f);
+  ASSERT_EQ(scene.meshes[0].tangents.size(), 4u);
+  EXPECT_EQ(scene.meshes[0].tangents[0], Vec4(1, 0, 0, 1));
+  EXPECT_EQ(scene.meshes[0].tangents[3].w, -1.f);
+  EXPECT_EQ(scene.meshes[0].uvs.size(), 4u);
+  // The emitter reads its texture; BLEND asks for a cut-out, which an emitter cannot have.
+  const Material& e = scene.materials[1];
+  EXPECT_TRUE(e.emission.is_textured());
+  EXPECT_FALSE(e.has_alpha());
+  EXPECT_EQ(scene.meshes[1].uvs.size(), 4u);
+  std::string all;
+  for (const std::string& w : scene.warnings) all += w + "\n";
+  EXPECT_NE(all.find("BLEND is rendered as MASK"), std::string::npos) << all;
+  EXPECT_NE(all.find("cannot be cut out"), std::string::npos) << all;
+}
+
 /// The message of the SceneError that loading `b` as a .glb throws ("" when none).
 std::string glb_error(const GltfBuilder& b) {
   TempDir dir;

@@ -9,6 +9,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "common/util/log.h"
 
@@ -80,6 +81,29 @@ using DeviceHandle = std::unique_ptr<RTCDeviceTy, ReleaseDevice>;
 using SceneHandle = std::unique_ptr<RTCSceneTy, ReleaseScene>;
 using GeometryHandle = std::unique_ptr<RTCGeometryTy, ReleaseGeometry>;
 
+// What a filtered geometry's callback receives: the scene's filter and the geometry's RayHit id.
+struct FilterTarget {
+  Bvh::HitFilter filter;
+  uint32_t geom;
+};
+
+// Embree calls this for every candidate hit of a filtered geometry, closest-hit and shadow rays
+// alike; clearing valid[0] makes it pass through. Single rays only (rtcIntersect1, rtcOccluded1).
+void filter_hit(const RTCFilterFunctionNArguments* args) {
+  const auto* target = static_cast<const FilterTarget*>(args->geometryUserPtr);
+  if (args->valid[0] == 0) return;
+  // The point on the ray: Embree's t with its (possibly rescaled) direction gives the same line.
+  const float t = RTCRayN_tfar(args->ray, args->N, 0);
+  const Vec3 p(RTCRayN_org_x(args->ray, args->N, 0) + t * RTCRayN_dir_x(args->ray, args->N, 0),
+               RTCRayN_org_y(args->ray, args->N, 0) + t * RTCRayN_dir_y(args->ray, args->N, 0),
+               RTCRayN_org_z(args->ray, args->N, 0) + t * RTCRayN_dir_z(args->ray, args->N, 0));
+  if (!target->filter.keep(target->filter.context, target->geom,
+                           RTCHitN_primID(args->hit, args->N, 0), RTCHitN_u(args->hit, args->N, 0),
+                           RTCHitN_v(args->hit, args->N, 0), p)) {
+    args->valid[0] = 0;
+  }
+}
+
 }  // namespace
 
 struct Bvh::Impl {
@@ -87,6 +111,17 @@ struct Bvh::Impl {
   DeviceHandle device;
   SceneHandle scene;
   uint32_t sphere_id = RTC_INVALID_GEOMETRY_ID;  // Embree's id of the sphere set (after the meshes)
+  std::vector<std::unique_ptr<FilterTarget>> filters;  // stable addresses for Embree's user data
+
+  void set_filter(const GeometryHandle& geometry, const HitFilter* filter, uint32_t geom) {
+    if (filter == nullptr) return;
+    if (!rtcGetDeviceProperty(device.get(), RTC_DEVICE_PROPERTY_FILTER_FUNCTION_SUPPORTED))
+      throw std::runtime_error("Embree: this build has no filter functions, which cut-outs need");
+    filters.push_back(std::make_unique<FilterTarget>(FilterTarget{*filter, geom}));
+    rtcSetGeometryUserData(geometry.get(), filters.back().get());
+    rtcSetGeometryIntersectFilterFunction(geometry.get(), filter_hit);
+    rtcSetGeometryOccludedFilterFunction(geometry.get(), filter_hit);
+  }
 
   GeometryHandle new_geometry(RTCGeometryType type, const char* what) {
     GeometryHandle geometry(rtcNewGeometry(device.get(), type));
@@ -114,10 +149,11 @@ struct Bvh::Impl {
       vertices[3 * i + 2] = p.z;
     }
     std::copy(mesh.indices->begin(), mesh.indices->end(), indices);
+    set_filter(geometry, mesh.filter, id);
     commit_and_attach(geometry, id);
   }
 
-  void add_spheres(const std::vector<SphereInput>& spheres, uint32_t id) {
+  void add_spheres(const std::vector<SphereInput>& spheres, uint32_t id, const HitFilter* filter) {
     const GeometryHandle geometry =
         new_geometry(RTC_GEOMETRY_TYPE_SPHERE_POINT, "rtcNewGeometry(sphere)");
     auto* points = static_cast<float*>(
@@ -131,6 +167,7 @@ struct Bvh::Impl {
       points[4 * i + 3] = spheres[i].radius;
     }
     sphere_id = id;
+    set_filter(geometry, filter, kSphereGeometry);
     commit_and_attach(geometry, id);
   }
 
@@ -142,7 +179,8 @@ struct Bvh::Impl {
   }
 };
 
-Bvh::Bvh(const std::vector<Mesh>& meshes, const std::vector<SphereInput>& spheres)
+Bvh::Bvh(const std::vector<Mesh>& meshes, const std::vector<SphereInput>& spheres,
+         const HitFilter* sphere_filter)
     : impl_(std::make_unique<Impl>()) {
   impl_->device.reset(rtcNewDevice(nullptr));
   if (!impl_->device) throw std::runtime_error("Embree: rtcNewDevice failed");
@@ -156,7 +194,8 @@ Bvh::Bvh(const std::vector<Mesh>& meshes, const std::vector<SphereInput>& sphere
     if (!meshes[i].indices->empty()) impl_->add_mesh(meshes[i], i);
   }
   // Embree sizes its geometry table by the largest id: keep ids dense.
-  if (!spheres.empty()) impl_->add_spheres(spheres, static_cast<uint32_t>(meshes.size()));
+  if (!spheres.empty())
+    impl_->add_spheres(spheres, static_cast<uint32_t>(meshes.size()), sphere_filter);
   rtcCommitScene(impl_->scene.get());
   if (rtcGetDeviceError(impl_->device.get()) != RTC_ERROR_NONE) {
     fail(impl_->device.get(), "rtcCommitScene");

@@ -31,10 +31,19 @@ inline constexpr uint32_t kSphereGeometry = 0xfffffffeu;
 /// Triangle meshes and spheres in one Embree BVH.
 class Bvh {
  public:
-  /// Triangle input: positions and 3 indices per triangle.
+  /// Decides whether a candidate hit counts (cut-outs): keep(context, geom, prim, u, v, p) with
+  /// geom as in RayHit, (u, v) a triangle's barycentrics and p the point on the ray.
+  struct HitFilter {
+    bool (*keep)(const void* context, uint32_t geom, uint32_t prim, float u, float v,
+                 const Vec3& p) = nullptr;
+    const void* context = nullptr;
+  };
+  /// Triangle input: positions and 3 indices per triangle, and the filter of its hits (null:
+  /// every hit counts, and none is filtered at no cost).
   struct Mesh {
     const std::vector<Vec3>* positions;
     const std::vector<uint32_t>* indices;
+    const HitFilter* filter = nullptr;
   };
   /// Sphere input: centre and radius.
   struct SphereInput {
@@ -43,7 +52,8 @@ class Bvh {
   };
 
   /// Builds the BVH. Mesh i gets geometry id i. Throws std::runtime_error with Embree's message.
-  Bvh(const std::vector<Mesh>& meshes, const std::vector<SphereInput>& spheres);
+  Bvh(const std::vector<Mesh>& meshes, const std::vector<SphereInput>& spheres,
+      const HitFilter* sphere_filter = nullptr);
   ~Bvh();
   Bvh(const Bvh&) = delete;
   Bvh& operator=(const Bvh&) = delete;

@@ -22,6 +22,7 @@ PathIntegratorFor<BsdfT>::PathIntegratorFor(const SceneData& data, const LightSe
   plan_.weight_emission =
       plan_.sample_lights && settings.integrator == IntegratorType::kMis && hittable;
   plan_.emitters_reachable = hittable || !is_black(background_);
+  plan_.surface = data.uses_surface();
 }
 
 template <class BsdfT>
@@ -72,6 +73,13 @@ Vec3 PathIntegratorFor<BsdfT>::sample_light(const SurfaceHit& hit, const Vec3& w
 
 template <class BsdfT>
 Vec3 PathIntegratorFor<BsdfT>::li(Ray ray, Pcg32& rng, PathStats& stats) const {
+  // Two loops: scenes without surface features run one with no trace of them.
+  return plan_.surface ? trace<true>(ray, rng, stats) : trace<false>(ray, rng, stats);
+}
+
+template <class BsdfT>
+template <bool kSurface>
+Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, Pcg32& rng, PathStats& stats) const {
   uint64_t& rays = stats.rays;
   // The cap stops a path that could still gather light: count it and the weight it carried.
   const auto truncate = [&stats](const Vec3& throughput) {
@@ -98,13 +106,14 @@ Vec3 PathIntegratorFor<BsdfT>::li(Ray ray, Pcg32& rng, PathStats& stats) const {
       }
       break;
     }
-    const SurfaceHit hit = data_.resolve(ray, *rh);
+    SurfaceHit hit = data_.resolve(ray, *rh);
     const Material& material = data_.material(hit.material);
     const Vec3 wo = -ray.dir;  // camera and BSDF directions are unit vectors
 
     // Emission reached by BSDF sampling, weighted against light sampling.
     if (material.is_emissive()) {
-      const Vec3 le = emitted_radiance(material, hit.n, wo);
+      const Vec3 le =
+          emitted_radiance(material, hit.n, wo, TextureLookup(&data_.textures(), hit.uv));
       if (!is_black(le)) radiance += beta * le * emission_weight(hit, specular_bounce, bsdf_pdf, prev_p);
     }
     if (depth == plan_.max_depth) {
@@ -113,7 +122,12 @@ Vec3 PathIntegratorFor<BsdfT>::li(Ray ray, Pcg32& rng, PathStats& stats) const {
     }
 
     // Light sampling (NEE / MIS) at non-specular vertices, in the shading frame.
-    const Frame frame(hit.ns);
+    Frame frame(hit.ns);
+    if constexpr (kSurface) {
+      // A one-sided surface seen from behind scatters nothing.
+      if ((data_.surface_needs(hit.material) & kOneSided) && dot(wo, hit.n) < 0.f) break;
+      frame = shade_surface(data_, *rh, hit);
+    }
     const Vec3 wo_local = frame.to_local(wo);
     const BsdfT bsdf = material.textured ? BsdfT(material, TextureLookup(&data_.textures(), hit.uv))
                                          : BsdfT(material);

@@ -10,6 +10,7 @@
 #include "worker/lights/light_set.h"
 #include "worker/samplers/rng.h"
 #include "worker/scene_data.h"
+#include "worker/surface_shading.h"
 
 namespace rayfarm {
 
@@ -20,6 +21,9 @@ struct IntegratorPlan {
   bool weight_emission = false;   ///< MIS weights on emitters hit by BSDF rays
   bool emitters_reachable = false;  ///< area lights or a background that BSDF rays can find
   uint32_t max_depth = 0;
+  /// Some material has a normal or bump map, an anisotropic BSDF or one side only
+  /// (surface_shading.h); without one the shading frame is the normal's alone.
+  bool surface = false;
 };
 
 /// What paths did besides their radiance: rays traced, and paths that the max_depth cap stopped
@@ -54,6 +58,8 @@ class PathIntegratorFor {
   const IntegratorPlan& plan() const { return plan_; }
 
  private:
+  template <bool kSurface>
+  Vec3 trace(Ray ray, Pcg32& rng, PathStats& stats) const;
   Vec3 sample_light(const SurfaceHit& hit, const Vec3& wo, const Vec3& wo_local, const Frame& frame,
                     const BsdfT& bsdf, Pcg32& rng, uint64_t& rays) const;
   float emission_weight(const SurfaceHit& hit, bool specular_bounce, float bsdf_pdf,

@@ -2,17 +2,33 @@
 // The part of sampling that every area light shares: from a point chosen on the emitter to the
 // sample seen from the shading point, and the density of reaching a point of the emitter.
 #include <cmath>
+#include <vector>
 
 #include "worker/lights/light_sample.h"
 #include "worker/scene_data.h"
 
 namespace rayfarm {
 
+/// How area lights read textured emission: the scene's textures, and per material the radiance
+/// that stands for its emission in a light's power (a texture's mean times the factor).
+struct EmissionTextures {
+  const TextureSet* textures = nullptr;
+  std::vector<Vec3> mean_radiance;  ///< per material; empty: every emission is a constant
+};
+
+/// The radiance that stands for m's emission in a light's power.
+inline Vec3 power_radiance(const Material& m, uint32_t material, const EmissionTextures* tex) {
+  if (!m.emission.is_textured() || tex == nullptr || tex->mean_radiance.empty())
+    return m.emission.value;
+  return tex->mean_radiance[material];
+}
+
 /// Completes `out` for the point p (front normal n, error bound p_error) chosen uniformly on an
-/// emitter of area `area` and material m, which was selected with probability p_select. False
-/// when the sample carries nothing.
+/// emitter of area `area` that leaves `radiance` there (its front side only unless two_sided),
+/// selected with probability p_select. False when the sample carries nothing.
 inline bool finish_area_sample(const Vec3& ref, const Vec3& p, const Vec3& n, float p_error,
-                               float area, const Material& m, float p_select, LightSample& out) {
+                               float area, const Vec3& radiance, bool two_sided, float p_select,
+                               LightSample& out) {
   // Distances in double: beyond ~1e19 their squares overflow a float, and the light would
   // silently never be sampled.
   const double dx = double(p.x) - ref.x, dy = double(p.y) - ref.y, dz = double(p.z) - ref.z;
@@ -23,7 +39,8 @@ inline bool finish_area_sample(const Vec3& ref, const Vec3& p, const Vec3& n, fl
                 static_cast<float>(dz / dist));
   const float cos_light = std::fabs(dot(n, out.wi));
   if (!(cos_light > 0.f)) return false;
-  out.radiance = emitted_radiance(m, n, -out.wi);
+  if (!two_sided && !(dot(n, out.wi) < 0.f)) return false;
+  out.radiance = radiance;
   if (is_black(out.radiance)) return false;
   out.pdf = static_cast<float>(p_select * dist2 / (double(cos_light) * area));
   out.target = offset_ray_origin(p, p_error, dot(n, out.wi) < 0.f ? n : -n);

@@ -2,6 +2,7 @@
 // What every light kind shares: the sample record and the radiance an emitter leaves.
 #include "common/math/vec3.h"
 #include "common/scene/scene.h"
+#include "worker/textures/texture_lookup.h"
 
 namespace rayfarm {
 
@@ -17,10 +18,12 @@ struct LightSample {
   bool infinite = false;
 };
 
-/// Radiance leaving an emitter of material m at a point with front normal n towards direction w.
-inline Vec3 emitted_radiance(const Material& m, const Vec3& n, const Vec3& w) {
-  if (!m.is_emissive()) return Vec3(0.f);
-  return (m.two_sided || dot(n, w) > 0.f) ? m.emission : Vec3(0.f);
+/// Radiance leaving an emitter of material m at a point with front normal n towards direction w;
+/// textured emission is read through `tex` (at the point's texture coordinates).
+inline Vec3 emitted_radiance(const Material& m, const Vec3& n, const Vec3& w,
+                             const TextureLookup& tex = {}) {
+  if (!m.is_emissive() || !(m.two_sided || dot(n, w) > 0.f)) return Vec3(0.f);
+  return m.emission.is_textured() ? tex.radiance(m.emission) : m.emission.value;
 }
 
 }  // namespace rayfarm

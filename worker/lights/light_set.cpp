@@ -31,6 +31,18 @@ double scene_radius(const Scene& scene) {
 
 LightSet::LightSet(SceneData& data) {
   const Scene& scene = data.scene();
+  // Textured emission: its power from the texture's mean, computed once per material.
+  EmissionTextures emission{&data.textures(), {}};
+  for (const Material& m : scene.materials) {
+    Vec3 mean = m.emission.value;
+    if (m.emission.is_textured()) {
+      const Vec4 t = data.textures().mean(static_cast<uint32_t>(m.emission.texture));
+      mean = mean * Vec3(std::max(t.x, 0.f), std::max(t.y, 0.f), std::max(t.z, 0.f));
+      // Any emission at all keeps a share of the light selection.
+      if (!(luminance(mean) > 0.f)) mean = m.emission.value * 1e-6f;
+    }
+    emission.mean_radiance.push_back(mean);
+  }
   // Area lights register their primitive, so that a BSDF ray hitting it finds its light index.
   const auto add_area = [&](const auto& light) {
     data.set_light_index(light.geom(), light.prim(), static_cast<int32_t>(lights_.size()));
@@ -39,11 +51,19 @@ LightSet::LightSet(SceneData& data) {
   };
   for (uint32_t m = 0; m < scene.meshes.size(); ++m) {
     for (uint32_t t = 0; t < scene.meshes[m].triangle_count(); ++t) {
-      if (auto light = TriangleLight::make(scene, m, t)) add_area(*light);
+      if (auto light = TexturedTriangleLight::make(scene, m, t, emission)) {
+        add_area(*light);
+      } else if (auto plain = TriangleLight::make(scene, m, t, &emission)) {
+        add_area(*plain);
+      }
     }
   }
   for (uint32_t s = 0; s < scene.spheres.size(); ++s) {
-    if (auto light = SphereLight::make(scene, s)) add_area(*light);
+    if (auto light = TexturedSphereLight::make(scene, s, emission)) {
+      add_area(*light);
+    } else if (auto plain = SphereLight::make(scene, s, &emission)) {
+      add_area(*plain);
+    }
   }
   for (uint32_t i = 0; i < scene.point_lights.size(); ++i) {
     if (auto light = DeltaPointLight::make(scene, i)) {

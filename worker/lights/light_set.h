@@ -14,6 +14,7 @@
 #include "worker/lights/point_light.h"
 #include "worker/lights/sphere_light.h"
 #include "worker/lights/spot_light.h"
+#include "worker/lights/textured_area_lights.h"
 #include "worker/lights/triangle_light.h"
 #include "worker/scene_data.h"
 
@@ -24,7 +25,8 @@ class LightSet {
   /// Every light kind. Adding one: its header, one line here, and its collection in the
   /// constructor (light_set.cpp).
   using Light = std::variant<TriangleLight, SphereLight, DeltaPointLight, DeltaSpotLight,
-                             DeltaDirectionalLight, EnvironmentLight>;
+                             DeltaDirectionalLight, EnvironmentLight, TexturedTriangleLight,
+                             TexturedSphereLight>;
 
   /// Collects the lights of `data` and registers each emitter with data.set_light_index().
   explicit LightSet(SceneData& data);

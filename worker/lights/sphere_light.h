@@ -12,7 +12,8 @@ namespace rayfarm {
 class SphereLight {
  public:
   /// The light of sphere `index`; nullopt when its material does not emit or its area overflows.
-  static std::optional<SphereLight> make(const Scene& scene, uint32_t index) {
+  static std::optional<SphereLight> make(const Scene& scene, uint32_t index,
+                                         const EmissionTextures* tex = nullptr) {
     const Sphere& s = scene.spheres[index];
     const Material& mat = scene.materials[s.material];
     if (!mat.is_emissive()) return std::nullopt;
@@ -25,9 +26,10 @@ class SphereLight {
     light.radius_ = s.radius;
     light.area_ = static_cast<float>(area);
     light.p_error_ = sphere_point_error(s.center, s.radius);
-    light.material_ = &mat;
+    light.emission_ = mat.emission.value;
+    light.two_sided_ = mat.two_sided;
     light.index_ = index;
-    light.power_ = double(luminance(mat.emission)) * area * kPi * sides;
+    light.power_ = double(luminance(power_radiance(mat, s.material, tex))) * area * kPi * sides;
     return light;
   }
 
@@ -38,9 +40,16 @@ class SphereLight {
 
   /// A uniform point on the sphere as seen from `ref`; p_select: the selection probability.
   bool sample(const Vec3& ref, float p_select, float u1, float u2, LightSample& out) const {
+    return sample_with(ref, p_select, u1, u2, out, [this](const Vec3&) { return emission_; });
+  }
+  /// As sample(), the radiance at the point being radiance_at(n) of its unit normal.
+  template <class RadianceAt>
+  bool sample_with(const Vec3& ref, float p_select, float u1, float u2, LightSample& out,
+                   const RadianceAt& radiance_at) const {
     const Vec3 n = sample_uniform_sphere(u1, u2);
     const Vec3 p = center_ + n * radius_;
-    return finish_area_sample(ref, p, n, p_error_, area_, *material_, p_select, out);
+    return finish_area_sample(ref, p, n, p_error_, area_, radiance_at(n), two_sided_, p_select,
+                              out);
   }
   /// Density sample() has for reaching (p, n) from `ref`.
   float pdf(float p_select, const Vec3& ref, const Vec3& p, const Vec3& n) const {
@@ -59,7 +68,8 @@ class SphereLight {
 
   Vec3 center_;
   float radius_ = 0.f, area_ = 0.f, p_error_ = 0.f;
-  const Material* material_ = nullptr;
+  Vec3 emission_;  // the constant emission (the factor, when textured)
+  bool two_sided_ = false;
   uint32_t index_ = 0;
   double power_ = 0.0;
 };

@@ -21,6 +21,8 @@ class CheckerboardTexture {
     return upper_u != upper_v ? colour0_ : colour1_;
   }
   float eval_channel(float u, float v, int channel) const { return eval(u, v)[channel]; }
+  /// The average over the plane: both colours cover half of it.
+  Vec4 mean() const { return 0.5f * (colour0_ + colour1_); }
 
  private:
   Vec4 colour0_, colour1_;

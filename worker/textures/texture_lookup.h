@@ -25,6 +25,14 @@ class TextureLookup {
     const Vec4 t = lookup(p.texture);
     return p.value * Vec3(clamp01(t[0]), clamp01(t[1]), clamp01(t[2]));
   }
+  /// A radiance: the texture's RGB, unbounded above (negative and NaN texels read 0), times the
+  /// factor.
+  Vec3 radiance(const TexturedRgb& p) const {
+    if (p.texture < 0) return p.value;
+    const Vec4 t = lookup(p.texture);
+    const auto positive = [](float v) { return v > 0.f ? v : 0.f; };
+    return p.value * Vec3(positive(t[0]), positive(t[1]), positive(t[2]));
+  }
   /// A number: the chosen channel (or the RGB mean) times the factor; a NaN texel reads 0 (an
   /// infinite one stays infinite, and resolve_textures() keeps it at the top of the range).
   float number(const TexturedFloat& p) const {

@@ -1,5 +1,6 @@
 #include "worker/textures/texture_set.h"
 
+#include <cmath>
 #include <span>
 
 #include "common/image/decode_image.h"
@@ -40,6 +41,22 @@ uint32_t TextureSet::add_checkerboard(const CheckerboardTexture& checkerboard) {
 
 Vec4 TextureSet::eval(uint32_t index, float u, float v) const {
   return std::visit([&](const auto& texture) { return texture.eval(u, v); }, textures_[index]);
+}
+
+Vec4 TextureSet::mean(uint32_t index) const {
+  if (const auto* checker = std::get_if<CheckerboardTexture>(&textures_.at(index)))
+    return checker->mean();
+  const TexelImage& image = std::get<ImageTexture>(textures_[index]).image();
+  double sum[4] = {0.0, 0.0, 0.0, 0.0};
+  for (uint32_t y = 0; y < image.height(); ++y) {
+    for (uint32_t x = 0; x < image.width(); ++x) {
+      const Vec4 t = image.texel(x, y);
+      for (int c = 0; c < 4; ++c) sum[c] += std::isfinite(t[c]) ? t[c] : 0.0;
+    }
+  }
+  const double n = double(image.width()) * image.height();
+  return n > 0.0 ? Vec4(float(sum[0] / n), float(sum[1] / n), float(sum[2] / n), float(sum[3] / n))
+                 : Vec4();
 }
 
 size_t TextureSet::memory_bytes() const {

@@ -36,6 +36,9 @@ class TextureSet {
 
   const Texture& texture(uint32_t index) const { return textures_.at(index); }
   Vec4 eval(uint32_t index, float u, float v) const;
+  /// The average of texture `index` over its image (every texel alike) or its period; computed
+  /// on each call (a pass over the texels).
+  Vec4 mean(uint32_t index) const;
 
   size_t image_count() const { return images_.size(); }
   size_t texture_count() const { return textures_.size(); }
