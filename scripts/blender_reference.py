@@ -552,9 +552,10 @@ def main():
           f"{sum(times):.1f} s of rendering", flush=True)
 
 
-try:
-    main()
-except Exception as e:  # Blender keeps running after a script error; fail the process instead
-    import traceback
-    traceback.print_exc()
-    sys.exit(1)
+if __name__ == "__main__":  # scripts/blender_gltf_reference.py imports the pieces above
+    try:
+        main()
+    except Exception as e:  # Blender keeps running after a script error; fail the process instead
+        import traceback
+        traceback.print_exc()
+        sys.exit(1)

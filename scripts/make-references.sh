@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
-# Remakes the Blender Cycles reference images under tests/data/references/ (see README.md there).
+# Remakes the Blender Cycles reference images under tests/data/references/ and
+# tests/data/gltf-references/ (see the README.md in each).
 # Needs Blender 3.4 (Debian bookworm: apt-get install blender); tests and CI only read the
 # committed files and never run Blender.
 #
-#   scripts/make-references.sh [--threads T]     # about 4 minutes on 2 idle cores
+#   scripts/make-references.sh [--threads T]     # about 6 minutes on 2 idle cores
 set -euo pipefail
 cd "$(dirname "$0")/.."
 threads=0
@@ -19,3 +20,11 @@ blender -b --factory-startup --python scripts/blender_reference.py -- \
   --spp 16384 --seeds 8 --seed 1 --threads "$threads" --no-light-sampling \
   --source-name scenes/cornell-blocks/scene.json \
   2>&1 | grep -v '^Fra:'
+
+# glTF: a small scene built in Blender, exported with Blender's glTF exporter to
+# tests/data/gltf-references/showcase.gltf (+ .bin, floor-texture.png) with our JSON scene
+# showcase-scene.json beside it, and Cycles' render of the same Blender scene: 64x48, 16384 spp as
+# 8 renders of 2048 (seeds 1..8). See tests/data/gltf-references/README.md.
+blender -b --factory-startup --python scripts/blender_gltf_reference.py -- \
+  tests/data/gltf-references --spp 16384 --seeds 8 --seed 1 --threads "$threads" \
+  2>&1 | grep -v '^Fra:' | grep -v '| INFO:'

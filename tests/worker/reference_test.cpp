@@ -5,17 +5,10 @@
 // light's plane (up to 6% per block on the upper back wall), while ours and Cycles' BSDF sampling
 // both match the exact irradiance of the quad light (tests/data/references/README.md).
 //
-// Statistics. Both images estimate the same per-pixel integral (box pixel filter, same paths up to
-// max_depth scattering vertices). Pixels are reduced to 8x8 blocks; for each block and channel
-//   z = (ours - cycles) / sqrt(var_ours + var_cycles),
-// where var_ours is the variance of our block mean from the film's exact per-pixel sums
-// (sum_sq - sum^2/n) / (n (n - 1)), and var_cycles that of the reference's block mean, estimated
-// from the spread of its 8 independent renders (cornell-blocks-cycles-variance.exr). Two-sided,
-// with a Bonferroni correction over the 64 blocks x 3 channels plus the 3 whole-image channel
-// means, at a family-wise error of 1e-3 per integrator. Per channel, the sum of z^2 over the
-// (independent) blocks is checked against its chi-square distribution: a small bias spread over
-// many blocks shows there before any single block fails. The renders use fixed seeds, so the test
-// is deterministic; the statistics say how unlikely a failure is for a correct renderer.
+// Both images estimate the same per-pixel integral (box pixel filter, same paths up to max_depth
+// scattering vertices); tests/support/reference_compare.h compares them per 8x8 block and channel
+// (z against both variances, Bonferroni, chi-square per channel). The renders use fixed seeds, so
+// the test is deterministic; the statistics say how unlikely a failure is for a correct renderer.
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -27,7 +20,7 @@
 #include "common/image/exr.h"
 #include "common/image/film.h"
 #include "common/scene/parser.h"
-#include "tests/support/normal_quantile.h"
+#include "tests/support/reference_compare.h"
 #include "worker/renderer.h"
 
 namespace rayfarm {
@@ -35,40 +28,9 @@ namespace {
 
 const std::string kRefDir = std::string(RAYFARM_SOURCE_DIR) + "/tests/data/references/";
 const std::string kScene = std::string(RAYFARM_SOURCE_DIR) + "/scenes/cornell-blocks/scene.json";
-constexpr uint32_t kBlock = 8;
 
-/// Per block (row-major) and channel: a mean and the variance of that mean.
-struct Blocks {
-  uint32_t bw = 0, bh = 0;
-  std::vector<double> mean, var;
-  double image_mean[3] = {0, 0, 0}, image_var[3] = {0, 0, 0};
-};
+using testing::Blocks;
 
-// Reduces per-pixel means and variances of the mean (RGB interleaved) to blocks; pixels are
-// independent, so the variance of an average of P pixels is the sum of their variances / P^2.
-Blocks reduce(const std::vector<double>& mean, const std::vector<double>& var, uint32_t w, uint32_t h) {
-  Blocks b;
-  b.bw = w / kBlock;
-  b.bh = h / kBlock;
-  b.mean.assign(size_t{b.bw} * b.bh * 3, 0.0);
-  b.var.assign(b.mean.size(), 0.0);
-  const double per_block = double(kBlock) * kBlock, per_image = double(w) * h;
-  for (uint32_t y = 0; y < h; ++y) {
-    for (uint32_t x = 0; x < w; ++x) {
-      const size_t blk = (size_t{y / kBlock} * b.bw + x / kBlock) * 3;
-      for (int c = 0; c < 3; ++c) {
-        const size_t i = (size_t{y} * w + x) * 3 + c;
-        b.mean[blk + c] += mean[i] / per_block;
-        b.var[blk + c] += var[i] / (per_block * per_block);
-        b.image_mean[c] += mean[i] / per_image;
-        b.image_var[c] += var[i] / (per_image * per_image);
-      }
-    }
-  }
-  return b;
-}
-
-// Our render: per-pixel means and variances of the mean from the film's exact sums.
 Blocks render_blocks(const Scene& scene, IntegratorType integrator, uint32_t spp) {
   RenderSettings settings = scene.render;
   settings.integrator = integrator;
@@ -78,27 +40,13 @@ Blocks render_blocks(const Scene& scene, IntegratorType integrator, uint32_t spp
   const uint32_t w = scene.film.width, h = scene.film.height;
   Film film(w, h);
   film.add(renderer.render({0, 0, w, h}, {0, spp}));
-  EXPECT_EQ(film.nonfinite(), 0u);
-  std::vector<double> mean(size_t{w} * h * 3), var(mean.size());
-  for (size_t p = 0; p < size_t{w} * h; ++p) {
-    const double n = film.spp()[p];
-    for (int c = 0; c < 3; ++c) {
-      const double s = from_fixed(film.sum()[p * 3 + c]), s2 = from_fixed(film.sum_sq()[p * 3 + c]);
-      mean[p * 3 + c] = s / n;
-      var[p * 3 + c] = std::max(0.0, s2 - s * s / n) / (n * (n - 1.0));
-    }
-  }
-  return reduce(mean, var, w, h);
+  return testing::film_blocks(film, w, h);
 }
 
 Blocks reference_blocks() {
-  const Image ref = read_exr(kRefDir + "cornell-blocks-cycles.exr");
-  const Image var = read_exr(kRefDir + "cornell-blocks-cycles-variance.exr");
-  return reduce(std::vector<double>(ref.rgb.begin(), ref.rgb.end()),
-                std::vector<double>(var.rgb.begin(), var.rgb.end()), ref.width, ref.height);
+  return testing::exr_blocks(kRefDir + "cornell-blocks-cycles.exr",
+                             kRefDir + "cornell-blocks-cycles-variance.exr");
 }
-
-using testing::two_sided_z;
 
 TEST(CyclesReference, FilesMatchTheSceneAndTheirSettings) {
   const Scene scene = load_scene(kScene);
@@ -142,52 +90,7 @@ TEST_P(AgainstCycles, AgreesPerBlockWithinStatisticalError) {
   // enough to normal: over seeds 1-14 the largest |z| was 3.3 and every sum of z^2 within limits.
   const uint32_t spp = GetParam() == IntegratorType::kNaive ? 1024 : 256;
   const Blocks ours = render_blocks(scene, GetParam(), spp);
-  ASSERT_EQ(ours.mean.size(), ref.mean.size());
-  const size_t blocks = ours.mean.size() / 3;
-
-  // Family-wise error 1e-3: Bonferroni over every block value and the 3 image means.
-  const double z_max = two_sided_z(1e-3 / double(ours.mean.size() + 3));
-  double worst = 0.0, ref_share = 0.0;
-  for (int c = 0; c < 3; ++c) {
-    double chi2 = 0.0;
-    size_t compared = 0;
-    std::string map;  // the z of every block, printed when something fails
-    for (size_t b = 0; b < blocks; ++b) {
-      const size_t i = b * 3 + c;
-      const double var = ours.var[i] + ref.var[i];
-      double z = 0.0;
-      if (var == 0.0) {
-        EXPECT_EQ(ours.mean[i], ref.mean[i]) << "block " << b << " is black in one image only";
-      } else {
-        z = (ours.mean[i] - ref.mean[i]) / std::sqrt(var);
-        EXPECT_LT(std::fabs(z), z_max) << "block (" << b % ours.bw << ", " << b / ours.bw << ") channel "
-                                       << c << ": ours " << ours.mean[i] << " cycles " << ref.mean[i]
-                                       << " se " << std::sqrt(var);
-        chi2 += z * z;
-        worst = std::max(worst, std::fabs(z));
-        ref_share += ref.var[i] / var;
-        ++compared;
-      }
-      map += (b % ours.bw == 0 ? "\n  " : " ") + std::to_string(z).substr(0, z < 0 ? 5 : 4);
-    }
-    ASSERT_GT(compared, blocks / 2);
-    // The blocks of one channel are independent: sum z^2 ~ chi-square(compared). Its upper
-    // 1e-3 / 3 point by the Wilson-Hilferty approximation (z = 3.29) catches a small bias spread
-    // over many blocks that the per-block test misses.
-    const double k = double(compared), a = 2.0 / (9.0 * k);
-    const double chi2_max = k * std::pow(1.0 - a + 3.29 * std::sqrt(a), 3.0);
-    const double se = std::sqrt(ours.image_var[c] + ref.image_var[c]);
-    const double z_image = (ours.image_mean[c] - ref.image_mean[c]) / se;
-    std::cout << integrator_name(GetParam()) << " channel " << c << ": image mean ours "
-              << ours.image_mean[c] << " cycles " << ref.image_mean[c] << " (ratio "
-              << ours.image_mean[c] / ref.image_mean[c] << ", z " << z_image << "); blocks: sum z^2 "
-              << chi2 << " for " << compared << " (limit " << chi2_max << ")\n";
-    EXPECT_LT(std::fabs(z_image), z_max) << "whole image, channel " << c;
-    EXPECT_LT(chi2, chi2_max) << "channel " << c << ", z per block:" << map;
-  }
-  std::cout << integrator_name(GetParam()) << ": max |z| " << worst << " (limit " << z_max
-            << "); the reference's share of the variance " << ref_share / double(ours.mean.size())
-            << "\n";
+  testing::expect_agreement(ours, ref, integrator_name(GetParam()));
 }
 
 INSTANTIATE_TEST_SUITE_P(Integrators, AgainstCycles,
