@@ -240,6 +240,14 @@ std::string Renderer::plan() const {
            std::to_string(textures.image_count()) + " images (" +
            human_bytes(textures.memory_bytes()) + ")";
   }
+  const SceneData& data = impl_->data;
+  if (data.instances() > 0 || data.flattened_instances() > 0) {
+    out += "; " + std::to_string(data.instances()) + " instances of " +
+           std::to_string(data.scene().groups.size()) + " groups";
+    if (data.flattened_instances() > 0)
+      out += " (" + std::to_string(data.flattened_instances()) +
+             " more of emissive groups placed as world meshes)";
+  }
   out += "; max_depth " + std::to_string(p.max_depth);
   return out;
 }

@@ -1,0 +1,29 @@
+#pragma once
+// Instances of mesh groups (Scene::groups, Scene::instances): their transforms, and placing a
+// group's meshes in the world where a consumer needs world-space triangles.
+#include <cstdint>
+
+#include "common/math/transform.h"
+#include "common/scene/scene.h"
+
+namespace rayfarm {
+
+/// The instance's world_from_object as a Transform (its last row is 0 0 0 1).
+Transform instance_transform(const Instance& instance);
+
+/// Triangles the group holds.
+uint64_t group_triangle_count(const MeshGroup& group);
+
+/// True when some triangle of the group has an emissive material of `scene`.
+bool group_emits(const Scene& scene, const MeshGroup& group);
+
+/// A world-space copy of `mesh` placed by `t`: positions moved, normals by the inverse
+/// transpose, and the winding reversed under a mirror so that front faces stay front faces.
+TriangleMesh place_mesh(const TriangleMesh& mesh, const Transform& t);
+
+/// Replaces instances by world-space copies of their group's meshes appended to scene.meshes:
+/// every instance, or (`emissive_only`) those whose group has emissive triangles, since area
+/// lights need their triangles in world space. Returns the number of instances flattened.
+size_t flatten_instances(Scene& scene, bool emissive_only);
+
+}  // namespace rayfarm
