@@ -46,6 +46,13 @@ inline constexpr int64_t kMaxTextureSide = 16384;
 /// Most pixels of an image texture (2^26: 256 MiB as 8-bit RGBA, 1 GiB as float RGBA).
 inline constexpr int64_t kMaxTexturePixels = int64_t{1} << 26;
 
+/// Most instances (placements of a mesh group) in one scene: each costs little memory, but the
+/// master and every worker hold a record and an acceleration structure entry per instance.
+inline constexpr uint64_t kMaxInstances = uint64_t{1} << 20;
+/// Most triangles the instances of one scene place in the world (each instance counts its
+/// group's triangles): not memory, but what the rays traverse and the area lights enumerate.
+inline constexpr uint64_t kMaxInstancedTriangles = uint64_t{1} << 36;
+
 // ---- rendering
 // -----------------------------------------------------------------------------------
 

@@ -5,6 +5,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <mutex>
 #include <set>
 #include <stdexcept>
@@ -23,8 +24,11 @@ namespace rayfarm {
 
 namespace {
 
-// One integrator per BSDF the renderer can be built with (BsdfKinds), chosen once per job.
-using AnyIntegrator = std::variant<PathIntegratorFor<Bsdf>, PathIntegratorFor<DiffuseOnlyBsdf>>;
+// One integrator per BSDF the renderer can be built with, chosen once per job: the basic kinds'
+// when the scene uses no other (every kind's code is the same in each, so the image is too), all
+// kinds otherwise, or diffuse only on request (BsdfKinds).
+using AnyIntegrator = std::variant<PathIntegratorFor<Bsdf>, PathIntegratorFor<DiffuseOnlyBsdf>,
+                                   PathIntegratorFor<BasicBsdf>>;
 
 AnyIntegrator make_integrator(const SceneData& data, const LightSet& lights,
                               const RenderSettings& settings, BsdfKinds kinds) {
@@ -38,6 +42,10 @@ AnyIntegrator make_integrator(const SceneData& data, const LightSet& lights,
     }
     return AnyIntegrator(std::in_place_index<1>, data, lights, settings);
   }
+  const auto& materials = data.scene().materials;
+  if (kinds == BsdfKinds::kAll &&
+      std::all_of(materials.begin(), materials.end(), BasicBsdf::supports))
+    return AnyIntegrator(std::in_place_index<2>, data, lights, settings);
   return AnyIntegrator(std::in_place_index<0>, data, lights, settings);
 }
 
@@ -268,6 +276,14 @@ std::string Renderer::plan() const {
            human_bytes(textures.memory_bytes()) + ")";
   }
   out += "; surfaces: " + surface_features(impl_->data);
+  const SceneData& data = impl_->data;
+  if (data.instances() > 0 || data.flattened_instances() > 0) {
+    out += "; " + std::to_string(data.instances()) + " instances of " +
+           std::to_string(data.scene().groups.size()) + " groups";
+    if (data.flattened_instances() > 0)
+      out += " (" + std::to_string(data.flattened_instances()) +
+             " more of emissive groups placed as world meshes)";
+  }
   out += "; max_depth " + std::to_string(p.max_depth);
   return out;
 }

@@ -30,9 +30,11 @@ struct RenderStats {
 /// Throughput cut per sample above which the truncation is logged as a warning (0.1%).
 inline constexpr double kTruncationWarningLevel = 1e-3;
 
-/// The material kinds a Renderer's BSDF knows: all of them, or only diffuse, a renderer for
-/// measuring what the other kinds cost a diffuse scene (bench/diffuse_only.sh).
-enum class BsdfKinds : uint8_t { kAll, kDiffuseOnly };
+/// The material kinds a Renderer's BSDF knows: all of them (through the kinds without
+/// microfacets alone when the scene has no other: the same bits, faster), only diffuse (a
+/// renderer for measuring what the other kinds cost a diffuse scene, bench/diffuse_only.sh), or
+/// every kind whatever the scene (to check that the choice changes no bit).
+enum class BsdfKinds : uint8_t { kAll, kDiffuseOnly, kEveryKind };
 
 class Renderer {
  public:

@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "common/math/wide.h"
+#include "common/scene/instances.h"
 
 namespace rayfarm {
 namespace {
@@ -43,23 +44,12 @@ float sphere_point_error(const Vec3& center, float radius) {
 }
 
 SceneData::SceneData(const Scene& scene) : scene_(scene) {
+  flattened_ = flatten_instances(scene_, true);
   build_textures();
   std::vector<Bvh::Mesh> meshes;
   for (const TriangleMesh& mesh : scene_.meshes) {
     mesh_offset_.push_back(triangles_.size());
-    for (size_t t = 0; t < mesh.triangle_count(); ++t) {
-      const Vec3& a = mesh.positions[mesh.indices[3 * t]];
-      const Vec3& b = mesh.positions[mesh.indices[3 * t + 1]];
-      const Vec3& c = mesh.positions[mesh.indices[3 * t + 2]];
-      TriangleInfo info{a, b - a, c - a, Vec3(0.f, 0.f, 1.f), triangle_point_error(a, b, c),
-                        mesh.materials[t], -1};
-      // In double: in float the cross product of edges longer than ~1e19 overflows, and such
-      // triangles were taken for degenerate ones and shaded with the fixed normal.
-      if (!triangle_normal(a, b, c, info.n)) {
-        ++degenerate_;  // never hit in practice; a fixed normal keeps the shading finite
-      }
-      triangles_.push_back(info);
-    }
+    add_triangles(mesh, triangles_);
     meshes.push_back({&mesh.positions, &mesh.indices});
     interpolates_.push_back(!mesh.normals.empty() || (uses_uv_ && !mesh.uvs.empty()));
   }
@@ -68,7 +58,66 @@ SceneData::SceneData(const Scene& scene) : scene_(scene) {
   sphere_lights_.assign(scene_.spheres.size(), -1);
   const Bvh::HitFilter* sphere_filter = nullptr;
   build_surface(meshes, sphere_filter);
-  bvh_ = std::make_unique<Bvh>(meshes, spheres, sphere_filter);
+  build_instances();
+  std::vector<std::vector<Bvh::Mesh>> groups;
+  std::vector<Bvh::InstanceInput> placements;
+  for (const MeshGroup& g : scene_.groups) {
+    groups.emplace_back();
+    for (const TriangleMesh& mesh : g.meshes)
+      groups.back().push_back({&mesh.positions, &mesh.indices});
+  }
+  for (const InstanceInfo& i : instances_) placements.push_back({i.group, i.m});
+  bvh_ = std::make_unique<Bvh>(meshes, spheres, sphere_filter, groups, placements);
+}
+
+void SceneData::add_triangles(const TriangleMesh& mesh, std::vector<TriangleInfo>& out) {
+  for (size_t t = 0; t < mesh.triangle_count(); ++t) {
+    const Vec3& a = mesh.positions[mesh.indices[3 * t]];
+    const Vec3& b = mesh.positions[mesh.indices[3 * t + 1]];
+    const Vec3& c = mesh.positions[mesh.indices[3 * t + 2]];
+    TriangleInfo info{
+        a, b - a, c - a, Vec3(0.f, 0.f, 1.f), triangle_point_error(a, b, c), mesh.materials[t], -1};
+    // In double: in float the cross product of edges longer than ~1e19 overflows, and such
+    // triangles were taken for degenerate ones and shaded with the fixed normal.
+    if (!triangle_normal(a, b, c, info.n)) {
+      ++degenerate_;  // never hit in practice; a fixed normal keeps the shading finite
+    }
+    out.push_back(info);
+  }
+}
+
+void SceneData::build_instances() {
+  for (const MeshGroup& g : scene_.groups) {
+    group_first_mesh_.push_back(static_cast<uint32_t>(group_mesh_offset_.size()));
+    for (const TriangleMesh& mesh : g.meshes) {
+      group_mesh_offset_.push_back(group_triangles_.size());
+      add_triangles(mesh, group_triangles_);
+      group_interpolates_.push_back(!mesh.normals.empty() || (uses_uv_ && !mesh.uvs.empty()));
+    }
+  }
+  for (const Instance& instance : scene_.instances) {
+    const Transform t = instance_transform(instance);
+    InstanceInfo info{};
+    info.group = instance.group;
+    info.norm = 0.f;
+    for (int r = 0; r < 3; ++r) {
+      double row = 0.0;
+      for (int c = 0; c < 4; ++c) {
+        info.m[4 * r + c] = static_cast<float>(t.at(r, c));
+        if (c < 3) row += std::fabs(t.at(r, c));
+      }
+      info.norm = std::max(info.norm, static_cast<float>(row));
+    }
+    // Columns of the normals' matrix: the images of the unit normals.
+    const double outward = t.determinant() < 0.0 ? -1.0 : 1.0;
+    for (int c = 0; c < 3; ++c) {
+      const WideVec3 col = t.normal({c == 0 ? 1.0 : 0.0, c == 1 ? 1.0 : 0.0, c == 2 ? 1.0 : 0.0});
+      info.normal[c] = static_cast<float>(outward * col.x);
+      info.normal[3 + c] = static_cast<float>(outward * col.y);
+      info.normal[6 + c] = static_cast<float>(outward * col.z);
+    }
+    instances_.push_back(info);
+  }
 }
 
 void SceneData::build_textures() {
@@ -125,8 +174,50 @@ Vec2 SceneData::sphere_uv(const Sphere& sphere, const Vec3& n) const {
   return {phi * (0.5f * kInvPi), std::acos(std::clamp(z, -1.f, 1.f)) * kInvPi};
 }
 
-void SceneData::interpolate(const RayHit& hit, SurfaceHit& s) const {
-  const TriangleMesh& mesh = scene_.meshes[hit.geom];
+SurfaceHit SceneData::resolve_instanced(const RayHit& hit) const {
+  const InstanceInfo& in = instances_[hit.inst];
+  const size_t mesh = group_first_mesh_[in.group] + hit.geom;
+  const TriangleInfo& tri = group_triangles_[group_mesh_offset_[mesh] + hit.prim];
+  const Vec3 po = tri.v0 + tri.e1 * hit.u + tri.e2 * hit.v;
+  const auto& m = in.m;
+  auto unit_normal = [&in](const Vec3& n) {
+    const auto& a = in.normal;
+    const Vec3 w(a[0] * n.x + a[1] * n.y + a[2] * n.z, a[3] * n.x + a[4] * n.y + a[5] * n.z,
+                 a[6] * n.x + a[7] * n.y + a[8] * n.z);
+    const float len = length(w);
+    return len > 0.f ? w / len : Vec3(0.f, 0.f, 1.f);
+  };
+  SurfaceHit s;
+  s.p = Vec3(m[0] * po.x + m[1] * po.y + m[2] * po.z + m[3],
+             m[4] * po.x + m[5] * po.y + m[6] * po.z + m[7],
+             m[8] * po.x + m[9] * po.y + m[10] * po.z + m[11]);
+  s.n = unit_normal(tri.n);
+  s.ns = s.n;
+  s.uv = {hit.u, hit.v};
+  // The object-space error grown by the transform, plus the rounding of the transform itself
+  // (three products and three sums per component, with the same margin as the triangles').
+  const Vec3 mag(
+      std::fabs(m[0] * po.x) + std::fabs(m[1] * po.y) + std::fabs(m[2] * po.z) + std::fabs(m[3]),
+      std::fabs(m[4] * po.x) + std::fabs(m[5] * po.y) + std::fabs(m[6] * po.z) + std::fabs(m[7]),
+      std::fabs(m[8] * po.x) + std::fabs(m[9] * po.y) + std::fabs(m[10] * po.z) + std::fabs(m[11]));
+  s.p_error = in.norm * tri.p_error + 4.f * max_component(mag) * gamma_bound(7);
+  s.material = tri.material;
+  s.light = -1;  // emissive groups are placed as world meshes
+  if (group_interpolates_[mesh]) {
+    // Interpolated in object space against the object's normal, then placed; a point that keeps
+    // its flat normal keeps ns == n bit for bit.
+    SurfaceHit local;
+    local.n = tri.n;
+    local.ns = tri.n;
+    local.uv = s.uv;
+    interpolate(scene_.groups[in.group].meshes[hit.geom], hit, local);
+    s.uv = local.uv;
+    if (!(local.ns == tri.n)) s.ns = unit_normal(local.ns);
+  }
+  return s;
+}
+
+void SceneData::interpolate(const TriangleMesh& mesh, const RayHit& hit, SurfaceHit& s) const {
   const uint32_t* idx = &mesh.indices[3 * size_t(hit.prim)];
   const float b0 = 1.f - hit.u - hit.v;
   if (!mesh.normals.empty()) {

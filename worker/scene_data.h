@@ -1,6 +1,7 @@
 #pragma once
 // The scene prepared for rendering: the BVH, per-triangle normals, and where each hit's
 // material and light live. Built once per job; read-only while rendering.
+#include <array>
 #include <cstdint>
 #include <cstring>
 #include <memory>
@@ -87,6 +88,7 @@ class SceneData {
   /// Resolves an Embree hit into position, normal, material and light.
   SurfaceHit resolve(const Ray& ray, const RayHit& hit) const {
     if (hit.geom == kSphereGeometry) return resolve_sphere(ray, hit);
+    if (hit.inst != kNoInstance) return resolve_instanced(hit);
     const TriangleInfo& tri = triangles_[mesh_offset_[hit.geom] + hit.prim];
     SurfaceHit s;
     s.p = tri.v0 + tri.e1 * hit.u + tri.e2 * hit.v;
@@ -96,7 +98,7 @@ class SceneData {
     s.p_error = tri.p_error;
     s.material = tri.material;
     s.light = tri.light;
-    if (interpolates_[hit.geom]) interpolate(hit, s);
+    if (interpolates_[hit.geom]) interpolate(scene_.meshes[hit.geom], hit, s);
     return s;
   }
   /// True when hits carry texture coordinates (some material looks them up).
@@ -111,6 +113,13 @@ class SceneData {
   bool covered(uint32_t geom, uint32_t prim, float u, float v, const Vec3& p) const;
   /// Light index of a primitive (-1 when it does not emit); set by LightSet.
   void set_light_index(uint32_t geom, uint32_t prim, int32_t light);
+  /// Instances traced through their group's shared BVH.
+  size_t instances() const { return instances_.size(); }
+  /// Instances of emissive groups, placed as world meshes (appended to scene().meshes): area
+  /// lights need world-space triangles.
+  size_t flattened_instances() const { return flattened_; }
+  /// Triangles stored for hits: the world meshes' and each group's once.
+  size_t stored_triangles() const { return triangles_.size() + group_triangles_.size(); }
   /// Number of triangles dropped because they have no area.
   uint64_t degenerate_triangles() const { return degenerate_; }
 
@@ -124,13 +133,25 @@ class SceneData {
     uint32_t material;
     int32_t light;
   };
+  // A placement of a group: world from object (3x4 rows, float), the normals' matrix (the
+  // cofactor matrix, negated under a mirror so that front faces stay front), and the largest
+  // absolute row sum of its 3x3 part (how much it can grow an error).
+  struct InstanceInfo {
+    std::array<float, 12> m;
+    std::array<float, 9> normal;
+    float norm;
+    uint32_t group;
+  };
   SurfaceHit resolve_sphere(const Ray& ray, const RayHit& hit) const;
+  SurfaceHit resolve_instanced(const RayHit& hit) const;
   void build_textures();
   // Surface needs per material, and the cut-out filters of the BVH's geometries.
   void build_surface(std::vector<Bvh::Mesh>& meshes, const Bvh::HitFilter*& sphere_filter);
   Vec2 sphere_uv(const Sphere& sphere, const Vec3& n) const;
+  void build_instances();
+  void add_triangles(const TriangleMesh& mesh, std::vector<TriangleInfo>& out);
   // Shading normal and texture coordinates from a mesh's vertex attributes.
-  void interpolate(const RayHit& hit, SurfaceHit& s) const;
+  void interpolate(const TriangleMesh& mesh, const RayHit& hit, SurfaceHit& s) const;
 
   std::vector<TriangleInfo> triangles_;  // all meshes, mesh after mesh
   std::vector<size_t> mesh_offset_;      // index of each mesh's first triangle in triangles_
@@ -143,6 +164,14 @@ class SceneData {
   std::unique_ptr<Bvh> bvh_;
   TextureSet textures_;
   uint64_t degenerate_ = 0;
+  // Groups: their triangles in object space, stored once; group_first_mesh_ indexes
+  // group_mesh_offset_ (one entry per mesh of every group, in order).
+  std::vector<TriangleInfo> group_triangles_;
+  std::vector<size_t> group_mesh_offset_;
+  std::vector<uint32_t> group_first_mesh_;
+  std::vector<uint8_t> group_interpolates_;
+  std::vector<InstanceInfo> instances_;
+  size_t flattened_ = 0;
 };
 
 }  // namespace rayfarm

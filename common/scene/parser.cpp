@@ -10,6 +10,7 @@
 
 #include "common/limits.h"
 #include "common/math/wide.h"
+#include "common/scene/instances.h"
 #include "common/scene/json_reader.h"
 #include "common/scene/light_reader.h"
 #include "common/scene/material_reader.h"
@@ -44,8 +45,8 @@ class SceneReader {
         textures_(folder_, images) {}
 
   void read(const Node& root) {
-    root.allow_keys({"format", "gltf", "camera", "film", "textures", "materials", "shapes",
-                     "lights", "background", "render"});
+    root.allow_keys({"format", "gltf", "camera", "film", "textures", "materials", "groups",
+                     "shapes", "lights", "background", "render"});
     if (auto n = root.find("format")) read_format(*n);
     // The film and the render settings first: the caller's limits on them come before the rest.
     // A scene built on a glTF file may leave the film to the glTF camera's aspect ratio.
@@ -70,6 +71,7 @@ class SceneReader {
     if (auto n = root.find("camera"); n || !has_camera) read_camera(root.require("camera"));
     if (auto n = root.find("textures")) textures_.read(*n, scene_.textures, scene_.referenced);
     if (auto n = root.find("materials")) read_materials(*n);
+    if (auto n = root.find("groups")) read_groups(*n);
     if (auto n = root.find("shapes")) read_shapes(*n);
     if (auto n = root.find("lights")) read_lights(*n, folder_, images_, scene_);
     if (auto n = root.find("background")) scene_.background = read_radiance(*n);
@@ -212,23 +214,93 @@ class SceneReader {
   // ---- shapes ----
 
   void read_shapes(const Node& n) {
-    for (size_t i = 0; i < n.array().size(); ++i) {
-      const Node shape = n.child(i);
-      const Node type = shape.require("type");
-      const std::string kind = read_string(type);
-      const std::string origin = "shapes[" + std::to_string(i) + "]";
-      if (kind == "mesh")
-        read_mesh(shape);
-      else if (kind == "sphere")
-        read_sphere(shape);
-      else if (kind == "quad")
-        read_quad(shape, origin);
-      else if (kind == "triangle")
-        read_triangle(shape, origin);
-      else
-        type.fail("unknown shape type " + as_written(type.json()) +
-                  "; expected one of mesh, sphere, quad, triangle");
+    for (size_t i = 0; i < n.array().size(); ++i)
+      read_shape(n.child(i), "shapes[" + std::to_string(i) + "]", false);
+  }
+
+  // A shape of "shapes", or of a group's list when `in_group`.
+  void read_shape(const Node& shape, const std::string& origin, bool in_group) {
+    const Node type = shape.require("type");
+    const std::string kind = read_string(type);
+    if (in_group && (kind == "sphere" || kind == "instance")) {
+      type.fail("a group holds meshes, quads and triangles only, not " + as_written(type.json()) +
+                " (a sphere or an instance goes in \"shapes\")");
     }
+    if (kind == "mesh")
+      read_mesh(shape);
+    else if (kind == "sphere")
+      read_sphere(shape);
+    else if (kind == "quad")
+      read_quad(shape, origin);
+    else if (kind == "triangle")
+      read_triangle(shape, origin);
+    else if (kind == "instance")
+      read_instance(shape);
+    else
+      type.fail("unknown shape type " + as_written(type.json()) +
+                "; expected one of mesh, sphere, quad, triangle, instance");
+  }
+
+  // ---- groups and instances ----
+
+  void read_groups(const Node& n) {
+    for (const auto& [name, value] : n.object().items()) {
+      const Node shapes = n.child(name);
+      MeshGroup group;
+      group.name = name;
+      meshes_ = &group.meshes;
+      for (size_t i = 0; i < shapes.array().size(); ++i) {
+        const size_t before = group.meshes.size();
+        read_shape(shapes.child(i), "groups/" + name + "[" + std::to_string(i) + "]", true);
+        for (size_t m = before; m < group.meshes.size(); ++m) {
+          if (auto why = not_instanceable(scene_, group.meshes[m]))
+            shapes.child(i).fail(*why +
+                                 "; instances of a group support none: place it in \"shapes\"");
+        }
+      }
+      meshes_ = &scene_.meshes;
+      if (group.meshes.empty()) shapes.warn("the group has no triangles");
+      group_index_[name] = static_cast<uint32_t>(scene_.groups.size());
+      scene_.groups.push_back(std::move(group));
+    }
+  }
+
+  void read_instance(const Node& n) {
+    n.allow_keys({"type", "group", "transform"});
+    const Node name = n.require("group");
+    const auto it = group_index_.find(read_string(name));
+    if (it == group_index_.end()) {
+      std::string known;
+      for (const auto& [key, index] : group_index_) known += (known.empty() ? "" : ", ") + key;
+      name.fail("unknown group " + as_written(name.json()) +
+                (known.empty() ? "; no groups are defined" : "; defined: " + printable(known)));
+    }
+    if (scene_.instances.size() >= kMaxInstances) {
+      n.fail("more than " + std::to_string(kMaxInstances) + " instances");
+    }
+    const MeshGroup& group = scene_.groups[it->second];
+    uint64_t triangles = 0;
+    for (const TriangleMesh& m : group.meshes) triangles += m.triangle_count();
+    instanced_triangles_ += triangles;
+    if (instanced_triangles_ > kMaxInstancedTriangles) {
+      n.fail("the instances place more than " + std::to_string(kMaxInstancedTriangles) +
+             " triangles in all");
+    }
+    Instance instance;
+    instance.group = it->second;
+    if (auto t = n.find("transform")) {
+      const Transform transform = read_transform(*t);
+      const double det = transform.determinant();
+      if (!(std::fabs(det) > 0.0) || !std::isfinite(det))
+        t->fail("the transform is not invertible (determinant " + std::to_string(det) + ")");
+      if (!placed_in_range(group, transform))
+        t->fail(
+            "the transform places the group's points beyond 1e17, the largest coordinate "
+            "that the renderer handles");
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 4; ++c) instance.world_from_object[4 * r + c] = transform.at(r, c);
+    }
+    scene_.instances.push_back(instance);
   }
 
   void read_sphere(const Node& n) {
@@ -283,7 +355,7 @@ class SceneReader {
     mesh.uvs = std::move(uvs);
     mesh.origin = origin;
     if (auto t = n.find("transform")) transform_mesh(mesh, read_transform(*t), *t);
-    scene_.meshes.push_back(std::move(mesh));
+    meshes_->push_back(std::move(mesh));
   }
 
   void read_mesh(const Node& n) {
@@ -304,7 +376,7 @@ class SceneReader {
       return;
     }
     if (auto t = n.find("transform")) transform_mesh(loaded.mesh, read_transform(*t), *t);
-    scene_.meshes.push_back(std::move(loaded.mesh));
+    meshes_->push_back(std::move(loaded.mesh));
   }
 
   /// The mesh file, relative to the scene's folder; it must stay inside and exist.
@@ -353,6 +425,9 @@ class SceneReader {
   SceneImages images_;
   std::map<std::string, uint32_t> material_index_;
   TextureReader textures_;
+  std::vector<TriangleMesh>* meshes_ = &scene_.meshes;  // where shapes go: the world or a group
+  std::map<std::string, uint32_t> group_index_;
+  uint64_t instanced_triangles_ = 0;
 };
 
 }  // namespace

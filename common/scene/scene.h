@@ -215,6 +215,20 @@ struct TriangleMesh {
   size_t triangle_count() const { return indices.size() / 3; }
 };
 
+/// Meshes in their own (object) space, placed in the world by instances: their triangles are
+/// stored once however often they are placed.
+struct MeshGroup {
+  std::string name;
+  std::vector<TriangleMesh> meshes;  ///< object space
+};
+
+/// One placement of a group. world_from_object is a 4x4 affine matrix, row-major (the last row
+/// 0 0 0 1), invertible; a mirroring one (negative determinant) keeps front faces outward.
+struct Instance {
+  uint32_t group = 0;  ///< into Scene::groups
+  std::array<double, 16> world_from_object{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+};
+
 /// A sphere; its front side is the outside. Its texture coordinates are taken in its own frame
 /// (the rotation of its transform): u = phi / 2pi around local +z from local +x, v = theta / pi
 /// from local +z.
@@ -286,6 +300,8 @@ struct Scene {
   std::vector<TextureDesc> textures;  ///< what textured material parameters read
   std::vector<TriangleMesh> meshes;
   std::vector<Sphere> spheres;
+  std::vector<MeshGroup> groups;    ///< meshes that instances place
+  std::vector<Instance> instances;  ///< placements of groups
   std::vector<PointLight> point_lights;
   std::vector<SpotLight> spot_lights;
   std::vector<DirectionalLight> directional_lights;

@@ -1,5 +1,7 @@
 #include "common/scene/transform_reader.h"
 
+#include "common/scene/instances.h"
+
 #include <cmath>
 #include <string>
 
@@ -108,29 +110,8 @@ Transform read_transform(const Node& n) {
 
 void transform_mesh(TriangleMesh& mesh, const Transform& t, const Node& where) {
   if (t.is_identity()) return;
-  for (Vec3& p : mesh.positions) p = to_point(t.point(wide(p)), where);
-  // The cofactor matrix is det * M^-T: it turns normals inwards when the transform mirrors.
-  const double outward = t.determinant() < 0.0 ? -1.0 : 1.0;
-  for (Vec3& n : mesh.normals) {
-    if (is_black(n)) continue;  // "no normal here" stays so
-    const WideVec3 m = t.normal(wide(n));
-    const double len = outward * length(m);
-    n = Vec3(static_cast<float>(m.x / len), static_cast<float>(m.y / len),
-             static_cast<float>(m.z / len));
-  }
-  for (Vec4& tangent : mesh.tangents) {
-    const WideVec3 m = t.vector(WideVec3{tangent.x, tangent.y, tangent.z});
-    const double len = length(m);
-    if (!(len > 0.0) || !std::isfinite(len)) continue;  // unusable either way: left as it was
-    // A mirror keeps the tangent but turns the bitangent: the handedness flips with it.
-    tangent = Vec4(static_cast<float>(m.x / len), static_cast<float>(m.y / len),
-                   static_cast<float>(m.z / len), static_cast<float>(outward) * tangent.w);
-  }
-  if (t.determinant() < 0.0) {
-    // A mirror image reverses every triangle's winding; swapping two corners restores it.
-    for (size_t i = 0; i + 2 < mesh.indices.size(); i += 3)
-      std::swap(mesh.indices[i + 1], mesh.indices[i + 2]);
-  }
+  for (const Vec3& p : mesh.positions) to_point(t.point(wide(p)), where);  // in range?
+  mesh = place_mesh(mesh, t);
 }
 
 void transform_sphere(Sphere& sphere, const Transform& t, const Node& where) {

@@ -52,22 +52,7 @@ class BsdfOf {
 
   /// The BSDF of material m, whose kind it must know (supports(m)), with its textured
   /// parameters read through `tex` (the default lookup serves untextured materials only).
-  explicit BsdfOf(const Material& m, const TextureLookup& tex = {})
-      : kind_(std::visit(
-            [&tex](const auto& params) -> std::variant<Kinds...> {
-              using P = std::decay_t<decltype(params)>;
-              if constexpr (requires { typename detail::BsdfKindFor<P, Kinds...>::type; }) {
-                using K = typename detail::BsdfKindFor<P, Kinds...>::type;
-                if (tex.has_textures())
-                  return std::variant<Kinds...>(std::in_place_type<K>,
-                                                resolve_textures(params, tex));
-                return std::variant<Kinds...>(std::in_place_type<K>, params);
-              } else {
-                assert(!"material kind unknown to this BSDF");
-                __builtin_unreachable();
-              }
-            },
-            m.kind)) {}
+  explicit BsdfOf(const Material& m, const TextureLookup& tex = {}) : kind_(make(m, tex)) {}
 
   /// True when every lobe is a Dirac delta (light sampling cannot help).
   bool is_specular() const {
@@ -87,12 +72,52 @@ class BsdfOf {
   }
 
  private:
+  // The variant alternative for material parameters `params`.
+  template <class P>
+  static std::variant<Kinds...> make_kind(const P& params, const TextureLookup& tex) {
+    if constexpr (requires { typename detail::BsdfKindFor<P, Kinds...>::type; }) {
+      using K = typename detail::BsdfKindFor<P, Kinds...>::type;
+      if (tex.has_textures())
+        return std::variant<Kinds...>(std::in_place_type<K>, resolve_textures(params, tex));
+      return std::variant<Kinds...>(std::in_place_type<K>, params);
+    } else {
+      assert(!"material kind unknown to this BSDF");
+      __builtin_unreachable();
+    }
+  }
+  // A BSDF of few kinds tests the material's kind against each of them: std::visit over all the
+  // material kinds is a call through a table that the compiler does not inline, a cost paid at
+  // every path vertex of scenes that use none of the other kinds.
+  template <class K, class... Rest>
+  static std::variant<Kinds...> make_first(const Material& m, const TextureLookup& tex) {
+    if (const auto* params = std::get_if<typename K::Params>(&m.kind))
+      return make_kind(*params, tex);
+    if constexpr (sizeof...(Rest) > 0) {
+      return make_first<Rest...>(m, tex);
+    } else {
+      assert(!"material kind unknown to this BSDF");
+      __builtin_unreachable();
+    }
+  }
+  static std::variant<Kinds...> make(const Material& m, const TextureLookup& tex) {
+    if constexpr (sizeof...(Kinds) <= 4) {
+      return make_first<Kinds...>(m, tex);
+    } else {
+      return std::visit([&tex](const auto& params) { return make_kind(params, tex); }, m.kind);
+    }
+  }
+
   std::variant<Kinds...> kind_;
 };
 
 /// Every BSDF kind: the one the renderer uses.
 using Bsdf = BsdfOf<DiffuseBsdf, PhongBsdf, MirrorBsdf, DielectricBsdf, RoughConductorBsdf,
                     RoughDielectricBsdf, ThinDielectricBsdf, PlasticBsdf, MetallicRoughnessBsdf>;
+
+/// The kinds without microfacets: the renderer uses it for scenes that have no other kind, whose
+/// vertices then dispatch among four alternatives, inlined, instead of calling through the
+/// table that std::visit over nine becomes (docs/benchmarks.md).
+using BasicBsdf = BsdfOf<DiffuseBsdf, PhongBsdf, MirrorBsdf, DielectricBsdf>;
 
 /// Diffuse only: for measuring what the other kinds cost a diffuse scene (bench/diffuse_only.sh).
 using DiffuseOnlyBsdf = BsdfOf<DiffuseBsdf>;

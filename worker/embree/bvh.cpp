@@ -109,6 +109,7 @@ void filter_hit(const RTCFilterFunctionNArguments* args) {
 struct Bvh::Impl {
   // Declared in this order so that the scene is released before its device.
   DeviceHandle device;
+  std::vector<SceneHandle> groups;  // one scene per group, released before the device
   SceneHandle scene;
   uint32_t sphere_id = RTC_INVALID_GEOMETRY_ID;  // Embree's id of the sphere set (after the meshes)
   std::vector<std::unique_ptr<FilterTarget>> filters;  // stable addresses for Embree's user data
@@ -122,6 +123,7 @@ struct Bvh::Impl {
     rtcSetGeometryIntersectFilterFunction(geometry.get(), filter_hit);
     rtcSetGeometryOccludedFilterFunction(geometry.get(), filter_hit);
   }
+  uint32_t instance_base = 0;  // Embree's id of instance 0 (after the spheres)
 
   GeometryHandle new_geometry(RTCGeometryType type, const char* what) {
     GeometryHandle geometry(rtcNewGeometry(device.get(), type));
@@ -129,7 +131,9 @@ struct Bvh::Impl {
     return geometry;
   }
 
-  void add_mesh(const Mesh& mesh, uint32_t id) {
+  void add_mesh(const Mesh& mesh, uint32_t id) { add_mesh_to(scene.get(), mesh, id); }
+
+  void add_mesh_to(RTCScene target, const Mesh& mesh, uint32_t id) {
     const GeometryHandle geometry =
         new_geometry(RTC_GEOMETRY_TYPE_TRIANGLE, "rtcNewGeometry(triangle)");
     const size_t vertex_count = mesh.positions->size();
@@ -150,6 +154,28 @@ struct Bvh::Impl {
     }
     std::copy(mesh.indices->begin(), mesh.indices->end(), indices);
     set_filter(geometry, mesh.filter, id);
+    commit_and_attach_to(target, geometry, id);
+  }
+
+  void add_group(const std::vector<Mesh>& meshes) {
+    SceneHandle group(rtcNewScene(device.get()));
+    if (!group) fail(device.get(), "rtcNewScene(group)");
+    rtcSetSceneBuildQuality(group.get(), RTC_BUILD_QUALITY_HIGH);
+    for (uint32_t i = 0; i < meshes.size(); ++i) {
+      if (!meshes[i].indices->empty()) add_mesh_to(group.get(), meshes[i], i);
+    }
+    rtcCommitScene(group.get());
+    if (rtcGetDeviceError(device.get()) != RTC_ERROR_NONE) fail(device.get(), "group commit");
+    groups.push_back(std::move(group));
+  }
+
+  void add_instance(const InstanceInput& instance, uint32_t id) {
+    const GeometryHandle geometry =
+        new_geometry(RTC_GEOMETRY_TYPE_INSTANCE, "rtcNewGeometry(instance)");
+    rtcSetGeometryInstancedScene(geometry.get(), groups.at(instance.group).get());
+    rtcSetGeometryTimeStepCount(geometry.get(), 1);
+    rtcSetGeometryTransform(geometry.get(), 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR,
+                            instance.world_from_object.data());
     commit_and_attach(geometry, id);
   }
 
@@ -173,14 +199,18 @@ struct Bvh::Impl {
 
   // The scene holds its own reference to an attached geometry; ours goes with the handle.
   void commit_and_attach(const GeometryHandle& geometry, uint32_t id) {
+    commit_and_attach_to(scene.get(), geometry, id);
+  }
+  void commit_and_attach_to(RTCScene target, const GeometryHandle& geometry, uint32_t id) {
     rtcCommitGeometry(geometry.get());
-    rtcAttachGeometryByID(scene.get(), geometry.get(), id);
+    rtcAttachGeometryByID(target, geometry.get(), id);
     if (rtcGetDeviceError(device.get()) != RTC_ERROR_NONE) fail(device.get(), "geometry commit");
   }
 };
 
 Bvh::Bvh(const std::vector<Mesh>& meshes, const std::vector<SphereInput>& spheres,
-         const HitFilter* sphere_filter)
+         const HitFilter* sphere_filter, const std::vector<std::vector<Mesh>>& groups,
+         const std::vector<InstanceInput>& instances)
     : impl_(std::make_unique<Impl>()) {
   impl_->device.reset(rtcNewDevice(nullptr));
   if (!impl_->device) throw std::runtime_error("Embree: rtcNewDevice failed");
@@ -196,6 +226,12 @@ Bvh::Bvh(const std::vector<Mesh>& meshes, const std::vector<SphereInput>& sphere
   // Embree sizes its geometry table by the largest id: keep ids dense.
   if (!spheres.empty())
     impl_->add_spheres(spheres, static_cast<uint32_t>(meshes.size()), sphere_filter);
+  impl_->instance_base = static_cast<uint32_t>(meshes.size() + (spheres.empty() ? 0 : 1));
+  if (!instances.empty()) {
+    for (const std::vector<Mesh>& group : groups) impl_->add_group(group);
+    for (uint32_t i = 0; i < instances.size(); ++i)
+      impl_->add_instance(instances[i], impl_->instance_base + i);
+  }
   rtcCommitScene(impl_->scene.get());
   if (rtcGetDeviceError(impl_->device.get()) != RTC_ERROR_NONE) {
     fail(impl_->device.get(), "rtcCommitScene");
@@ -216,7 +252,12 @@ std::optional<RayHit> Bvh::intersect(const Ray& ray) const {
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::nullopt;
   RayHit hit;
   hit.t = rh.ray.tfar / t_scale;
-  hit.geom = rh.hit.geomID == impl_->sphere_id ? kSphereGeometry : rh.hit.geomID;
+  if (rh.hit.instID[0] != RTC_INVALID_GEOMETRY_ID) {
+    hit.inst = rh.hit.instID[0] - impl_->instance_base;
+    hit.geom = rh.hit.geomID;  // the mesh within the group
+  } else {
+    hit.geom = rh.hit.geomID == impl_->sphere_id ? kSphereGeometry : rh.hit.geomID;
+  }
   hit.prim = rh.hit.primID;
   hit.u = rh.hit.u;
   hit.v = rh.hit.v;

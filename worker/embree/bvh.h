@@ -1,5 +1,6 @@
 #pragma once
 // The only module that calls Embree. The renderer sees intersect(ray) and occluded(segment).
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -20,10 +21,14 @@ struct Ray {
 /// A closest hit: which primitive, where along the ray, and its barycentrics (triangles).
 struct RayHit {
   float t = 0.f;
-  uint32_t geom = 0;  ///< mesh index, or kSphereGeometry for spheres
+  uint32_t geom = 0;  ///< mesh index (within the instance's group), or kSphereGeometry
   uint32_t prim = 0;  ///< triangle index within the mesh, or sphere index
   float u = 0.f, v = 0.f;
+  uint32_t inst = 0xffffffffu;  ///< instance index, or kNoInstance for world geometry
 };
+
+/// RayHit::inst of a hit on world (not instanced) geometry.
+inline constexpr uint32_t kNoInstance = 0xffffffffu;
 
 /// Geometry id of the sphere set in RayHit::geom.
 inline constexpr uint32_t kSphereGeometry = 0xfffffffeu;
@@ -51,9 +56,19 @@ class Bvh {
     float radius;
   };
 
-  /// Builds the BVH. Mesh i gets geometry id i. Throws std::runtime_error with Embree's message.
+  /// One placement of a group: its index in `groups`, and world from object as 3x4 rows.
+  struct InstanceInput {
+    uint32_t group;
+    std::array<float, 12> world_from_object;
+  };
+
+  /// Builds the BVH. Mesh i gets geometry id i. Each group becomes one Embree scene, built
+  /// once and shared by every instance that places it. Throws std::runtime_error with Embree's
+  /// message.
+  /// Group meshes carry no filter: groups with cut-out materials are refused by the reader.
   Bvh(const std::vector<Mesh>& meshes, const std::vector<SphereInput>& spheres,
-      const HitFilter* sphere_filter = nullptr);
+      const HitFilter* sphere_filter = nullptr, const std::vector<std::vector<Mesh>>& groups = {},
+      const std::vector<InstanceInput>& instances = {});
   ~Bvh();
   Bvh(const Bvh&) = delete;
   Bvh& operator=(const Bvh&) = delete;

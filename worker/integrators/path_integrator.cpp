@@ -49,19 +49,20 @@ float PathIntegratorFor<BsdfT>::environment_weight(bool specular_bounce, float b
 }
 
 template <class BsdfT>
-Vec3 PathIntegratorFor<BsdfT>::sample_light(const SurfaceHit& hit, const Vec3& wo,
+Vec3 PathIntegratorFor<BsdfT>::sample_light(const SurfaceHit& hit, bool flat, const Vec3& wo,
                                             const Vec3& wo_local, const Frame& frame,
                                             const BsdfT& bsdf, Pcg32& rng, uint64_t& rays) const {
   const float u_select = rng.next_float(), u1 = rng.next_float(), u2 = rng.next_float();
   LightSample ls;
   if (!lights_.sample(hit.p, u_select, u1, u2, ls)) return Vec3(0.f);
   const Vec3 wi_local = frame.to_local(ls.wi);
-  if (!same_sides(hit, wo, ls.wi, wo_local, wi_local)) return Vec3(0.f);
+  if (!same_sides(hit, flat, wo, ls.wi, wo_local, wi_local)) return Vec3(0.f);
   const Vec3 f = bsdf.eval(wo_local, wi_local);
   if (is_black(f)) return Vec3(0.f);
   // Shadow ray from the offset origin to the (offset) light point, or without end to a light at
   // infinity.
-  const Vec3 origin = offset_ray_origin(hit.p, hit.p_error, leaving_side(hit, ls.wi, wi_local.z));
+  const Vec3 origin =
+      offset_ray_origin(hit.p, hit.p_error, leaving_side(hit, flat, ls.wi, wi_local.z));
   ++rays;
   const Ray shadow = ls.infinite ? Ray{origin, ls.wi} : Ray{origin, ls.target - origin, 0.f, 1.f};
   if (data_.bvh().occluded(shadow)) return Vec3(0.f);
@@ -128,18 +129,19 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, Pcg32& rng, PathStats& stats) cons
       if ((data_.surface_needs(hit.material) & kOneSided) && dot(wo, hit.n) < 0.f) break;
       frame = shade_surface(data_, *rh, hit);
     }
+    const bool flat = is_flat(hit);  // after a normal map may have bent the shading normal
     const Vec3 wo_local = frame.to_local(wo);
     const BsdfT bsdf = material.textured ? BsdfT(material, TextureLookup(&data_.textures(), hit.uv))
                                          : BsdfT(material);
     if (plan_.sample_lights && !bsdf.is_specular()) {
-      radiance += beta * sample_light(hit, wo, wo_local, frame, bsdf, rng, rays);
+      radiance += beta * sample_light(hit, flat, wo, wo_local, frame, bsdf, rng, rays);
     }
 
     // BSDF sampling for the next direction.
     const float u_lobe = rng.next_float(), u1 = rng.next_float(), u2 = rng.next_float();
     BsdfSample bs;
     if (!bsdf.sample(wo_local, u_lobe, u1, u2, bs)) break;
-    if (!same_sides(hit, wo, frame.to_world(bs.wi), wo_local, bs.wi)) break;
+    if (!same_sides(hit, flat, wo, frame.to_world(bs.wi), wo_local, bs.wi)) break;
 
     // Russian roulette with survival probability min(1, max component of the update).
     const float survive = std::min(1.f, max_component(bs.weight));
@@ -159,12 +161,13 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, Pcg32& rng, PathStats& stats) cons
       break;
     }
     const Vec3 wi = frame.to_world(bs.wi);
-    ray = Ray{offset_ray_origin(hit.p, hit.p_error, leaving_side(hit, wi, bs.wi.z)), wi};
+    ray = Ray{offset_ray_origin(hit.p, hit.p_error, leaving_side(hit, flat, wi, bs.wi.z)), wi};
   }
   return radiance;
 }
 
 template class PathIntegratorFor<Bsdf>;
 template class PathIntegratorFor<DiffuseOnlyBsdf>;
+template class PathIntegratorFor<BasicBsdf>;
 
 }  // namespace rayfarm

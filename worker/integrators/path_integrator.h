@@ -43,9 +43,10 @@ struct PathStats {
   }
 };
 
-/// The path tracer over the BSDF `BsdfT` (bsdf.h): `Bsdf` knows every material kind; the
+/// The path tracer over the BSDF `BsdfT` (bsdf.h): `Bsdf` knows every material kind, `BasicBsdf`
+/// the kinds without microfacets (the renderer's choice for scenes that use no other), and the
 /// renderer instantiates it over `DiffuseOnlyBsdf` only for the benchmark of what the other
-/// kinds cost (bench/diffuse_only.sh). Instantiated in path_integrator.cpp for those two.
+/// kinds cost (bench/diffuse_only.sh). Instantiated in path_integrator.cpp for those three.
 template <class BsdfT>
 class PathIntegratorFor {
  public:
@@ -60,8 +61,8 @@ class PathIntegratorFor {
  private:
   template <bool kSurface>
   Vec3 trace(Ray ray, Pcg32& rng, PathStats& stats) const;
-  Vec3 sample_light(const SurfaceHit& hit, const Vec3& wo, const Vec3& wo_local, const Frame& frame,
-                    const BsdfT& bsdf, Pcg32& rng, uint64_t& rays) const;
+  Vec3 sample_light(const SurfaceHit& hit, bool flat, const Vec3& wo, const Vec3& wo_local,
+                    const Frame& frame, const BsdfT& bsdf, Pcg32& rng, uint64_t& rays) const;
   float emission_weight(const SurfaceHit& hit, bool specular_bounce, float bsdf_pdf,
                         const Vec3& prev_p) const;
   float environment_weight(bool specular_bounce, float bsdf_pdf, const Vec3& dir) const;
@@ -75,22 +76,28 @@ class PathIntegratorFor {
 using PathIntegrator = PathIntegratorFor<Bsdf>;
 extern template class PathIntegratorFor<Bsdf>;
 extern template class PathIntegratorFor<DiffuseOnlyBsdf>;
+extern template class PathIntegratorFor<BasicBsdf>;
+
+/// Whether a hit is flat: its shading normal is the geometric one (bit for bit, as SceneData
+/// makes it). Computed once per vertex: the comparison is three float compares that every
+/// vertex of a flat scene would otherwise repeat at each check below.
+inline bool is_flat(const SurfaceHit& hit) { return hit.ns == hit.n; }
 
 /// Whether wi stays on the side of the surface, relative to wo, that the shading frame says it
 /// does: a reflection in the shading frame must be one of the geometric surface too, and a
 /// transmission a transmission, so that interpolated normals never carry light through a surface
-/// or reflect it from behind. Always true at flat hits (ns is n).
-inline bool same_sides(const SurfaceHit& hit, const Vec3& wo, const Vec3& wi, const Vec3& wo_local,
-                       const Vec3& wi_local) {
-  if (hit.ns == hit.n) return true;
+/// or reflect it from behind. Always true at flat hits (`flat`: is_flat(hit)).
+inline bool same_sides(const SurfaceHit& hit, bool flat, const Vec3& wo, const Vec3& wi,
+                       const Vec3& wo_local, const Vec3& wi_local) {
+  if (flat) return true;
   return (dot(wo, hit.n) * dot(wi, hit.n) > 0.f) == (wo_local.z * wi_local.z > 0.f);
 }
 
 /// The geometric normal on the side that wi leaves through, for offsetting its ray. At flat hits
 /// the shading frame's z decides (it is the geometric one); at smooth hits the geometric normal
 /// does, since wo may lie on different sides of the two.
-inline Vec3 leaving_side(const SurfaceHit& hit, const Vec3& wi, float wi_local_z) {
-  const bool front = hit.ns == hit.n ? wi_local_z > 0.f : dot(wi, hit.n) > 0.f;
+inline Vec3 leaving_side(const SurfaceHit& hit, bool flat, const Vec3& wi, float wi_local_z) {
+  const bool front = flat ? wi_local_z > 0.f : dot(wi, hit.n) > 0.f;
   return front ? hit.n : -hit.n;
 }
 

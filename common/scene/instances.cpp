@@ -1,0 +1,123 @@
+#include "common/scene/instances.h"
+
+#include <algorithm>
+#include <cmath>
+#include <utility>
+#include <variant>
+
+#include "common/limits.h"
+#include "common/math/wide.h"
+#include "common/util/text.h"
+
+namespace rayfarm {
+
+Transform instance_transform(const Instance& instance) {
+  const auto& m = instance.world_from_object;
+  return Transform({m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8], m[9], m[10], m[11]});
+}
+
+uint64_t group_triangle_count(const MeshGroup& group) {
+  uint64_t n = 0;
+  for (const TriangleMesh& m : group.meshes) n += m.triangle_count();
+  return n;
+}
+
+bool group_emits(const Scene& scene, const MeshGroup& group) {
+  for (const TriangleMesh& m : group.meshes) {
+    for (const uint32_t material : m.materials) {
+      if (material < scene.materials.size() && scene.materials[material].is_emissive()) return true;
+    }
+  }
+  return false;
+}
+
+bool placed_in_range(const MeshGroup& group, const Transform& t) {
+  WideVec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+  for (const TriangleMesh& m : group.meshes) {
+    for (const Vec3& p : m.positions) {
+      lo = {std::min(lo.x, double(p.x)), std::min(lo.y, double(p.y)), std::min(lo.z, double(p.z))};
+      hi = {std::max(hi.x, double(p.x)), std::max(hi.y, double(p.y)), std::max(hi.z, double(p.z))};
+    }
+  }
+  if (lo.x > hi.x) return true;  // no points
+  for (int corner = 0; corner < 8; ++corner) {
+    const WideVec3 p =
+        t.point({corner & 1 ? hi.x : lo.x, corner & 2 ? hi.y : lo.y, corner & 4 ? hi.z : lo.z});
+    if (!(std::fabs(p.x) <= kMaxCoordinate && std::fabs(p.y) <= kMaxCoordinate &&
+          std::fabs(p.z) <= kMaxCoordinate)) {
+      return false;
+    }
+  }
+  return true;
+}
+
+std::optional<std::string> not_instanceable(const Scene& scene, const TriangleMesh& mesh) {
+  const auto differ = [](const TexturedFloat& u, const TexturedFloat& v) {
+    return u.is_textured() || v.is_textured() || u.value != v.value;
+  };
+  for (const uint32_t index : mesh.materials) {
+    if (index >= scene.materials.size()) continue;
+    const Material& m = scene.materials[index];
+    const std::string name = "material \"" + printable(m.name) + "\" has ";
+    if (m.has_alpha()) return name + "an opacity cut-out";
+    if (m.normal_map) return name + "a normal map";
+    if (m.bump_map) return name + "a bump map";
+    const auto* c = std::get_if<RoughConductorMaterial>(&m.kind);
+    const auto* d = std::get_if<RoughDielectricMaterial>(&m.kind);
+    if ((c && differ(c->alpha_u, c->alpha_v)) || (d && differ(d->alpha_u, d->alpha_v)))
+      return name + "anisotropic roughness";
+  }
+  return std::nullopt;
+}
+
+TriangleMesh place_mesh(const TriangleMesh& mesh, const Transform& t) {
+  TriangleMesh out = mesh;
+  for (Vec3& p : out.positions) {
+    const WideVec3 w = t.point(wide(p));
+    p = Vec3(static_cast<float>(w.x), static_cast<float>(w.y), static_cast<float>(w.z));
+  }
+  // The cofactor matrix is det * M^-T: it turns normals inwards when the transform mirrors.
+  const double outward = t.determinant() < 0.0 ? -1.0 : 1.0;
+  for (Vec3& n : out.normals) {
+    if (is_black(n)) continue;  // "no normal here" stays so
+    const WideVec3 m = t.normal(wide(n));
+    const double len = outward * length(m);
+    n = Vec3(static_cast<float>(m.x / len), static_cast<float>(m.y / len),
+             static_cast<float>(m.z / len));
+  }
+  for (Vec4& tangent : out.tangents) {
+    const WideVec3 m = t.vector(WideVec3{tangent.x, tangent.y, tangent.z});
+    const double len = length(m);
+    if (!(len > 0.0) || !std::isfinite(len)) continue;  // unusable either way: left as it was
+    // A mirror keeps the tangent but turns the bitangent: the handedness flips with it.
+    tangent = Vec4(static_cast<float>(m.x / len), static_cast<float>(m.y / len),
+                   static_cast<float>(m.z / len), static_cast<float>(outward) * tangent.w);
+  }
+  if (t.determinant() < 0.0) {
+    // A mirror image reverses every triangle's winding; swapping two corners restores it.
+    for (size_t i = 0; i + 2 < out.indices.size(); i += 3)
+      std::swap(out.indices[i + 1], out.indices[i + 2]);
+  }
+  return out;
+}
+
+size_t flatten_instances(Scene& scene, bool emissive_only) {
+  std::vector<bool> emits;
+  for (const MeshGroup& g : scene.groups) emits.push_back(!emissive_only || group_emits(scene, g));
+  std::vector<Instance> kept;
+  size_t flattened = 0;
+  for (const Instance& instance : scene.instances) {
+    if (!emits.at(instance.group)) {
+      kept.push_back(instance);
+      continue;
+    }
+    const Transform t = instance_transform(instance);
+    for (const TriangleMesh& m : scene.groups[instance.group].meshes)
+      scene.meshes.push_back(place_mesh(m, t));
+    ++flattened;
+  }
+  scene.instances = std::move(kept);
+  return flattened;
+}
+
+}  // namespace rayfarm

@@ -1,0 +1,41 @@
+#pragma once
+// Instances of mesh groups (Scene::groups, Scene::instances): their transforms, and placing a
+// group's meshes in the world where a consumer needs world-space triangles.
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include "common/math/transform.h"
+#include "common/scene/scene.h"
+
+namespace rayfarm {
+
+/// The instance's world_from_object as a Transform (its last row is 0 0 0 1).
+Transform instance_transform(const Instance& instance);
+
+/// Triangles the group holds.
+uint64_t group_triangle_count(const MeshGroup& group);
+
+/// True when some triangle of the group has an emissive material of `scene`.
+bool group_emits(const Scene& scene, const MeshGroup& group);
+
+/// Whether every point of the group, placed by `t`, stays within kMaxCoordinate: the placed
+/// corners of its bounding box do.
+bool placed_in_range(const MeshGroup& group, const Transform& t);
+
+/// Why `mesh` cannot be placed by instances, or nothing: instanced hits get neither cut-out
+/// filters nor tangent frames, so a material of the mesh with an opacity cut-out, a normal or
+/// bump map, or anisotropic roughness is refused rather than rendered differently.
+std::optional<std::string> not_instanceable(const Scene& scene, const TriangleMesh& mesh);
+
+/// A world-space copy of `mesh` placed by `t`: positions moved, normals by the inverse
+/// transpose, tangents by the matrix (handedness flipped under a mirror), and the winding reversed
+/// under a mirror so that front faces stay front faces.
+TriangleMesh place_mesh(const TriangleMesh& mesh, const Transform& t);
+
+/// Replaces instances by world-space copies of their group's meshes appended to scene.meshes:
+/// every instance, or (`emissive_only`) those whose group has emissive triangles, since area
+/// lights need their triangles in world space. Returns the number of instances flattened.
+size_t flatten_instances(Scene& scene, bool emissive_only);
+
+}  // namespace rayfarm
