@@ -42,14 +42,13 @@ import json
 import math
 import os
 import sys
-import tempfile
-import time
 
 import bpy
 from mathutils import Euler, Vector
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from blender_reference import configure_cycles, load_pixels, recorded_settings, save_pixels  # noqa: E402
+from blender_reference import (configure_cycles, recorded_settings, render_seeds,  # noqa: E402
+                               save_pixels)
 
 NAME = "showcase"
 WIDTH, HEIGHT = 64, 48
@@ -297,21 +296,8 @@ def main():
         "command": "blender -b --factory-startup --python scripts/blender_gltf_reference.py -- "
                    + " ".join(argv),
     }
-    renders, times = [], []
-    with tempfile.TemporaryDirectory() as tmp:
-        for k, seed in enumerate(meta["seeds"]):
-            scene.cycles.seed = seed
-            scene.render.filepath = os.path.join(tmp, f"render-{k}.exr")
-            t0 = time.monotonic()
-            bpy.ops.render.render(write_still=True)
-            times.append(time.monotonic() - t0)
-            print(f"render {k + 1}/{args.seeds}: seed {seed}, {per_render} spp, {times[-1]:.1f} s",
-                  flush=True)
-            renders.append(load_pixels(scene.render.filepath, WIDTH, HEIGHT))
-
+    renders, times, mean, var = render_seeds(scene, meta["seeds"], per_render, WIDTH, HEIGHT)
     n = len(renders)
-    mean = [sum(r[i] for r in renders) / n for i in range(len(renders[0]))]
-    var = [sum((r[i] - mean[i]) ** 2 for r in renders) / (n * (n - 1)) for i in range(len(mean))]
     stem = os.path.join(out_dir, NAME + "-cycles")
     settings_text = json.dumps(meta, sort_keys=True)
     save_pixels(mean, WIDTH, HEIGHT, stem + ".exr", {

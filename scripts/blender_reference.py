@@ -456,6 +456,28 @@ def save_pixels(rgb, width, height, path, attributes):
         raise RuntimeError(f"{path}: read back with a difference of {worst}")
 
 
+def render_seeds(scene, seeds, per_render, width, height):
+    """Renders `scene` once per seed; (renders, seconds each, per-pixel mean, variance of that
+    mean from the spread of the renders: sum (x_k - mean)^2 / (K (K - 1)), None for one render)."""
+    renders, times = [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        for k, seed in enumerate(seeds):
+            scene.cycles.seed = seed
+            scene.render.filepath = os.path.join(tmp, f"render-{k}.exr")
+            t0 = time.monotonic()
+            bpy.ops.render.render(write_still=True)
+            times.append(time.monotonic() - t0)
+            print(f"render {k + 1}/{len(seeds)}: seed {seed}, {per_render} spp, {times[-1]:.1f} s",
+                  flush=True)
+            renders.append(load_pixels(scene.render.filepath, width, height))
+    n = len(renders)
+    mean = [sum(r[i] for r in renders) / n for i in range(len(renders[0]))]
+    var = None
+    if n >= 2:
+        var = [sum((r[i] - mean[i]) ** 2 for r in renders) / (n * (n - 1)) for i in range(len(mean))]
+    return renders, times, mean, var
+
+
 def main():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
     ap = argparse.ArgumentParser(prog="blender -b --python scripts/blender_reference.py --")
@@ -512,20 +534,8 @@ def main():
     scene.render.stamp_note_text = json.dumps({k: meta[k] for k in ("blender_version", "scene",
                                                "spp_per_render", "cycles_max_bounces")})
 
-    renders, times = [], []
-    with tempfile.TemporaryDirectory() as tmp:
-        for k, seed in enumerate(meta["seeds"]):
-            scene.cycles.seed = seed
-            scene.render.filepath = os.path.join(tmp, f"render-{k}.exr")
-            t0 = time.monotonic()
-            bpy.ops.render.render(write_still=True)
-            times.append(time.monotonic() - t0)
-            print(f"render {k + 1}/{args.seeds}: seed {seed}, {per_render} spp, {times[-1]:.1f} s",
-                  flush=True)
-            renders.append(load_pixels(scene.render.filepath, w, h))
-
+    renders, times, mean, var = render_seeds(scene, meta["seeds"], per_render, w, h)
     n = len(renders)
-    mean = [sum(r[i] for r in renders) / n for i in range(len(renders[0]))]
     out_dir = os.path.dirname(os.path.abspath(args.out))
     os.makedirs(out_dir, exist_ok=True)
     files = {"mean": os.path.basename(args.out)}
@@ -538,7 +548,6 @@ def main():
                     f"{args.spp} spp in all (scripts/blender_reference.py)",
         "rayfarmReference": settings_text})
     if n >= 2:
-        var = [sum((r[i] - mean[i]) ** 2 for r in renders) / (n * (n - 1)) for i in range(len(mean))]
         save_pixels(var, w, h, stem + "-variance.exr", {
             "comments": f"per-pixel variance of the mean of {os.path.basename(args.out)}, from the "
                         f"spread of its {n} independent renders",
