@@ -9,6 +9,7 @@
 // (independent) blocks is checked against its chi-square distribution: a small bias spread over
 // many blocks shows there before any single block fails.
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -19,11 +20,40 @@
 
 #include "common/image/exr.h"
 #include "common/image/film.h"
+#include "common/scene/scene.h"
 #include "tests/support/normal_quantile.h"
 
 namespace rayfarm::testing {
 
 constexpr uint32_t kReferenceBlock = 8;
+
+/// What every Cycles reference must satisfy against the scene it was made for: the film's size,
+/// the path length (Cycles bounces = max_depth - 1), the box filter of width 1, the settings
+/// identical in both EXR headers and the sidecar `meta`, and the image means the script computed
+/// (no colour transform or half floats on the way).
+inline void expect_reference_matches(const Scene& scene, const Image& ref, const Image& var,
+                                     const nlohmann::json& meta) {
+  EXPECT_EQ(ref.width, scene.film.width);
+  EXPECT_EQ(ref.height, scene.film.height);
+  EXPECT_EQ(var.width, scene.film.width);
+  EXPECT_EQ(var.height, scene.film.height);
+  EXPECT_EQ(meta.at("our_max_depth").get<uint32_t>(), scene.render.max_depth);
+  EXPECT_EQ(meta.at("cycles").at("max_bounces").get<uint32_t>(), scene.render.max_depth - 1);
+  EXPECT_EQ(meta.at("cycles").at("pixel_filter_type").get<std::string>(), "BOX");
+  EXPECT_EQ(meta.at("cycles").at("filter_width").get<double>(), 1.0);
+  ASSERT_TRUE(ref.attributes.count("rayfarmReference")) << "no settings in the EXR header";
+  ASSERT_TRUE(var.attributes.count("rayfarmReference")) << "no settings in the variance header";
+  EXPECT_EQ(ref.attributes.at("rayfarmReference"), var.attributes.at("rayfarmReference"));
+  const nlohmann::json header = nlohmann::json::parse(ref.attributes.at("rayfarmReference"));
+  EXPECT_EQ(header.at("cycles"), meta.at("cycles"));
+  for (int c = 0; c < 3; ++c) {
+    double sum = 0.0;
+    for (size_t p = 0; p < size_t{ref.width} * ref.height; ++p) sum += ref.rgb[p * 3 + c];
+    const double expected = meta.at("image_mean_rgb").at(c).get<double>();
+    EXPECT_NEAR(sum / (double(ref.width) * ref.height), expected, 1e-6 * expected)
+        << "channel " << c;
+  }
+}
 
 /// Per block (row-major) and channel: a mean and the variance of that mean.
 struct Blocks {
