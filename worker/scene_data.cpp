@@ -67,6 +67,10 @@ SceneData::SceneData(const Scene& scene) : scene_(scene) {
       groups.back().push_back({&mesh.positions, &mesh.indices});
   }
   for (const InstanceInfo& i : instances_) placements.push_back({i.group, i.m});
+  const auto none = [](const std::vector<uint8_t>& v) {
+    return std::none_of(v.begin(), v.end(), [](uint8_t x) { return x != 0; });
+  };
+  plain_ = !uses_uv_ && !uses_surface_ && none(interpolates_) && none(group_interpolates_);
   bvh_ = std::make_unique<Bvh>(meshes, spheres, sphere_filter, groups, placements);
 }
 

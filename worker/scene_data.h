@@ -7,6 +7,10 @@
 #include <memory>
 #include <vector>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "common/math/vec2.h"
 #include "common/scene/scene.h"
 #include "worker/embree/bvh.h"
@@ -49,18 +53,37 @@ enum SurfaceNeeds : uint8_t {
 /// An origin for rays leaving `p` towards the side of `n`: moved `p_error` along n, then one ulp
 /// further away per component, so that rounding cannot bring it back. Scale independent, since
 /// p_error follows the floating-point error of p.
-inline Vec3 offset_ray_origin(const Vec3& p, float p_error, const Vec3& n) {
+[[gnu::always_inline]] inline Vec3 offset_ray_origin(const Vec3& p, float p_error, const Vec3& n) {
   const Vec3 po = p + n * p_error;
+  // One ulp in the direction of n per component: the bits of the magnitude up where the
+  // component and n's share a sign, down where they do not, unchanged where either is zero.
+  // On the bits, without branches: two of every path vertex's rays start here, and the signs
+  // are unpredictable.
+#if defined(__SSE2__)
+  const __m128 pv = _mm_setr_ps(po.x, po.y, po.z, 0.f), nv = _mm_setr_ps(n.x, n.y, n.z, 0.f);
+  const __m128i pb = _mm_castps_si128(pv);
+  const __m128i step =  // -1 where the sign bits differ, else +1
+      _mm_or_si128(_mm_srai_epi32(_mm_xor_si128(pb, _mm_castps_si128(nv)), 31), _mm_set1_epi32(1));
+  const __m128 zero = _mm_setzero_ps();
+  const __m128i move =
+      _mm_castps_si128(_mm_and_ps(_mm_cmpneq_ps(pv, zero), _mm_cmpneq_ps(nv, zero)));
+  alignas(16) float out[4];
+  _mm_store_ps(out, _mm_castsi128_ps(_mm_add_epi32(pb, _mm_and_si128(step, move))));
+  return {out[0], out[1], out[2]};
+#else
   auto away = [](float v, float dir) {
-    if (dir == 0.f || v == 0.f) return v;
-    uint32_t bits;
+    uint32_t bits, dbits;
     std::memcpy(&bits, &v, sizeof bits);
-    bits += ((v > 0.f) == (dir > 0.f)) ? 1 : -1;  // one ulp in the direction of dir
+    std::memcpy(&dbits, &dir, sizeof dbits);
+    const uint32_t step = 1u - (((bits ^ dbits) >> 31) << 1);  // +1, or -1 mod 2^32
+    const uint32_t move = uint32_t((bits << 1) != 0) & uint32_t((dbits << 1) != 0);
+    bits += step * move;
     float out;
     std::memcpy(&out, &bits, sizeof out);
     return out;
   };
   return {away(po.x, n.x), away(po.y, n.y), away(po.z, n.z)};
+#endif
 }
 
 /// Unit normal of triangle (a, b, c) along (b - a) x (c - a), computed in double so that edges
@@ -101,6 +124,26 @@ class SceneData {
     if (interpolates_[hit.geom]) interpolate(scene_.meshes[hit.geom], hit, s);
     return s;
   }
+  /// Resolves a hit of a plain() scene: what resolve() gives there, without its tests for
+  /// vertex attributes (texture coordinates are the barycentrics, the normal is flat).
+  SurfaceHit resolve_plain(const Ray& ray, const RayHit& hit) const {
+    if (hit.geom == kSphereGeometry) return resolve_sphere(ray, hit);
+    if (hit.inst != kNoInstance) return resolve_instanced(hit);
+    const TriangleInfo& tri = triangles_[mesh_offset_[hit.geom] + hit.prim];
+    SurfaceHit s;
+    s.p = tri.v0 + tri.e1 * hit.u + tri.e2 * hit.v;
+    s.n = tri.n;
+    s.ns = tri.n;
+    s.uv = {hit.u, hit.v};
+    s.p_error = tri.p_error;
+    s.material = tri.material;
+    s.light = tri.light;
+    return s;
+  }
+  /// True when every hit is flat (no vertex normals, no normal or bump map) and no material
+  /// reads a texture or needs more than its normal to shade (SurfaceNeeds): the path tracer
+  /// then leaves every test for these out.
+  bool plain() const { return plain_; }
   /// True when hits carry texture coordinates (some material looks them up).
   bool uses_uv() const { return uses_uv_; }
   /// True when some material has a SurfaceNeeds flag (scene_surface.cpp).
@@ -159,6 +202,7 @@ class SceneData {
   std::vector<uint8_t> interpolates_;  // per mesh: its hits read vertex attributes
   bool uses_uv_ = false;
   bool uses_surface_ = false;
+  bool plain_ = false;
   std::vector<uint8_t> surface_needs_;  // per material
   Bvh::HitFilter cut_out_filter_{};
   std::unique_ptr<Bvh> bvh_;

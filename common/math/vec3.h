@@ -66,8 +66,12 @@ struct Frame {
     s = {1.f + sign * n.x * n.x * a, sign * b, -sign * n.x};
     t = {b, sign + n.y * n.y * a, -n.y};
   }
-  Vec3 to_local(const Vec3& v) const { return {dot(v, s), dot(v, t), dot(v, n)}; }
-  Vec3 to_world(const Vec3& v) const { return s * v.x + t * v.y + n * v.z; }
+  // Always inlined: called at every path vertex from loops large enough that the compiler
+  // would otherwise make them calls.
+  [[gnu::always_inline]] Vec3 to_local(const Vec3& v) const {
+    return {dot(v, s), dot(v, t), dot(v, n)};
+  }
+  [[gnu::always_inline]] Vec3 to_world(const Vec3& v) const { return s * v.x + t * v.y + n * v.z; }
 };
 
 inline constexpr float kPi = 3.14159265358979323846f;

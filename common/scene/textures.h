@@ -62,7 +62,7 @@ P resolve_textures(const P& params, const Lookup& lookup) {
   P out = params;
   std::apply(
       [&](auto... field) {
-        auto resolve = [&](auto& p) {
+        [[maybe_unused]] auto resolve = [&](auto& p) {
           if constexpr (std::is_same_v<std::decay_t<decltype(p)>, TexturedRgb>) {
             p = TexturedRgb(lookup.reflectance(p));
           } else {

@@ -11,6 +11,7 @@
 
 #include "test_scenes.h"
 #include "worker/renderer.h"
+#include "worker/scene_data.h"
 
 namespace rayfarm {
 namespace {
@@ -108,6 +109,43 @@ TEST(Determinism, BasicKindsRendererRendersTheSameBits) {
     const Film basic = render_with(Renderer(scene, settings), 1, 64, 4);
     const Film every = render_with(Renderer(scene, settings, BsdfKinds::kEveryKind), 1, 64, 4);
     expect_identical(basic, every);
+  }
+}
+
+// A flat, untextured scene runs the path loop that leaves out every test for shading normals,
+// texture coordinates and surface features (PathMode::kPlain). An unused material that reads a
+// texture sends the same scene through the general loop, one with a bump map through the
+// surface loop: all three must give the same bits, under every integrator.
+TEST(Determinism, PlainGeneralAndSurfaceLoopsRenderTheSameBits) {
+  const Scene plain = testing::small_room_scene();  // quads and spheres, no vertex normals
+  TextureDesc checker;
+  checker.name = "checker";
+  checker.kind = TextureDesc::Kind::kCheckerboard;
+  Scene general = plain;
+  general.textures.push_back(checker);
+  Material textured;
+  textured.name = "unused textured emitter";
+  textured.emission.value = Vec3(1.f);
+  textured.emission.texture = 0;
+  general.materials.push_back(textured);
+  Scene surface = plain;
+  surface.textures.push_back(checker);
+  Material bumped;
+  bumped.name = "unused bump-mapped";
+  bumped.bump_map = BumpMap{0, 0.1f};
+  surface.materials.push_back(bumped);
+  EXPECT_TRUE(SceneData(plain).plain());
+  EXPECT_FALSE(SceneData(general).plain());
+  EXPECT_FALSE(SceneData(surface).plain());
+  EXPECT_TRUE(SceneData(surface).uses_surface());
+  for (IntegratorType integrator :
+       {IntegratorType::kNaive, IntegratorType::kNee, IntegratorType::kMis}) {
+    RenderSettings settings = plain.render;
+    settings.spp = 4;
+    settings.integrator = integrator;
+    const Film reference = render_with(Renderer(plain, settings), 1, 64, 4);
+    expect_identical(reference, render_with(Renderer(general, settings), 1, 64, 4));
+    expect_identical(reference, render_with(Renderer(surface, settings), 1, 64, 4));
   }
 }
 

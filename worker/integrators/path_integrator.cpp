@@ -23,6 +23,7 @@ PathIntegratorFor<BsdfT>::PathIntegratorFor(const SceneData& data, const LightSe
       plan_.sample_lights && settings.integrator == IntegratorType::kMis && hittable;
   plan_.emitters_reachable = hittable || !is_black(background_);
   plan_.surface = data.uses_surface();
+  plan_.plain = data.plain();
 }
 
 template <class BsdfT>
@@ -74,12 +75,15 @@ Vec3 PathIntegratorFor<BsdfT>::sample_light(const SurfaceHit& hit, bool flat, co
 
 template <class BsdfT>
 Vec3 PathIntegratorFor<BsdfT>::li(Ray ray, Pcg32& rng, PathStats& stats) const {
-  // Two loops: scenes without surface features run one with no trace of them.
-  return plan_.surface ? trace<true>(ray, rng, stats) : trace<false>(ray, rng, stats);
+  // Scenes without surface features run a loop with no trace of them, and flat untextured
+  // scenes one without the tests for shading normals and texture coordinates.
+  if (plan_.surface) return trace<PathMode::kSurface>(ray, rng, stats);
+  if (plan_.plain) return trace<PathMode::kPlain>(ray, rng, stats);
+  return trace<PathMode::kGeneral>(ray, rng, stats);
 }
 
 template <class BsdfT>
-template <bool kSurface>
+template <PathMode kMode>
 Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, Pcg32& rng, PathStats& stats) const {
   uint64_t& rays = stats.rays;
   // The cap stops a path that could still gather light: count it and the weight it carried.
@@ -107,14 +111,16 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, Pcg32& rng, PathStats& stats) cons
       }
       break;
     }
-    SurfaceHit hit = data_.resolve(ray, *rh);
+    constexpr bool kPlain = kMode == PathMode::kPlain;
+    SurfaceHit hit = kPlain ? data_.resolve_plain(ray, *rh) : data_.resolve(ray, *rh);
     const Material& material = data_.material(hit.material);
     const Vec3 wo = -ray.dir;  // camera and BSDF directions are unit vectors
 
     // Emission reached by BSDF sampling, weighted against light sampling.
     if (material.is_emissive()) {
       const Vec3 le =
-          emitted_radiance(material, hit.n, wo, TextureLookup(&data_.textures(), hit.uv));
+          kPlain ? emitted_radiance(material, hit.n, wo)
+                 : emitted_radiance(material, hit.n, wo, TextureLookup(&data_.textures(), hit.uv));
       if (!is_black(le)) radiance += beta * le * emission_weight(hit, specular_bounce, bsdf_pdf, prev_p);
     }
     if (depth == plan_.max_depth) {
@@ -123,16 +129,17 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, Pcg32& rng, PathStats& stats) cons
     }
 
     // Light sampling (NEE / MIS) at non-specular vertices, in the shading frame.
-    Frame frame(hit.ns);
-    if constexpr (kSurface) {
+    Frame frame(kPlain ? hit.n : hit.ns);  // the same bits in a plain scene
+    if constexpr (kMode == PathMode::kSurface) {
       // A one-sided surface seen from behind scatters nothing.
       if ((data_.surface_needs(hit.material) & kOneSided) && dot(wo, hit.n) < 0.f) break;
       frame = shade_surface(data_, *rh, hit);
     }
-    const bool flat = is_flat(hit);  // after a normal map may have bent the shading normal
+    const bool flat = kPlain || is_flat(hit);  // after a normal map may have bent ns
     const Vec3 wo_local = frame.to_local(wo);
-    const BsdfT bsdf = material.textured ? BsdfT(material, TextureLookup(&data_.textures(), hit.uv))
-                                         : BsdfT(material);
+    const BsdfT bsdf = !kPlain && material.textured
+                           ? BsdfT(material, TextureLookup(&data_.textures(), hit.uv))
+                           : BsdfT(material);
     if (plan_.sample_lights && !bsdf.is_specular()) {
       radiance += beta * sample_light(hit, flat, wo, wo_local, frame, bsdf, rng, rays);
     }

@@ -24,6 +24,16 @@ struct IntegratorPlan {
   /// Some material has a normal or bump map, an anisotropic BSDF or one side only
   /// (surface_shading.h); without one the shading frame is the normal's alone.
   bool surface = false;
+  /// Every hit is flat and nothing reads a texture (SceneData::plain()).
+  bool plain = false;
+};
+
+/// The path loop's variants, from what the scene uses (IntegratorPlan): each leaves out the
+/// tests that the ones after it need.
+enum class PathMode {
+  kPlain,    ///< flat hits, no textures, no surface features
+  kGeneral,  ///< vertex normals or textures, no surface features
+  kSurface,  ///< normal or bump maps, tangent frames, one-sided materials
 };
 
 /// What paths did besides their radiance: rays traced, and paths that the max_depth cap stopped
@@ -59,10 +69,13 @@ class PathIntegratorFor {
   const IntegratorPlan& plan() const { return plan_; }
 
  private:
-  template <bool kSurface>
+  template <PathMode kMode>
   Vec3 trace(Ray ray, Pcg32& rng, PathStats& stats) const;
-  Vec3 sample_light(const SurfaceHit& hit, bool flat, const Vec3& wo, const Vec3& wo_local,
-                    const Frame& frame, const BsdfT& bsdf, Pcg32& rng, uint64_t& rays) const;
+  // Inlined into trace(): a call passes the hit, the frame and the BSDF through memory.
+  [[gnu::always_inline]] inline Vec3 sample_light(const SurfaceHit& hit, bool flat, const Vec3& wo,
+                                                  const Vec3& wo_local, const Frame& frame,
+                                                  const BsdfT& bsdf, Pcg32& rng,
+                                                  uint64_t& rays) const;
   float emission_weight(const SurfaceHit& hit, bool specular_bounce, float bsdf_pdf,
                         const Vec3& prev_p) const;
   float environment_weight(bool specular_bounce, float bsdf_pdf, const Vec3& dir) const;

@@ -73,9 +73,10 @@ class LightSet {
     const int32_t index = selection_.choose(u_select);
     const float p_select = selection_.probability(index);
     if (!(p_select > 0.f)) return false;
-    return dispatch_light(lights_[index], [&](const auto& light) {
-      return light.sample(ref, p_select, u1, u2, out);
-    });
+    return dispatch_light(
+        lights_[index], [&](const auto& light) __attribute__((always_inline)) {
+          return light.sample(ref, p_select, u1, u2, out);
+        });
   }
   /// Probability that sample() chooses light `light` (0 for -1: an emitter it cannot sample).
   float selection_probability(int32_t light) const { return selection_.probability(light); }
