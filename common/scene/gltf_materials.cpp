@@ -263,10 +263,12 @@ std::optional<MaterialKind> Materials::volume(const tinygltf::Material& g,
       tinted |= unit_factor(src_, c.Get(i).GetNumberAsDouble(), at + "/attenuationColor") < 1.f;
     }
   }
-  // Without transmission the volume is never entered; with a zero thickness the glTF surface is
-  // thin-walled again.
-  if (thickness == 0.0 || (k.transmission.value == 0.f && !k.transmission.is_textured()))
-    return std::nullopt;
+  // Without transmission, or on a wholly metallic surface (glTF mixes the metal over the
+  // transmitting dielectric), light never enters the volume; with a zero thickness the glTF
+  // surface is thin-walled again.
+  const bool enters = k.transmission.value > 0.f || k.transmission.is_textured();
+  const bool metal = k.metallic.value == 1.f && !k.metallic.is_textured();
+  if (thickness == 0.0 || !enters || metal) return std::nullopt;
 
   if (k.transmission.value < 1.f || k.transmission.is_textured() || k.metallic.value > 0.f ||
       k.metallic.is_textured()) {

@@ -423,6 +423,13 @@ TEST(Gltf, ThinOrOpaqueVolumesStayMetallicRoughness) {
   const Scene scene = load_scene(dir.write("o.glb", b.glb()));
   EXPECT_EQ(std::get<MetallicRoughnessMaterial>(scene.materials.at(0).kind).transmission.value,
             0.f);
+  // Nor on a metal: metallicFactor defaults to 1, and the metal covers the transmission.
+  GltfBuilder metal = glass_scene({{"thicknessFactor", 1.0}});
+  metal.doc["materials"][0]["pbrMetallicRoughness"].erase("metallicFactor");
+  const Scene metal_scene = load_scene(dir.write("m.glb", metal.glb()));
+  EXPECT_TRUE(metal_scene.warnings.empty()) << all_warnings(metal_scene);
+  EXPECT_EQ(std::get<MetallicRoughnessMaterial>(metal_scene.materials.at(0).kind).metallic.value,
+            1.f);
 }
 
 TEST(Gltf, VolumeAttenuationAndMixesAreNamedInWarnings) {
