@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Writes scenes/product/product.glb: a small product shot in glTF 2.0, made here so that its
 source is this script. A tiled floor (an embedded PNG repeated 3x3 by KHR_texture_transform)
-before a pale backdrop; a gold sphere, a glass sphere (KHR_materials_transmission and _ior)
-placed by two nodes from the same vertex data, a red box turned 30 degrees, all under an
+before a pale backdrop; a gold sphere, a solid glass sphere (KHR_materials_transmission, _ior
+and _volume) placed by two nodes from the same vertex data, a red box turned 30 degrees, all under an
 emissive panel (KHR_materials_emissive_strength) and a spot light (KHR_lights_punctual); a
 perspective camera. Every mesh has normals and texture coordinates.
 
@@ -166,8 +166,11 @@ def main(folder):
         "baseColorFactor": [1.0, 0.78, 0.34, 1], "metallicFactor": 1.0, "roughnessFactor": 0.25}})
     glass_m = w.material({"name": "glass", "pbrMetallicRoughness": {
         "baseColorFactor": [1, 1, 1, 1], "metallicFactor": 0.0, "roughnessFactor": 0.0},
+        # A volume makes the transmitting surface the boundary of solid glass rather than a thin
+        # wall; the thickness is the sphere's diameter in the mesh's own units.
         "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0},
-                       "KHR_materials_ior": {"ior": 1.5}}})
+                       "KHR_materials_ior": {"ior": 1.5},
+                       "KHR_materials_volume": {"thicknessFactor": 2.0}}})
     red_m = w.material({"name": "red plastic", "pbrMetallicRoughness": {
         "baseColorFactor": [0.7, 0.08, 0.06, 1], "metallicFactor": 0.0, "roughnessFactor": 0.4}})
     lamp_m = w.material({"name": "lamp", "emissiveFactor": [1.0, 0.95, 0.9],
@@ -208,8 +211,8 @@ def main(folder):
                          "rotation": look_rotation(eye, target)}))
     spot_eye = [2.5, 4.0, 2.5]
     w.doc["extensionsUsed"] = ["KHR_lights_punctual", "KHR_materials_transmission",
-                               "KHR_materials_ior", "KHR_materials_emissive_strength",
-                               "KHR_texture_transform"]
+                               "KHR_materials_ior", "KHR_materials_volume",
+                               "KHR_materials_emissive_strength", "KHR_texture_transform"]
     # 20 W/sr at 683 lm/W.
     w.doc["extensions"] = {"KHR_lights_punctual": {"lights": [
         {"name": "key", "type": "spot", "color": [1.0, 0.96, 0.9], "intensity": 20 * 683,

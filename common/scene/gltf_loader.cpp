@@ -129,9 +129,12 @@ std::pair<size_t, size_t> glb_json_chunk(const std::string& data, const std::str
 }
 
 const std::set<std::string>& supported_extensions() {
-  static const std::set<std::string> names{
-      "KHR_lights_punctual", "KHR_materials_ior", "KHR_materials_transmission",
-      "KHR_materials_emissive_strength", "KHR_texture_transform"};
+  static const std::set<std::string> names{"KHR_lights_punctual",
+                                           "KHR_materials_ior",
+                                           "KHR_materials_transmission",
+                                           "KHR_materials_volume",
+                                           "KHR_materials_emissive_strength",
+                                           "KHR_texture_transform"};
   return names;
 }
 

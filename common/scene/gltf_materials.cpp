@@ -1,6 +1,8 @@
 #include "common/scene/gltf_materials.h"
 
 #include <cmath>
+#include <limits>
+#include <optional>
 #include <span>
 
 #include "common/image/decode_image.h"
@@ -225,10 +227,80 @@ Material Materials::convert(int index) {
   }
   m.two_sided = g.doubleSided;  // emission leaves both sides of a double-sided surface
   m.kind = k;
-  m.textured = k.base_color.is_textured() || k.metallic.is_textured() ||
-               k.roughness.is_textured() || k.transmission.is_textured();
+  if (std::optional<MaterialKind> solid = volume(g, k, where)) m.kind = *solid;
+  m.textured = std::visit(
+      [](const auto& p) {
+        return std::apply(
+            [&p](auto... member) { return (false || ... || (p.*member).is_textured()); },
+            p.textured());
+      },
+      m.kind);
   if (texcoord >= 0) texcoords_[index] = texcoord;
   return m;
+}
+
+std::optional<MaterialKind> Materials::volume(const tinygltf::Material& g,
+                                              const MetallicRoughnessMaterial& k,
+                                              const std::string& where) {
+  const auto it = g.extensions.find("KHR_materials_volume");
+  if (it == g.extensions.end()) return std::nullopt;
+  const std::string at = where + "/extensions/KHR_materials_volume";
+  const tinygltf::Value& x = it->second;
+  const double thickness = ext_number(src_, x, "thicknessFactor", 0.0, at);
+  if (!(thickness >= 0.0 && thickness <= 1e17))
+    src_.fail(at + "/thicknessFactor", "must lie in [0, 1e17], is " + std::to_string(thickness));
+  const double distance =
+      ext_number(src_, x, "attenuationDistance", std::numeric_limits<double>::infinity(), at);
+  if (x.IsObject() && x.Has("attenuationDistance") && !(distance > 0.0))
+    src_.fail(at + "/attenuationDistance", "must be positive, is " + std::to_string(distance));
+  bool tinted = false;
+  if (x.IsObject() && x.Has("attenuationColor")) {
+    const tinygltf::Value& c = x.Get("attenuationColor");
+    if (!c.IsArray() || c.ArrayLen() != 3)
+      src_.fail(at + "/attenuationColor", "expected 3 numbers");
+    for (int i = 0; i < 3; ++i) {
+      if (!c.Get(i).IsNumber()) src_.fail(at + "/attenuationColor", "expected 3 numbers");
+      tinted |= unit_factor(src_, c.Get(i).GetNumberAsDouble(), at + "/attenuationColor") < 1.f;
+    }
+  }
+  // Without transmission, or on a wholly metallic surface (glTF mixes the metal over the
+  // transmitting dielectric), light never enters the volume; with a zero thickness the glTF
+  // surface is thin-walled again.
+  const bool enters = k.transmission.value > 0.f || k.transmission.is_textured();
+  const bool metal = k.metallic.value == 1.f && !k.metallic.is_textured();
+  if (thickness == 0.0 || !enters || metal) return std::nullopt;
+
+  if (k.transmission.value < 1.f || k.transmission.is_textured() || k.metallic.value > 0.f ||
+      k.metallic.is_textured()) {
+    src_.warn(at,
+              "the material is read as a solid dielectric that transmits everywhere; its "
+              "metallic and diffuse shares (metallicFactor, transmissionFactor below 1, "
+              "their textures) are not rendered");
+  }
+  if (k.roughness.is_textured())
+    src_.warn(at,
+              "a refracting volume's roughness is roughnessFactor alone; the roughness of "
+              "metallicRoughnessTexture is not read");
+  // rayfarm has no absorbing media: light inside the volume travels unattenuated. Said once per
+  // file, since one file often has many glass materials.
+  if (tinted && std::isfinite(distance) && !attenuation_warned_) {
+    attenuation_warned_ = true;
+    src_.warn(at,
+              "attenuationColor and attenuationDistance are ignored: rayfarm has no "
+              "absorption inside volumes (base colour still tints each crossing)");
+  }
+  const float roughness = k.roughness.value;
+  if (roughness == 0.f) {
+    DielectricMaterial d;
+    d.ior = k.ior;
+    d.tint = k.base_color;
+    return d;
+  }
+  RoughDielectricMaterial d;
+  d.ior = k.ior;
+  d.alpha_u = d.alpha_v = roughness * roughness;
+  d.tint = k.base_color;
+  return d;
 }
 
 int32_t Materials::texture(int index, int uv_set, const tinygltf::ExtensionMap& extensions,

@@ -1,12 +1,13 @@
 #pragma once
 // glTF materials, textures and images as rayfarm's: every pbrMetallicRoughness texture with its
 // sampler, texCoord and KHR_texture_transform, the normal and emissive textures, alpha modes and
-// the KHR_materials_ior / _transmission / _emissive_strength extensions. Internal to the glTF
-// loader; docs/gltf.md says what maps to what.
+// the KHR_materials_ior / _transmission / _volume / _emissive_strength extensions. Internal to the
+// glTF loader; docs/gltf.md says what maps to what.
 #include <cstdint>
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <tuple>
 #include <vector>
@@ -35,6 +36,10 @@ class Materials {
 
  private:
   Material convert(int index);
+  /// The solid dielectric that a transmitting material with KHR_materials_volume (thickness > 0)
+  /// bounds, or nothing when `g` is thin-walled; `k` is its metallic-roughness reading.
+  std::optional<MaterialKind> volume(const tinygltf::Material& g,
+                                     const MetallicRoughnessMaterial& k, const std::string& where);
   /// The scene texture for glTF texture `info_index` as read in `space`; `texcoord` receives its
   /// TEXCOORD set; `where` names the texture info for messages.
   int32_t texture(int index, int uv_set, const tinygltf::ExtensionMap& extensions,
@@ -51,6 +56,7 @@ class Materials {
   std::map<std::tuple<int, ColourSpace, std::string>, int32_t> textures_;
   std::map<int, std::shared_ptr<const DecodedImage>> decoded_;
   uint64_t decoded_bytes_ = 0;
+  bool attenuation_warned_ = false;
 };
 
 }  // namespace rayfarm::gltf

@@ -356,6 +356,141 @@ TEST(Gltf, UnsupportedFeaturesAreNamedInWarnings) {
   EXPECT_NE(all.find("BLEND"), std::string::npos) << all;
 }
 
+/// sample_scene() with its material made transmitting (factor 1), with `volume` as its
+/// KHR_materials_volume (none when null), which the file requires.
+GltfBuilder glass_scene(const Json& volume, double roughness = 0.0) {
+  GltfBuilder b = sample_scene();
+  Json& m = b.doc["materials"][0];
+  m["pbrMetallicRoughness"]["roughnessFactor"] = roughness;
+  m["extensions"]["KHR_materials_transmission"] = {{"transmissionFactor", 1.0}};
+  b.doc["extensionsUsed"] = {"KHR_lights_punctual", "KHR_materials_ior",
+                             "KHR_materials_transmission"};
+  if (!volume.is_null()) {
+    m["extensions"]["KHR_materials_volume"] = volume;
+    b.doc["extensionsUsed"].push_back("KHR_materials_volume");
+    b.doc["extensionsRequired"] = {"KHR_materials_volume"};
+  }
+  return b;
+}
+
+std::string all_warnings(const Scene& scene) {
+  std::string all;
+  for (const std::string& w : scene.warnings) all += w + "\n";
+  return all;
+}
+
+TEST(Gltf, TransmissionWithAVolumeIsSolidGlass) {
+  TempDir dir;
+  {  // smooth: a dielectric of the file's ior, tinted by the base colour at each crossing
+    const Scene scene =
+        load_scene(dir.write("a.glb", glass_scene({{"thicknessFactor", 0.1}}).glb()));
+    EXPECT_TRUE(scene.warnings.empty()) << all_warnings(scene);
+    ASSERT_EQ(scene.materials.size(), 1u);
+    const auto& d = std::get<DielectricMaterial>(scene.materials[0].kind);
+    EXPECT_FLOAT_EQ(d.ior, 1.33f);
+    expect_near(d.tint.value, Vec3(0.5f, 0.25f, 0.125f));
+    EXPECT_FALSE(scene.materials[0].textured);
+  }
+  {  // rough: GGX alpha is the square of the perceptual roughness
+    const Scene scene =
+        load_scene(dir.write("b.glb", glass_scene({{"thicknessFactor", 2.0}}, 0.4).glb()));
+    EXPECT_TRUE(scene.warnings.empty()) << all_warnings(scene);
+    const auto& d = std::get<RoughDielectricMaterial>(scene.materials.at(0).kind);
+    EXPECT_FLOAT_EQ(d.alpha_u.value, 0.16f);
+    EXPECT_FLOAT_EQ(d.alpha_v.value, 0.16f);
+    EXPECT_FLOAT_EQ(d.ior, 1.33f);
+  }
+  {  // without KHR_materials_ior, glTF's default index 1.5
+    GltfBuilder b = glass_scene({{"thicknessFactor", 1.0}});
+    b.doc["materials"][0]["extensions"].erase("KHR_materials_ior");
+    const Scene scene = load_scene(dir.write("c.glb", b.glb()));
+    EXPECT_FLOAT_EQ(std::get<DielectricMaterial>(scene.materials.at(0).kind).ior, 1.5f);
+  }
+}
+
+TEST(Gltf, ThinOrOpaqueVolumesStayMetallicRoughness) {
+  TempDir dir;
+  // Zero thickness (the extension's default) is the thin wall again.
+  for (const Json& volume : {Json::object(), Json{{"thicknessFactor", 0.0}}}) {
+    const Scene scene = load_scene(dir.write("t.glb", glass_scene(volume).glb()));
+    EXPECT_TRUE(scene.warnings.empty()) << all_warnings(scene);
+    const auto& k = std::get<MetallicRoughnessMaterial>(scene.materials.at(0).kind);
+    EXPECT_EQ(k.transmission.value, 1.f);
+  }
+  // Without transmission nothing enters the volume.
+  GltfBuilder b = glass_scene({{"thicknessFactor", 1.0}});
+  b.doc["materials"][0]["extensions"].erase("KHR_materials_transmission");
+  const Scene scene = load_scene(dir.write("o.glb", b.glb()));
+  EXPECT_EQ(std::get<MetallicRoughnessMaterial>(scene.materials.at(0).kind).transmission.value,
+            0.f);
+  // Nor on a metal: metallicFactor defaults to 1, and the metal covers the transmission.
+  GltfBuilder metal = glass_scene({{"thicknessFactor", 1.0}});
+  metal.doc["materials"][0]["pbrMetallicRoughness"].erase("metallicFactor");
+  const Scene metal_scene = load_scene(dir.write("m.glb", metal.glb()));
+  EXPECT_TRUE(metal_scene.warnings.empty()) << all_warnings(metal_scene);
+  EXPECT_EQ(std::get<MetallicRoughnessMaterial>(metal_scene.materials.at(0).kind).metallic.value,
+            1.f);
+}
+
+TEST(Gltf, VolumeAttenuationAndMixesAreNamedInWarnings) {
+  GltfBuilder b = glass_scene({{"thicknessFactor", 1.0},
+                               {"attenuationColor", {0.5, 0.9, 1.0}},
+                               {"attenuationDistance", 0.2}});
+  // A second glass material with attenuation: the absorption warning is given once per file.
+  Json second = b.doc["materials"][0];
+  second["name"] = "green glass";
+  b.push("materials", second);
+  b.doc["nodes"].push_back({{"mesh", b.add_quad(1)}});
+  b.doc["scenes"][0]["nodes"].push_back(3);
+  TempDir dir;
+  {
+    const Scene scene = load_scene(dir.write("a.glb", b.glb()));
+    ASSERT_EQ(scene.materials.size(), 2u);
+    for (const Material& m : scene.materials)
+      EXPECT_TRUE(std::holds_alternative<DielectricMaterial>(m.kind)) << m.name;
+    ASSERT_EQ(scene.warnings.size(), 1u) << all_warnings(scene);
+    EXPECT_NE(scene.warnings[0].find("materials[0]/extensions/KHR_materials_volume"),
+              std::string::npos)
+        << scene.warnings[0];
+    EXPECT_NE(scene.warnings[0].find("attenuation"), std::string::npos) << scene.warnings[0];
+  }
+  {  // a white attenuation colour, or an infinite distance, attenuates nothing: no warning
+    GltfBuilder white = b;
+    for (Json& m : white.doc["materials"])
+      m["extensions"]["KHR_materials_volume"]["attenuationColor"] = {1.0, 1.0, 1.0};
+    EXPECT_TRUE(load_scene(dir.write("w.glb", white.glb())).warnings.empty());
+    GltfBuilder far = b;
+    for (Json& m : far.doc["materials"])
+      m["extensions"]["KHR_materials_volume"].erase("attenuationDistance");
+    EXPECT_TRUE(load_scene(dir.write("f.glb", far.glb())).warnings.empty());
+  }
+  {  // half transmission and half metal cannot be one solid dielectric: said
+    GltfBuilder mixed = glass_scene({{"thicknessFactor", 1.0}});
+    mixed.doc["materials"][0]["extensions"]["KHR_materials_transmission"]["transmissionFactor"] =
+        0.5;
+    const Scene scene = load_scene(dir.write("m.glb", mixed.glb()));
+    EXPECT_TRUE(std::holds_alternative<DielectricMaterial>(scene.materials.at(0).kind));
+    EXPECT_NE(all_warnings(scene).find("transmissionFactor below 1"), std::string::npos)
+        << all_warnings(scene);
+  }
+}
+
+TEST(Gltf, MalformedVolumesNameThePlace) {
+  const std::string at = "materials[0]/extensions/KHR_materials_volume/";
+  const std::vector<std::pair<Json, std::string>> cases{
+      {{{"thicknessFactor", -1.0}}, at + "thicknessFactor"},
+      {{{"thicknessFactor", "thick"}}, at + "thicknessFactor"},
+      {{{"thicknessFactor", 1.0}, {"attenuationDistance", 0.0}}, at + "attenuationDistance"},
+      {{{"thicknessFactor", 1.0}, {"attenuationDistance", -2.0}}, at + "attenuationDistance"},
+      {{{"thicknessFactor", 1.0}, {"attenuationColor", {1.0, 0.5}}}, at + "attenuationColor"},
+      {{{"thicknessFactor", 1.0}, {"attenuationColor", {1.0, 0.5, 1.5}}}, at + "attenuationColor"},
+  };
+  for (const auto& [volume, where] : cases) {
+    const std::string error = glb_error(glass_scene(volume));
+    EXPECT_NE(error.find("bad.glb: " + where), std::string::npos) << volume << ": " << error;
+  }
+}
+
 TEST(Gltf, NoCameraGivesADefaultView) {
   GltfBuilder b = sample_scene();
   b.doc["scenes"][0]["nodes"] = {0};

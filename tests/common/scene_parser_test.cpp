@@ -3,10 +3,13 @@
 #include <gtest/gtest.h>
 
 #include <unistd.h>
+#include <algorithm>
 #include <atomic>
 #include <fstream>
 #include <initializer_list>
+#include <map>
 #include <random>
+#include <set>
 #include <string>
 #include <variant>
 
@@ -189,6 +192,85 @@ TEST(SceneBundled, MaterialsHasEveryMicrofacetAndLayeredKind) {
   EXPECT_EQ(params<MetallicRoughnessMaterial>(material_named(scene, "gltf-dielectric")).metallic,
             0.f);
   EXPECT_EQ(scene.spheres.size(), 6u);
+}
+
+TEST(SceneBundled, MaterialPreviewHasOneSphereOfEveryKind) {
+  const Scene scene = load_scene(bundled("material-preview"));
+  EXPECT_TRUE(scene.warnings.empty()) << warnings_of(scene);
+  EXPECT_EQ(scene.film.width, 384u);
+  EXPECT_EQ(scene.film.height, 256u);
+  EXPECT_EQ(scene.render.spp, 64u);
+  EXPECT_EQ(scene.render.max_depth, 12u);
+  EXPECT_EQ(scene.render.integrator, IntegratorType::kMis);
+
+  // Lit by its sky alone: no emitter, no punctual light.
+  ASSERT_TRUE(scene.environment);
+  EXPECT_EQ(scene.environment->file, "sky.hdr");
+  ASSERT_TRUE(scene.environment->image);
+  EXPECT_EQ(scene.environment->image->width, 128u);
+  EXPECT_EQ(scene.environment->image->height, 64u);
+  EXPECT_TRUE(scene.point_lights.empty() && scene.spot_lights.empty() &&
+              scene.directional_lights.empty());
+  for (const Material& m : scene.materials) EXPECT_FALSE(m.is_emissive()) << m.name;
+
+  // Materials by kind: the ground, the kinds themselves, and the kinds that carry a texture, a
+  // normal or bump map or a cut-out.
+  std::map<std::string, int> kinds;
+  for (const Material& m : scene.materials) ++kinds[material_kind_name(m.kind)];
+  const std::map<std::string, int> expected{
+      {"diffuse", 4},        {"phong", 1},          {"mirror", 1},
+      {"dielectric", 1},     {"roughconductor", 4}, {"roughdielectric", 1},
+      {"thindielectric", 1}, {"plastic", 4},        {"metallic_roughness", 2}};
+  EXPECT_EQ(kinds, expected);
+
+  const auto& copper = params<RoughConductorMaterial>(material_named(scene, "copper"));
+  EXPECT_EQ(copper.alpha_u.value, 0.f) << "a smooth conductor";
+  const auto& gold = params<RoughConductorMaterial>(material_named(scene, "rough-gold"));
+  EXPECT_EQ(gold.alpha_u.value, gold.alpha_v.value);
+  EXPECT_GT(gold.alpha_u.value, 0.f);
+  const auto& brushed = params<RoughConductorMaterial>(material_named(scene, "brushed"));
+  EXPECT_NE(brushed.alpha_u.value, brushed.alpha_v.value) << "anisotropic";
+  EXPECT_EQ(params<PlasticMaterial>(material_named(scene, "plastic")).alpha.value, 0.f);
+  EXPECT_GT(params<PlasticMaterial>(material_named(scene, "rough-plastic")).alpha.value, 0.f);
+  EXPECT_EQ(params<MetallicRoughnessMaterial>(material_named(scene, "gltf-metal")).metallic, 1.f);
+  EXPECT_EQ(params<MetallicRoughnessMaterial>(material_named(scene, "gltf-dielectric")).metallic,
+            0.f);
+  EXPECT_TRUE(params<PlasticMaterial>(material_named(scene, "checkered"))
+                  .diffuse_reflectance.is_textured());
+  EXPECT_TRUE(material_named(scene, "hammered").bump_map);
+  EXPECT_TRUE(material_named(scene, "pillows").normal_map);
+  // The same cut-out sphere, one-sided (nothing seen through its holes on the inside) and
+  // wrapped in "twosided" (its inside reflects).
+  EXPECT_TRUE(material_named(scene, "cage").one_sided);
+  EXPECT_FALSE(material_named(scene, "cage-twosided").one_sided);
+  EXPECT_TRUE(material_named(scene, "cage").has_alpha());
+  EXPECT_TRUE(material_named(scene, "cage-twosided").has_alpha());
+  size_t textured = 0, mapped = 0, cut = 0;
+  for (const Material& m : scene.materials) {
+    textured += m.textured;
+    mapped += m.has_surface_map();
+    cut += m.has_alpha();
+  }
+  EXPECT_EQ(textured, 1u);
+  EXPECT_EQ(mapped, 2u);
+  EXPECT_EQ(cut, 2u);
+
+  // A 6 x 3 grid: every material but the ground's on one sphere, every sphere on the ground.
+  ASSERT_EQ(scene.spheres.size(), 18u);
+  EXPECT_EQ(scene.materials.size(), 19u);
+  std::set<uint32_t> used;
+  for (const Sphere& s : scene.spheres) {
+    used.insert(s.material);
+    EXPECT_FLOAT_EQ(s.center.y, s.radius) << scene.materials[s.material].name;
+  }
+  EXPECT_EQ(used.size(), 18u);
+  EXPECT_EQ(used.count(0u), 0u) << "the ground's material is the first";
+  ASSERT_EQ(scene.meshes.size(), 1u);
+  EXPECT_NEAR(front_normal(scene.meshes[0], 0).y, 1.f, 1e-6f);
+  const std::vector<fs::path> files{"dimples.png", "pillows.png", "sky.hdr"};
+  std::vector<fs::path> referenced = scene.referenced;
+  std::sort(referenced.begin(), referenced.end());
+  EXPECT_EQ(referenced, files);
 }
 
 TEST(SceneBundled, EmbreeCornellMatchesTheTutorial) {

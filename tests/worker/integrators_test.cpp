@@ -84,7 +84,8 @@ std::vector<std::string> bundled_scene_names() {
 
 TEST(BundledScenes, AllAreFound) {
   const std::vector<std::string> names = bundled_scene_names();
-  for (const char* expected : {"cornell-box", "materials", "textured", "environment", "product"})
+  for (const char* expected :
+       {"cornell-box", "materials", "textured", "environment", "product", "material-preview"})
     EXPECT_NE(std::find(names.begin(), names.end(), expected), names.end()) << expected;
 }
 
