@@ -30,6 +30,9 @@ The scene, seen by an orthographic camera from 48 degrees above the floor:
         the inner angle, linear in angle to 0 at the outer one. What Cycles then renders is the
         glTF light as we read it; what is checked is the import's units, position, axis and angles.
       sun `sun`: E W/m^2 (Cycles: irradiance on a surface facing it); exported as E * 683 lux.
+  * direct light only (our max_depth 1, Cycles 0 bounces), and every floor normal leaning away
+    from every lamp: Cycles darkens a normal-mapped diffuse surface lit from the side its normal
+    leans to, and we do not (check_no_bump_shadowing).
 """
 
 import math

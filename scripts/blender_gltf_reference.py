@@ -1,9 +1,11 @@
 """Builds a small glTF test scene in Blender, exports it, and renders it with Cycles.
 
     blender -b --factory-startup --python scripts/blender_gltf_reference.py -- \
-        OUT_DIR --spp N [--seeds K] [--seed S] [--threads T]
+        OUT_DIR [--scene showcase|lights] --spp N [--seeds K] [--seed S] [--threads T]
 
-Writes, into OUT_DIR (tests/data/gltf-references/):
+Two scenes: `showcase` (this file, described below) and `lights` (Blender's punctual lamps and a
+normal map: scripts/blender_gltf_lights.py, which lists its files). For showcase, writes into
+OUT_DIR (tests/data/gltf-references/):
 
   showcase.gltf, showcase.bin, floor-texture.png   Blender's glTF exporter ("glTF Separate")
   showcase-scene.json    our JSON scene naming showcase.gltf, replacing the materials whose glTF

@@ -129,7 +129,10 @@ INSTANTIATE_TEST_SUITE_P(Integrators, GltfAgainstCycles, ::testing::Values(Integ
 // The lights scene (scripts/blender_gltf_lights.py): Blender's point, spot and sun lamps exported
 // in the exporter's standard photometric units, a floor whose normal map holds slanted asymmetric
 // ridges (left half uv as is, right half mirrored: tangent handedness +1 and -1), and an
-// orthographic camera. Exported twice, with TANGENT attributes and without.
+// orthographic camera. Exported twice, with TANGENT attributes and without. Direct light only, the
+// floor's normals all leaning away from the lamps: Cycles darkens normal-mapped diffuse surfaces
+// lit from the side their normal leans to, and we do not. Cycles' spot was given glTF's cone
+// (tests/data/gltf-references/README.md).
 const double kPi = 3.14159265358979323846;
 
 TEST(GltfCyclesReference, LightsFilesCarryTheExportersUnits) {
