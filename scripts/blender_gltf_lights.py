@@ -8,13 +8,13 @@ Not run on its own: blender_gltf_reference.py --scene lights imports it. Written
   lights-scene.json, lights-notangents-scene.json   our scenes naming each file
   lights-cycles.exr (+ -variance.exr, .json)        Cycles' render (one for both files)
 
-The scene, seen by an orthographic camera from 48 degrees above the floor:
+The scene, seen by an orthographic camera from 53 degrees above the floor:
 
-  * floor: two 2 x 2 m quads sharing one material `ridged`, a grey Lambert surface whose normal
-    map (ridges.png, 16 x 16 texels) holds slanted, asymmetric ridges: a gentle slope one way and
-    a steep one back, along a direction that has both an x and a y part, so a flipped green
-    channel, a swapped tangent or a lost handedness each move the shading. The left quad's u runs
-    along +x, the right quad's along -x (its uv mirrored: MikkTSpace handedness w = -1).
+  * floor: two 2 x 4 m quads sharing one material `ridged`, a grey Lambert surface whose normal
+    map (ridges.png, 16 x 16 texels) holds slanted stripes of two tilts (8 and 20 degrees) leaning
+    in two directions that each have an x and a y part, so a flipped green channel, a swapped
+    tangent or a lost handedness each move the shading. The left quad's u runs along +x, the right
+    quad's along -x (its uv mirrored: MikkTSpace handedness w = -1).
     Exported as a Principled BSDF with a Normal Map node; rendered as a Diffuse BSDF (Lambert)
     with the same Normal Map node (tangent space, UVMap) and the image as Non-Color, Closest.
   * wall and block: Lambert greys (Principled when exported).
