@@ -1,9 +1,11 @@
 """Builds a small glTF test scene in Blender, exports it, and renders it with Cycles.
 
     blender -b --factory-startup --python scripts/blender_gltf_reference.py -- \
-        OUT_DIR --spp N [--seeds K] [--seed S] [--threads T]
+        OUT_DIR [--scene showcase|lights] --spp N [--seeds K] [--seed S] [--threads T]
 
-Writes, into OUT_DIR (tests/data/gltf-references/):
+Two scenes: `showcase` (this file, described below) and `lights` (Blender's punctual lamps and a
+normal map: scripts/blender_gltf_lights.py, which lists its files). For showcase, writes into
+OUT_DIR (tests/data/gltf-references/):
 
   showcase.gltf, showcase.bin, floor-texture.png   Blender's glTF exporter ("glTF Separate")
   showcase-scene.json    our JSON scene naming showcase.gltf, replacing the materials whose glTF
@@ -241,10 +243,57 @@ def our_scene():
     }
 
 
+def export_gltf(path, **options):
+    bpy.ops.export_scene.gltf(filepath=path, export_format="GLTF_SEPARATE", export_cameras=True,
+                              export_yup=True, export_apply=False, export_texcoords=True,
+                              export_normals=True, export_materials="EXPORT",
+                              export_image_format="AUTO", export_extras=False,
+                              use_selection=False, **options)
+
+
+def write_json(path, value):
+    with open(path, "w", encoding="utf-8") as f:
+        json.dump(value, f, indent=2)
+        f.write("\n")
+
+
+def prepare_showcase(out_dir):
+    """Builds and exports the showcase scene, then gives it its render materials."""
+    scene, image = build_scene(out_dir)
+    export_gltf(os.path.join(out_dir, NAME + ".gltf"), export_lights=False)
+    write_json(os.path.join(out_dir, NAME + "-scene.json"), our_scene())
+    set_render_materials(image)
+    materials = {
+        "mirror": "Principled BSDF as exported (metallic 1, roughness 0, white)",
+        "glass": "Principled BSDF as exported (transmission 1, roughness 0, ior 1.5, white)",
+        "floor": "Diffuse BSDF roughness 0 with the image, Closest interpolation",
+        "wall": f"Diffuse BSDF roughness 0, colour {WALL_GREY}",
+        "light": f"Emission shader, white, strength {LIGHT_RADIANCE}, both faces",
+    }
+    return scene, NAME, [NAME], WIDTH, HEIGHT, MAX_DEPTH, materials
+
+
+def prepare_lights(out_dir):
+    """Builds the lights scene, exports it with and without tangents (Blender's standard
+    photometric lamp units), then gives it its render materials and spot profile."""
+    import blender_gltf_lights as lights
+    helpers = {"principled": principled, "mesh_object": mesh_object, "replace_tree": replace_tree,
+               "lambert": lambert}
+    state = lights.build(out_dir, helpers)
+    for name, tangents in ((lights.NAME, True), (lights.NAME_NO_TANGENTS, False)):
+        export_gltf(os.path.join(out_dir, name + ".gltf"), export_lights=True,
+                    export_tangents=tangents, convert_lighting_mode="SPEC")
+        write_json(os.path.join(out_dir, name + "-scene.json"), lights.our_scene(name))
+    lights.set_render_materials(state, helpers)
+    return (state["scene"], lights.NAME, [lights.NAME, lights.NAME_NO_TANGENTS], lights.WIDTH,
+            lights.HEIGHT, lights.MAX_DEPTH, lights.materials_rendered())
+
+
 def main():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
     ap = argparse.ArgumentParser(prog="blender -b --python scripts/blender_gltf_reference.py --")
     ap.add_argument("out_dir")
+    ap.add_argument("--scene", choices=("showcase", "lights"), default="showcase")
     ap.add_argument("--spp", type=int, required=True, help="samples per pixel in total")
     ap.add_argument("--seeds", type=int, default=8, help="independent renders (spp split evenly)")
     ap.add_argument("--seed", type=int, default=1, help="first Cycles seed")
@@ -255,72 +304,62 @@ def main():
     out_dir = os.path.abspath(args.out_dir)
     os.makedirs(out_dir, exist_ok=True)
 
-    scene, image = build_scene(out_dir)
-    gltf_path = os.path.join(out_dir, NAME + ".gltf")
-    bpy.ops.export_scene.gltf(filepath=gltf_path, export_format="GLTF_SEPARATE",
-                              export_cameras=True, export_lights=False, export_yup=True,
-                              export_apply=False, export_texcoords=True, export_normals=True,
-                              export_materials="EXPORT", export_image_format="AUTO",
-                              export_extras=False, use_selection=False)
-    with open(os.path.join(out_dir, NAME + "-scene.json"), "w", encoding="utf-8") as f:
-        json.dump(our_scene(), f, indent=2)
-        f.write("\n")
-
-    set_render_materials(image)
+    prepare = prepare_lights if args.scene == "lights" else prepare_showcase
+    scene, name, gltf_names, width, height, max_depth, materials = prepare(out_dir)
     per_render = args.spp // args.seeds
-    bounces = configure_cycles(scene, {"film": {"width": WIDTH, "height": HEIGHT},
-                                       "max_depth": MAX_DEPTH}, per_render, args.threads)
+    bounces = configure_cycles(scene, {"film": {"width": width, "height": height},
+                                       "max_depth": max_depth}, per_render, args.threads)
     settings = recorded_settings(scene)
     settings["world"] = "black, strength 0"
+    settings["camera_type"] = scene.camera.data.type
+    settings["camera_ortho_scale"] = scene.camera.data.ortho_scale
+
+    def sha256(gltf):
+        return hashlib.sha256(open(os.path.join(out_dir, gltf + ".gltf"), "rb").read()).hexdigest()
+
     meta = {
-        "what": "Blender Cycles render of the Blender scene exported as " + NAME + ".gltf "
+        "what": "Blender Cycles render of the Blender scene exported as " + name + ".gltf "
                 "(scripts/blender_gltf_reference.py)",
         "blender_version": bpy.app.version_string,
-        "gltf": NAME + ".gltf",
-        "gltf_sha256": hashlib.sha256(open(gltf_path, "rb").read()).hexdigest(),
+        "gltf": name + ".gltf",
+        "gltf_sha256": sha256(name),
+        "gltf_files_sha256": {g + ".gltf": sha256(g) for g in gltf_names},
         "spp_total": args.spp,
         "renders": args.seeds,
         "spp_per_render": per_render,
         "seeds": list(range(args.seed, args.seed + args.seeds)),
-        "our_max_depth": MAX_DEPTH,
+        "our_max_depth": max_depth,
         "cycles_max_bounces": bounces,
-        "materials_rendered": {
-            "mirror": "Principled BSDF as exported (metallic 1, roughness 0, white)",
-            "glass": "Principled BSDF as exported (transmission 1, roughness 0, ior 1.5, white)",
-            "floor": "Diffuse BSDF roughness 0 with the image, Closest interpolation",
-            "wall": f"Diffuse BSDF roughness 0, colour {WALL_GREY}",
-            "light": f"Emission shader, white, strength {LIGHT_RADIANCE}, both faces",
-        },
+        "materials_rendered": materials,
         "material_sample_as_light": False,
         "cycles": settings,
         "command": "blender -b --factory-startup --python scripts/blender_gltf_reference.py -- "
                    + " ".join(argv),
     }
-    renders, times, mean, var = render_seeds(scene, meta["seeds"], per_render, WIDTH, HEIGHT)
+    renders, times, mean, var = render_seeds(scene, meta["seeds"], per_render, width, height)
     n = len(renders)
-    stem = os.path.join(out_dir, NAME + "-cycles")
+    stem = os.path.join(out_dir, name + "-cycles")
     settings_text = json.dumps(meta, sort_keys=True)
-    save_pixels(mean, WIDTH, HEIGHT, stem + ".exr", {
-        "comments": f"Blender Cycles render of {NAME}.gltf's Blender scene: mean of {n} renders, "
+    save_pixels(mean, width, height, stem + ".exr", {
+        "comments": f"Blender Cycles render of {name}.gltf's Blender scene: mean of {n} renders, "
                     f"{args.spp} spp in all (scripts/blender_gltf_reference.py)",
         "rayfarmReference": settings_text})
-    save_pixels(var, WIDTH, HEIGHT, stem + "-variance.exr", {
-        "comments": f"per-pixel variance of the mean of {NAME}-cycles.exr, from the spread of its "
+    save_pixels(var, width, height, stem + "-variance.exr", {
+        "comments": f"per-pixel variance of the mean of {name}-cycles.exr, from the spread of its "
                     f"{n} independent renders",
         "rayfarmReference": settings_text})
-    meta["files"] = {"mean": NAME + "-cycles.exr", "variance_of_mean": NAME + "-cycles-variance.exr"}
-    meta["image_mean_rgb"] = [sum(mean[c::3]) / (WIDTH * HEIGHT) for c in range(3)]
+    meta["files"] = {"mean": name + "-cycles.exr", "variance_of_mean": name + "-cycles-variance.exr"}
+    meta["image_mean_rgb"] = [sum(mean[c::3]) / (width * height) for c in range(3)]
     meta["render_seconds"] = [round(t, 2) for t in times]
-    with open(stem + ".json", "w", encoding="utf-8") as f:
-        json.dump(meta, f, indent=2)
-        f.write("\n")
-    print(f"wrote {out_dir}: {NAME}.gltf and its files, {NAME}-scene.json, {NAME}-cycles*.exr; "
-          f"{sum(times):.1f} s of rendering", flush=True)
+    write_json(stem + ".json", meta)
+    print(f"wrote {out_dir}: {', '.join(g + '.gltf' for g in gltf_names)} and their files, "
+          f"{name}-cycles*.exr; {sum(times):.1f} s of rendering", flush=True)
 
 
-try:
-    main()
-except Exception:  # Blender keeps running after a script error; fail the process instead
-    import traceback
-    traceback.print_exc()
-    sys.exit(1)
+if __name__ == "__main__":
+    try:
+        main()
+    except Exception:  # Blender keeps running after a script error; fail the process instead
+        import traceback
+        traceback.print_exc()
+        sys.exit(1)

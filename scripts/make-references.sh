@@ -4,7 +4,7 @@
 # Needs Blender 3.4 (Debian bookworm: apt-get install blender); tests and CI only read the
 # committed files and never run Blender.
 #
-#   scripts/make-references.sh [--threads T]     # about 6 minutes on 2 idle cores
+#   scripts/make-references.sh [--threads T]     # about 7 minutes on 2 idle cores
 set -euo pipefail
 cd "$(dirname "$0")/.."
 threads=0
@@ -27,4 +27,11 @@ blender -b --factory-startup --python scripts/blender_reference.py -- \
 # 8 renders of 2048 (seeds 1..8). See tests/data/gltf-references/README.md.
 blender -b --factory-startup --python scripts/blender_gltf_reference.py -- \
   tests/data/gltf-references --spp 16384 --seeds 8 --seed 1 --threads "$threads" \
+  2>&1 | grep -v '^Fra:' | grep -v '| INFO:'
+
+# glTF lights: Blender's point, spot and sun lamps and a normal-mapped floor, exported with and
+# without tangents (lights.gltf, lights-notangents.gltf), and Cycles' render of the scene, direct
+# light only: 64x48, 16384 spp as 8 renders of 2048. See tests/data/gltf-references/README.md.
+blender -b --factory-startup --python scripts/blender_gltf_reference.py -- \
+  tests/data/gltf-references --scene lights --spp 16384 --seeds 8 --seed 1 --threads "$threads" \
   2>&1 | grep -v '^Fra:' | grep -v '| INFO:'

@@ -189,7 +189,8 @@ GltfResult load_gltf(const fs::path& folder, const fs::path& relative, const Glt
   if (data.size() > UINT32_MAX) throw SceneError(display + ": larger than 4 GiB");
 
   FileAccess access;
-  access.root = fs::absolute(folder).lexically_normal();
+  // A file named without a folder lies in the working directory (fs::absolute refuses "").
+  access.root = (folder.empty() ? fs::current_path() : fs::absolute(folder)).lexically_normal();
   access.bytes = data.size();
   gltf::ImageBytes image_bytes;
   tinygltf::TinyGLTF reader;

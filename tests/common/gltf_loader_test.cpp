@@ -108,6 +108,31 @@ TEST(Gltf, BinaryFileGivesTheSameScene) {
   EXPECT_EQ(scene.referenced, (std::vector<std::filesystem::path>{"model.glb"}));
 }
 
+// `rayfarm render model.gltf` in the model's own folder: the file's path has no folder part, which
+// must read as the working directory (with its buffer beside it), directly and through a JSON
+// scene.
+TEST(Gltf, FileNamedWithoutAFolderIsReadFromTheWorkingDirectory) {
+  TempDir dir;
+  const GltfBuilder b = sample_scene();
+  dir.write("model.bin", b.bin);
+  dir.write("model.gltf", b.gltf("model.bin"));
+  dir.write("scene.json", R"({"gltf": {"file": "model.gltf"}})");
+  const std::filesystem::path here = std::filesystem::current_path();
+  std::filesystem::current_path(dir.path());
+  Scene direct, wrapped;
+  std::string error;
+  try {
+    direct = load_scene("model.gltf");
+    wrapped = load_scene("scene.json");
+  } catch (const std::exception& e) {
+    error = e.what();
+  }
+  std::filesystem::current_path(here);
+  ASSERT_EQ(error, "");
+  check_sample(direct);
+  check_sample(wrapped);
+}
+
 TEST(Gltf, JsonSceneAddsFilmAndOverridesMaterials) {
   TempDir dir;
   dir.write("m.glb", sample_scene().glb());
