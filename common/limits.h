@@ -19,6 +19,13 @@ inline constexpr std::uintmax_t kMaxPlyFileBytes = std::uintmax_t{1} << 30;
 inline constexpr std::uintmax_t kMaxGltfBytes = std::uintmax_t{1} << 30;
 /// Most triangles a glTF file's nodes may place (a mesh placed by many nodes counts each time).
 inline constexpr uint64_t kMaxGltfTriangles = uint64_t{1} << 26;
+/// Most JSON objects in a glTF file's JSON (2^22: nodes, meshes, accessors and their parts).
+inline constexpr uint64_t kMaxGltfJsonObjects = uint64_t{1} << 22;
+/// Most JSON values (elements and members) in a glTF file's JSON.
+inline constexpr uint64_t kMaxGltfJsonValues = uint64_t{1} << 24;
+/// Most elements of one glTF accessor (3 x 2^26: the indices of the most triangles a file may
+/// place); an accessor without a buffer view (all zeros) is held to it too.
+inline constexpr uint64_t kMaxGltfAccessorElements = uint64_t{3} << 26;
 /// Most nodes of a glTF file that are visited (each may place a mesh, a camera or a light).
 inline constexpr size_t kMaxGltfNodes = size_t{1} << 20;
 /// Largest texture image file read (PNG, JPEG, OpenEXR, HDR).
@@ -52,6 +59,9 @@ inline constexpr uint64_t kMaxInstances = uint64_t{1} << 20;
 /// Most triangles the instances of one scene place in the world (each instance counts its
 /// group's triangles): not memory, but what the rays traverse and the area lights enumerate.
 inline constexpr uint64_t kMaxInstancedTriangles = uint64_t{1} << 36;
+/// Most triangles that instances of emissive groups place: those are copied into the world as
+/// triangles of their own (area lights need them), so they cost memory per instance.
+inline constexpr uint64_t kMaxEmissiveInstancedTriangles = uint64_t{1} << 26;
 
 // ---- rendering
 // -----------------------------------------------------------------------------------

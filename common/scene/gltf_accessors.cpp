@@ -1,5 +1,7 @@
 #include "common/scene/gltf_accessors.h"
 
+#include "common/limits.h"
+
 #include <algorithm>
 #include <bit>
 #include <cmath>
@@ -109,6 +111,11 @@ View checked_view(const Source& src, int index, const std::string& where) {
   v.components = type_components(a.type);
   if (v.components == 0) src.fail(name, "a matrix or unknown type where a vector was expected");
   v.count = a.count;
+  // Before anything is allocated for it: an accessor without a buffer view costs no bytes of
+  // the file, whatever count it declares.
+  if (v.count > kMaxGltfAccessorElements)
+    src.fail(name, "count " + std::to_string(v.count) + " exceeds the limit of " +
+                       std::to_string(kMaxGltfAccessorElements) + " elements");
   v.normalized = a.normalized;
   const size_t element = v.size * static_cast<size_t>(v.components);
   v.stride = element;

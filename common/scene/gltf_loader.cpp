@@ -29,6 +29,8 @@ struct FileAccess {
 
 /// Inside the scene's folder: the path relative to it, or empty.
 fs::path inside(const FileAccess& access, const std::string& path) {
+  // A NUL would end the name that the system opens before the one checked here.
+  if (path.find('\0') != std::string::npos) return {};
   const fs::path rel = fs::absolute(path).lexically_normal().lexically_relative(access.root);
   if (rel.empty() || rel.is_absolute() || *rel.begin() == "..") return {};
   return rel;
@@ -78,10 +80,13 @@ bool keep_image(tinygltf::Image* image, const int index, std::string*, std::stri
 }
 
 /// Fails when JSON text nests arrays and objects deeper than the scene format allows (the
-/// parser tinygltf uses would recurse without bound while freeing it).
+/// parser tinygltf uses would recurse without bound while freeing it), or holds more objects or
+/// values than kMaxGltfJsonObjects / kMaxGltfJsonValues: parsed, each costs tens to hundreds of
+/// bytes, and a file of empty objects would ask for a hundred times its size.
 void check_nesting(const char* text, size_t size, const std::string& display) {
   int depth = 0;
   bool in_string = false, escaped = false;
+  uint64_t objects = 0, values = 0;
   for (size_t i = 0; i < size; ++i) {
     const char c = text[i];
     if (in_string) {
@@ -97,9 +102,18 @@ void check_nesting(const char* text, size_t size, const std::string& display) {
       if (++depth > kMaxJsonNesting)
         throw SceneError(display + ": JSON nested deeper than " + std::to_string(kMaxJsonNesting) +
                          " levels (byte " + std::to_string(i) + ")");
+      if (c == '{' && ++objects > kMaxGltfJsonObjects)
+        throw SceneError(display + ": more than " + std::to_string(kMaxGltfJsonObjects) +
+                         " JSON objects (byte " + std::to_string(i) + ")");
+      ++values;
     } else if (c == ']' || c == '}') {
       --depth;
+    } else if (c == ',') {
+      ++values;  // one more element or member
     }
+    if (values > kMaxGltfJsonValues)
+      throw SceneError(display + ": more than " + std::to_string(kMaxGltfJsonValues) +
+                       " JSON values (byte " + std::to_string(i) + ")");
   }
 }
 
@@ -125,6 +139,18 @@ std::pair<size_t, size_t> glb_json_chunk(const std::string& data, const std::str
   if (length > data.size() - 20)
     throw SceneError(display + ": byte 12: the JSON chunk's length " + std::to_string(length) +
                      " runs past the end of the file");
+  // The binary chunk, when there is one: its 8-byte header and its data must lie in the file
+  // (the reader checks the data's length without the header, and would read past the end).
+  const size_t bin = 20 + length;
+  if (bin < data.size()) {
+    if (data.size() - bin < 8)
+      throw SceneError(display + ": byte " + std::to_string(bin) +
+                       ": a chunk header cut short by the end of the file");
+    const size_t bin_length = le32(data, bin);
+    if (bin_length > data.size() - bin - 8)
+      throw SceneError(display + ": byte " + std::to_string(bin) + ": the binary chunk's length " +
+                       std::to_string(bin_length) + " runs past the end of the file");
+  }
   return {20, length};
 }
 

@@ -1,6 +1,7 @@
 #include "common/scene/gltf_materials.h"
 
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <optional>
 #include <span>
@@ -63,13 +64,12 @@ Materials::Materials(const Source& src, Scene& scene, const ImageBytes& bytes, S
 uint32_t Materials::material(int index) {
   if (auto it = materials_.find(index); it != materials_.end()) return it->second;
   Material m = convert(index);
-  // Names stay unique, so that a JSON scene can override a glTF material by its name.
-  for (const Material& other : scene_.materials) {
-    if (other.name == m.name) {
-      m.name += " (" + material_name(index) + ")";
-      break;
-    }
-  }
+  // Names stay unique, so that a JSON scene can override a glTF material by its name. A set,
+  // not a search: a file may hold millions of materials.
+  if (names_.empty())
+    for (const Material& other : scene_.materials) names_.insert(other.name);
+  if (names_.count(m.name)) m.name += " (" + material_name(index) + ")";
+  names_.insert(m.name);
   const auto scene_index = static_cast<uint32_t>(scene_.materials.size());
   scene_.materials.push_back(std::move(m));
   materials_[index] = scene_index;
@@ -345,10 +345,16 @@ int32_t Materials::texture(int index, int uv_set, const tinygltf::ExtensionMap& 
     if (!(std::fabs(r) <= 1e3)) src_.fail(at + "/rotation", "must lie in [-1000, 1000] radians");
     // The extension's rotation matrix is [cos -sin; sin cos]; UvTransform's turns the other way.
     options.transform.rotation = static_cast<float>(-r);
-    transform_key = std::to_string(options.transform.offset[0]) + "," +
-                    std::to_string(options.transform.offset[1]) + "," +
-                    std::to_string(options.transform.scale[0]) + "," +
-                    std::to_string(options.transform.scale[1]) + "," + std::to_string(r);
+    // The exact values, not a rounded print: transforms differing in the seventh digit are
+    // different textures.
+    auto exact = [](double v) {
+      char buf[32];
+      std::snprintf(buf, sizeof buf, "%a,", v);
+      return std::string(buf);
+    };
+    transform_key = exact(options.transform.offset[0]) + exact(options.transform.offset[1]) +
+                    exact(options.transform.scale[0]) + exact(options.transform.scale[1]) +
+                    exact(r);
   }
   const auto key = std::tuple{index, space, transform_key};
   if (auto it = textures_.find(key); it != textures_.end()) return it->second;

@@ -10,6 +10,7 @@
 #include <optional>
 #include <string>
 #include <tuple>
+#include <unordered_set>
 #include <vector>
 
 #include "common/scene/gltf_accessors.h"
@@ -52,6 +53,7 @@ class Materials {
   SceneImages images_;
   std::filesystem::path gltf_file_;
   std::map<int, uint32_t> materials_;  // glTF material -> scene material
+  std::unordered_set<std::string> names_;  // of scene_.materials, filled at the first material
   std::map<int, int> texcoords_;       // glTF material -> its TEXCOORD set
   std::map<std::tuple<int, ColourSpace, std::string>, int32_t> textures_;
   std::map<int, std::shared_ptr<const DecodedImage>> decoded_;

@@ -1,10 +1,12 @@
 // glTF 2.0 import: what each part of a file becomes in the scene, .gltf and .glb alike, the JSON
 // format's "gltf" key, and malformed files (each a SceneError naming the file and the object).
 #include <cmath>
+#include <cstring>
 #include <variant>
 
 #include <gtest/gtest.h>
 
+#include "common/limits.h"
 #include "common/scene/parser.h"
 #include "tests/support/gltf_builder.h"
 #include "tests/support/image_writers.h"
@@ -224,6 +226,38 @@ TEST(Gltf, TexturesWithSamplersAndTransforms) {
   EXPECT_FALSE(checked.textures[0].image);
 }
 
+// One texture per distinct transform, told apart by the exact values: offsets 1e-7 apart are two
+// textures, the same offset written twice is one.
+TEST(Gltf, TexturesAreSharedOnlyUnderTheSameTransform) {
+  GltfBuilder b;
+  testing::PngSpec png;
+  png.width = 1;
+  png.height = 1;
+  png.samples = {255, 0, 0};
+  const testing::Bytes bytes = testing::encode_png(png);
+  b.push("images", {{"bufferView", b.add_view(std::string(bytes.begin(), bytes.end()))},
+                    {"mimeType", "image/png"}});
+  b.push("textures", {{"source", 0}});
+  auto shifted = [&](double offset) {
+    return b.push("materials",
+                  {{"pbrMetallicRoughness",
+                    {{"baseColorTexture",
+                      {{"index", 0},
+                       {"extensions", {{"KHR_texture_transform", {{"offset", {offset, 0}}}}}}}}}}});
+  };
+  for (int material : {shifted(0.25), shifted(0.25 + 1e-7), shifted(0.25)})
+    b.push("nodes", {{"mesh", b.add_quad(material)}});
+  TempDir dir;
+  const Scene scene = load_scene(dir.write("t.glb", b.glb()));
+  ASSERT_EQ(scene.materials.size(), 3u);
+  EXPECT_EQ(scene.textures.size(), 2u);
+  auto texture_of = [&](size_t m) {
+    return std::get<MetallicRoughnessMaterial>(scene.materials[m].kind).base_color.texture;
+  };
+  EXPECT_NE(texture_of(0), texture_of(1));
+  EXPECT_EQ(texture_of(0), texture_of(2));
+}
+
 TEST(Gltf, NormalEmissiveAndAlphaTexturesAndTangents) {
   GltfBuilder b;
   testing::PngSpec png;
@@ -344,6 +378,63 @@ TEST(Gltf, MalformedFilesNameThePlace) {
     TempDir dir;
     EXPECT_THROW(load_scene(dir.write("cut.glb", glb)), SceneError);
     EXPECT_THROW(load_scene(dir.write("junk.glb", "not a glb file at all, really")), SceneError);
+  }
+}
+
+// What a few bytes of a hostile file could make the reader allocate is refused first: an
+// accessor without a buffer view (all zeros, whatever its count), a binary chunk whose header
+// claims bytes past the end of the file, and JSON of millions of empty objects.
+TEST(Gltf, HostileSizesAreRefusedBeforeAllocating) {
+  {
+    GltfBuilder b = sample_scene();
+    b.doc["accessors"][0].erase("bufferView");
+    b.doc["accessors"][0]["count"] = uint64_t{1} << 31;
+    EXPECT_NE(glb_error(b).find("accessors[0]: count 2147483648 exceeds the limit"),
+              std::string::npos)
+        << glb_error(b);
+  }
+  {
+    std::string glb = sample_scene().glb();
+    uint32_t json_length;
+    std::memcpy(&json_length, glb.data() + 12, 4);
+    const size_t bin = 20 + json_length;
+    uint32_t bin_length;
+    std::memcpy(&bin_length, glb.data() + bin, 4);
+    bin_length += 8;  // the data would end 8 bytes past the file
+    std::memcpy(glb.data() + bin, &bin_length, 4);
+    TempDir dir;
+    try {
+      load_scene(dir.write("long.glb", glb));
+      ADD_FAILURE() << "a binary chunk longer than the file loaded";
+    } catch (const SceneError& e) {
+      EXPECT_NE(std::string(e.what()).find("the binary chunk's length"), std::string::npos)
+          << e.what();
+    }
+  }
+  {
+    GltfBuilder b = sample_scene();
+    std::string many = "[";
+    for (uint64_t i = 0; i <= kMaxGltfJsonObjects; ++i) many += i == 0 ? "{}" : ",{}";
+    many += "]";
+    TempDir dir;
+    dir.write("m.bin", b.bin);
+    std::string text = b.gltf("m.bin");
+    text.insert(text.size() - 1, ",\"extras\":" + many);
+    try {
+      load_scene(dir.write("m.gltf", text));
+      ADD_FAILURE() << "millions of empty objects loaded";
+    } catch (const SceneError& e) {
+      EXPECT_NE(std::string(e.what()).find("JSON objects"), std::string::npos) << e.what();
+    }
+  }
+  {
+    // A NUL in a file's name would have the system open the name's first part.
+    TempDir dir;
+    const GltfBuilder b = sample_scene();
+    dir.write("model.bin", b.bin);
+    Json doc = Json::parse(b.gltf("model.bin"));
+    doc["buffers"][0]["uri"] = std::string("model.bin\0.x", 12);
+    EXPECT_THROW(load_scene(dir.write("nul.gltf", doc.dump())), SceneError);
   }
 }
 
