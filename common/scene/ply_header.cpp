@@ -26,6 +26,9 @@ struct TypeInfo {
   long long min, max;  ///< the range of an integer type
 };
 
+// Most properties of one element.
+constexpr size_t kMaxPlyProperties = 256;
+
 constexpr std::array<TypeInfo, 8> kTypes{{
     {Type::kInt8, "char", "int8", 1, -128, 127},
     {Type::kUint8, "uchar", "uint8", 1, 0, 255},
@@ -142,6 +145,11 @@ class HeaderReader {
       p.name = std::string(words[2]);
     }
     Element& e = header_.elements.back();
+    // Real files have a few dozen; the bound keeps the search for a second one below linear
+    // in the header's length.
+    if (e.properties.size() >= kMaxPlyProperties)
+      at.fail("element " + in_quotes(e.name) + " has more than " +
+              std::to_string(kMaxPlyProperties) + " properties");
     if (e.find(p.name)) {
       at.fail("element " + in_quotes(e.name) + " has a second property " + in_quotes(p.name));
     }

@@ -333,6 +333,12 @@ TEST(PlyErrors, HeaderProblemsNameTheLine) {
   expect_ply_error("ply\nformat ascii 1.0\nelement v 1\nproperty float x\n",
                    {"the header has no end_header line"});
   expect_ply_error("ply\nformat ascii 1.0\nmaterial 3\n", {"m.ply:3: unknown header line"});
+  {
+    // Hundreds of properties: bounded, so that a long header costs no quadratic search.
+    std::string many = "ply\nformat ascii 1.0\nelement v 1\n";
+    for (int i = 0; i < 257; ++i) many += "property float p" + std::to_string(i) + "\n";
+    expect_ply_error(many + "end_header\n", {"m.ply:260: element \"v\" has more than 256"});
+  }
   expect_ply_error("ply\nformat ascii 1.0\ncomment \xff\n", {"m.ply:3: invalid UTF-8"});
 }
 
