@@ -286,6 +286,15 @@ class SceneReader {
       n.fail("the instances place more than " + std::to_string(kMaxInstancedTriangles) +
              " triangles in all");
     }
+    // Instances of emissive groups become world triangles on every worker (area lights need
+    // them): they cost memory per instance.
+    if (group_emits(scene_, group)) {
+      emissive_instanced_triangles_ += triangles;
+      if (emissive_instanced_triangles_ > kMaxEmissiveInstancedTriangles)
+        n.fail("the instances of emissive groups place more than " +
+               std::to_string(kMaxEmissiveInstancedTriangles) +
+               " triangles in all (each is kept as a world triangle for light sampling)");
+    }
     Instance instance;
     instance.group = it->second;
     if (auto t = n.find("transform")) {
@@ -428,6 +437,7 @@ class SceneReader {
   std::vector<TriangleMesh>* meshes_ = &scene_.meshes;  // where shapes go: the world or a group
   std::map<std::string, uint32_t> group_index_;
   uint64_t instanced_triangles_ = 0;
+  uint64_t emissive_instanced_triangles_ = 0;
 };
 
 }  // namespace

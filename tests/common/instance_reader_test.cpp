@@ -94,6 +94,46 @@ TEST(InstanceReader, RefusalsNameTheirPlace) {
   expect_scene_error(R"("groups": {"g": 3})", {"/groups/g", "expected an array"});
 }
 
+// Instances of an emissive group are copied into the world for light sampling, so the
+// triangles they place are bounded like world triangles: 2^15 triangles placed 2049 times is
+// just over 2^26.
+TEST(InstanceReader, EmissiveInstancesAreBoundedLikeWorldTriangles) {
+  TempDir dir;
+  std::string obj;
+  const int n = 128;  // a grid of n x n squares: 2 n^2 = 2^15 triangles
+  for (int y = 0; y <= n; ++y)
+    for (int x = 0; x <= n; ++x) obj += "v " + std::to_string(x) + " " + std::to_string(y) + " 0\n";
+  for (int y = 0; y < n; ++y) {
+    for (int x = 0; x < n; ++x) {
+      const int a = y * (n + 1) + x + 1, b = a + 1, c = a + n + 1, d = c + 1;
+      obj += "f " + std::to_string(a) + " " + std::to_string(b) + " " + std::to_string(d) + "\n";
+      obj += "f " + std::to_string(a) + " " + std::to_string(d) + " " + std::to_string(c) + "\n";
+    }
+  }
+  dir.write("grid.obj", obj);
+  auto scene_placing = [&](const std::string& material, int count) {
+    std::string shapes;
+    for (int i = 0; i < count; ++i)
+      shapes += std::string(i ? "," : "") + R"({"type": "instance", "group": "grid"})";
+    return scene_with(R"("groups": {"grid": [{"type": "mesh", "file": "grid.obj", "material": ")" +
+                      material + R"("}]}, "shapes": [)" + shapes + "]");
+  };
+  const fs::path lit = dir.write("lit.json", scene_placing("lamp", 2049));
+  try {
+    load_scene(lit);
+    ADD_FAILURE() << "2^26 + 2^15 emissive instanced triangles loaded";
+  } catch (const SceneError& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("/shapes/2048"), std::string::npos) << message;
+    EXPECT_NE(message.find("instances of emissive groups place more than 67108864"),
+              std::string::npos)
+        << message;
+  }
+  // The same placements of a group that does not emit cost one copy of it: accepted.
+  const Scene dark = load_scene(dir.write("dark.json", scene_placing("m", 2049)));
+  EXPECT_EQ(dark.instances.size(), 2049u);
+}
+
 // A mirrored placement reverses the winding back, so that the geometric front face and the
 // vertex normals keep pointing the way the mirror image of the surface does.
 TEST(InstanceReader, MirroredPlacementKeepsFrontFacesOutward) {
