@@ -1,21 +1,21 @@
 #!/usr/bin/env bash
 # Bounded-time fuzzing of everything that reads untrusted bytes (docs/stability.md): the scene
-# parser (JSON, OBJ + MTL, and PLY), every wire message the master and workers decode with the
-# conversions behind them, scene bundles, and image files (PNG, JPEG, OpenEXR, Radiance HDR). Builds the libFuzzer targets with clang under
-# AddressSanitizer + UndefinedBehaviorSanitizer in build-fuzz/, runs each for SECONDS seconds
-# (default 60) from the seed corpus in fuzz/corpus/, and prints executions, time and coverage.
-# Exits non-zero when a target finds a crash, a leak or undefined behaviour (the input is left in
-# build-fuzz/findings/).
+# parser (JSON, OBJ + MTL, PLY and glTF), every wire message the master and workers decode with
+# the conversions behind them, scene bundles, and image files (PNG, JPEG, OpenEXR, Radiance HDR).
+# Builds the libFuzzer targets with clang under AddressSanitizer + UndefinedBehaviorSanitizer in
+# build-fuzz/, runs each for SECONDS seconds (default 60) from the seed corpus in fuzz/corpus/,
+# and prints executions, time and coverage. Exits non-zero when a target finds a crash, a leak or
+# undefined behaviour (the input is left in build-fuzz/findings/).
 #
-#   scripts/fuzz.sh [SECONDS] [TARGET...]      TARGET: scene obj ply wire bundle image (default: all)
-#   JOBS=2 scripts/fuzz.sh 300 wire           build parallelism (default 2)
+#   scripts/fuzz.sh [SECONDS] [TARGET...]   TARGET: scene obj ply gltf wire bundle image (default all)
+#   JOBS=2 scripts/fuzz.sh 300 wire         build parallelism (default 2)
 # Needs clang-14 and libclang-rt-14-dev (apt-get install clang-14 libclang-rt-14-dev).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds=${1:-60}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(scene obj ply wire bundle image)
+[ ${#targets[@]} -gt 0 ] || targets=(scene obj ply gltf wire bundle image)
 build=build-fuzz
 cxx=${CXX_FUZZ:-clang++-14}
 

@@ -96,6 +96,39 @@ DirectionalLight read_directional(const Node& n) {
   return {read_direction(n.require("direction")), read_radiance(n.require("irradiance"))};
 }
 
+/// The environment's radiances as the worker builds its light from them (texel times scale, in
+/// float; negative and non-finite samples black): one whose luminance overflows would make the
+/// light's power infinite, and the light could be neither sampled nor weighed against the others.
+/// Samples that the worker turns black are worth a warning: an HDR with NaNs renders darker.
+void check_environment_radiance(const Node& file_node, const fs::path& file,
+                                const DecodedImage& image, const Vec3& scale) {
+  if (!image.is_float()) return;  // 8-bit samples are at most 1
+  const uint32_t channels = image.channels;
+  const uint32_t colours = channels >= 3 ? 3 : 1;
+  uint64_t unusable = 0;
+  for (uint32_t y = 0; y < image.height; ++y) {
+    for (uint32_t x = 0; x < image.width; ++x) {
+      const float* p = &image.floats[(size_t{y} * image.width + x) * channels];
+      float c[3];
+      for (uint32_t k = 0; k < 3; ++k) {
+        const float v = p[colours == 3 ? k : 0];
+        if (k < colours && !(std::isfinite(v) && v >= 0.f)) ++unusable;
+        c[k] = std::isfinite(v) && v > 0.f ? v : 0.f;
+      }
+      const float lum = luminance(Vec3(c[0], c[1], c[2]) * scale);
+      if (!std::isfinite(lum)) {
+        file_node.fail(printable(file.string()) + ": the texel at (" + std::to_string(x) + ", " +
+                       std::to_string(y) + ") times the scale is a radiance beyond the float " +
+                       "range (3.4e38): the environment's power would be infinite");
+      }
+    }
+  }
+  if (unusable > 0) {
+    file_node.warn(printable(file.string()) + ": " + std::to_string(unusable) +
+                   " sample(s) are negative, infinite or NaN and are taken as black");
+  }
+}
+
 EnvironmentMap read_environment(const Node& n, const fs::path& folder, SceneImages images) {
   n.allow_keys({"type", "file", "scale", "transform"});
   EnvironmentMap env;
@@ -104,10 +137,12 @@ EnvironmentMap read_environment(const Node& n, const fs::path& folder, SceneImag
   const auto relative = resolve_scene_path(fs::path(), read_string(file), &why);
   if (!relative) file.fail(as_written(file.json()) + ": " + why);
   env.file = *relative;
-  env.image = decode_scene_image(file, folder, env.file, images, "environment image");
-  if (env.image && !(env.image->width > 0 && env.image->height > 0))
-    file.fail("the image is empty");
+  // Kept until its radiances are checked, whatever `images` says.
+  env.image = decode_scene_image(file, folder, env.file, SceneImages::kKeep, "environment image");
+  if (!(env.image->width > 0 && env.image->height > 0)) file.fail("the image is empty");
   if (auto s = n.find("scale")) env.scale = read_scale(*s);
+  check_environment_radiance(file, env.file, *env.image, env.scale);
+  if (images == SceneImages::kCheckOnly) env.image.reset();
   if (auto t = n.find("transform")) env.rotation = read_rotation(*t);
   return env;
 }

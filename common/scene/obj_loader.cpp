@@ -8,10 +8,10 @@
 #include <set>
 #include <string_view>
 #include <system_error>
-#include <unordered_map>
 
 #include "common/limits.h"
 #include "common/math/wide.h"
+#include "common/scene/corner_weld.h"
 #include "common/scene/mtl_loader.h"
 
 namespace rayfarm {
@@ -127,10 +127,7 @@ class ObjReader {
 
   /// A face corner: its position, texture coordinate and normal (kNone when not given).
   static constexpr uint32_t kNone = UINT32_MAX;
-  struct Corner {
-    uint32_t v, t, n;
-    bool operator==(const Corner&) const = default;
-  };
+  using Corner = CornerIndices;
 
   /// One "v", "v/t", "v//n" or "v/t/n" reference.
   Corner corner(const Where& at, std::string_view word) {
@@ -184,26 +181,21 @@ class ObjReader {
   /// vertex carries one of each. A corner without a normal gets a zero one (flat shading there);
   /// one without a texture coordinate gets (0, 0).
   void weld_attributes() {
-    struct Hash {
-      size_t operator()(const Corner& c) const {
-        return std::hash<uint64_t>()((uint64_t(c.v) << 32) ^
-                                     (uint64_t(c.t) * 0x9e3779b97f4a7c15ull) ^ c.n);
-      }
-    };
-    std::unordered_map<Corner, uint32_t, Hash> welded;
     TriangleMesh& mesh = out_.mesh;
+    std::vector<CornerIndices> corners(mesh.indices.size());
+    for (size_t i = 0; i < corners.size(); ++i)
+      corners[i] = {mesh.indices[i], corner_attributes_[2 * i], corner_attributes_[2 * i + 1]};
+    const WeldedCorners welded = weld_corners(corners);
     std::vector<Vec3> positions;
+    positions.reserve(welded.first_corner.size());
     const bool any_uv = !texcoords_.empty(), any_normal = !normals_.empty();
-    for (size_t i = 0; i < mesh.indices.size(); ++i) {
-      const Corner c{mesh.indices[i], corner_attributes_[2 * i], corner_attributes_[2 * i + 1]};
-      const auto [it, added] = welded.try_emplace(c, static_cast<uint32_t>(positions.size()));
-      if (added) {
-        positions.push_back(mesh.positions[c.v]);
-        if (any_uv) mesh.uvs.push_back(c.t == kNone ? Vec2() : texcoords_[c.t]);
-        if (any_normal) mesh.normals.push_back(c.n == kNone ? Vec3(0.f) : normals_[c.n]);
-      }
-      mesh.indices[i] = it->second;
+    for (uint32_t first : welded.first_corner) {
+      const CornerIndices& c = corners[first];
+      positions.push_back(mesh.positions[c.v]);
+      if (any_uv) mesh.uvs.push_back(c.t == kNone ? Vec2() : texcoords_[c.t]);
+      if (any_normal) mesh.normals.push_back(c.n == kNone ? Vec3(0.f) : normals_[c.n]);
     }
+    mesh.indices = welded.vertex_of;
     mesh.positions = std::move(positions);
   }
 

@@ -126,10 +126,10 @@ std::shared_ptr<const DecodedImage> TextureReader::image(const Node& n, const fs
   uint64_t bytes = 0;
   auto decoded = decode_scene_image(n, folder_, file, images_, "texture image", &bytes);
   decoded_bytes_ += bytes;
-  if (decoded_bytes_ > kMaxSceneTextureBytes) {
-    n.fail("the scene's texture images hold " + human_bytes(decoded_bytes_) +
-           " of samples with this one, more than the limit of " +
-           human_bytes(kMaxSceneTextureBytes));
+  if (decoded_bytes_ > sample_budget_) {
+    n.fail(printable(file.string()) + ": the scene's texture images hold " +
+           human_bytes(decoded_bytes_) + " of samples with this one, more than the limit of " +
+           human_bytes(sample_budget_));
   }
   decoded_[file] = decoded;
   return decoded;

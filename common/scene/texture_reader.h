@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "common/limits.h"
 #include "common/scene/json_reader.h"
 #include "common/scene/scene.h"
 
@@ -29,8 +30,10 @@ std::shared_ptr<const DecodedImage> decode_scene_image(const scene_json::Node& n
 /// however many textures name it. `referenced` gets the image files.
 class TextureReader {
  public:
-  TextureReader(std::filesystem::path folder, SceneImages images)
-      : folder_(std::move(folder)), images_(images) {}
+  /// `sample_budget`: the most bytes of samples that the distinct images may hold together.
+  TextureReader(std::filesystem::path folder, SceneImages images,
+                uint64_t sample_budget = kMaxSceneTextureBytes)
+      : folder_(std::move(folder)), images_(images), sample_budget_(sample_budget) {}
 
   /// The "textures" object: name -> texture.
   void read(const scene_json::Node& n, std::vector<TextureDesc>& out,
@@ -59,6 +62,7 @@ class TextureReader {
 
   std::filesystem::path folder_;
   SceneImages images_;
+  uint64_t sample_budget_;
   std::map<std::string, int32_t> index_;
   std::map<std::filesystem::path, std::shared_ptr<const DecodedImage>> decoded_;
   mutable uint64_t textured_reads_ = 0;

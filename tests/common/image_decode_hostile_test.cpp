@@ -185,6 +185,55 @@ TEST(ImageDecodeHostile, LyingHeadersAreRefusedBeforeAllocation) {
   }
 }
 
+/// A valid progressive gray JPEG with 1 + 63 * `passes` scans: the DC, then each AC coefficient
+/// on its own, sent `passes` bits at a time by successive approximation (libjpeg accepts such a
+/// script; no encoder's default comes near).
+Bytes jpeg_with_scans(int passes) {
+  constexpr uint32_t kSide = 16;
+  Bytes pixels;
+  for (uint32_t i = 0; i < kSide * kSide; ++i) pixels.push_back(static_cast<uint8_t>(i * 37));
+  std::vector<jpeg_scan_info> script;
+  script.push_back({1, {0, 0, 0, 0}, 0, 0, 0, 0});
+  for (int k = 1; k <= 63; ++k) {
+    for (int p = passes - 1; p >= 0; --p) {
+      const int ah = p == passes - 1 ? 0 : p + 1;
+      script.push_back({1, {0, 0, 0, 0}, k, k, ah, p});
+    }
+  }
+  jpeg_compress_struct cinfo;
+  jpeg_error_mgr errors;
+  cinfo.err = jpeg_std_error(&errors);
+  jpeg_create_compress(&cinfo);
+  unsigned char* buffer = nullptr;
+  unsigned long size = 0;
+  jpeg_mem_dest(&cinfo, &buffer, &size);
+  cinfo.image_width = cinfo.image_height = kSide;
+  cinfo.input_components = 1;
+  cinfo.in_color_space = JCS_GRAYSCALE;
+  jpeg_set_defaults(&cinfo);
+  cinfo.scan_info = script.data();
+  cinfo.num_scans = static_cast<int>(script.size());
+  jpeg_start_compress(&cinfo, TRUE);
+  while (cinfo.next_scanline < kSide) {
+    JSAMPROW row = pixels.data() + size_t{cinfo.next_scanline} * kSide;
+    jpeg_write_scanlines(&cinfo, &row, 1);
+  }
+  jpeg_finish_compress(&cinfo);
+  Bytes out(buffer, buffer + size);
+  jpeg_destroy_compress(&cinfo);
+  std::free(buffer);
+  return out;
+}
+
+TEST(ImageDecodeHostile, AProgressiveJpegWithTooManyScansIsRefused) {
+  // 1 + 63 * 6 = 379 scans: under the cap of 500, decoded.
+  EXPECT_EQ(outcome(jpeg_with_scans(6), "some.jpg"), "ok");
+  // 1 + 63 * 9 = 568 scans: each a pass over the whole image, refused before the 501st.
+  const std::string refused = outcome(jpeg_with_scans(9), "many.jpg");
+  EXPECT_EQ(refused.rfind("many.jpg: ", 0), 0u) << refused;
+  EXPECT_NE(refused.find("more than 500 progressive scans"), std::string::npos) << refused;
+}
+
 TEST(ImageDecodeHostile, UnknownFormatsAreNamed) {
   EXPECT_EQ(outcome({}, "e.png"),
             "e.png: not a PNG, JPEG, OpenEXR or Radiance HDR image (the file "

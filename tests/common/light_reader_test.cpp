@@ -8,6 +8,7 @@
 
 #include "common/image/png.h"
 #include "common/scene/parser.h"
+#include "tests/support/image_writers.h"
 #include "tests/support/temp_dir.h"
 
 namespace rayfarm {
@@ -137,6 +138,50 @@ TEST(LightReaderTest, BundledEnvironmentSceneLoadsWithItsSky) {
   EXPECT_STREQ(s.environment->image->format, "Radiance HDR");
   EXPECT_EQ(s.referenced, std::vector<fs::path>{"sky.hdr"});
   EXPECT_EQ(s.spheres.size(), 3u);
+}
+
+/// A 2x1 Radiance HDR, flat: the first texel grey with RGBE exponent `exponent` (radiance about
+/// 2^(exponent - 129)), the second dim.
+std::string hdr_with_exponent(uint8_t exponent) {
+  std::string file = "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 1 +X 2\n";
+  for (uint8_t b : {uint8_t{128}, uint8_t{128}, uint8_t{128}, exponent, uint8_t{128}, uint8_t{128},
+                    uint8_t{128}, uint8_t{120}})
+    file.push_back(static_cast<char>(b));
+  return file;
+}
+
+TEST(LightReaderTest, AnEnvironmentWhosePowerOverflowsIsAnErrorNamingTheFile) {
+  TempDir dir;
+  dir.write("huge.hdr", hdr_with_exponent(250));  // about 2.7e36
+  // Within float range: loads, with no warning.
+  const Scene ok = load_scene(write_scene(dir, R"([{"type": "environment", "file": "huge.hdr",
+                                                   "scale": 100}])"));
+  ASSERT_TRUE(ok.environment);
+  EXPECT_TRUE(ok.warnings.empty()) << ok.warnings.front();
+  // Times 1000 the luminance is beyond 3.4e38.
+  const fs::path file = write_scene(dir, R"([{"type": "environment", "file": "huge.hdr",
+                                              "scale": 1000}])");
+  for (SceneImages images : {SceneImages::kKeep, SceneImages::kCheckOnly}) {
+    try {
+      load_scene(file, {}, images);
+      ADD_FAILURE() << "an environment of infinite power loaded";
+    } catch (const SceneError& e) {
+      const std::string message = e.what();
+      for (const char* part : {"/lights/0/file", "huge.hdr", "(0, 0)", "beyond the float range"})
+        EXPECT_NE(message.find(part), std::string::npos) << message;
+    }
+  }
+}
+
+TEST(LightReaderTest, NonFiniteEnvironmentSamplesAreAWarningNamingTheFile) {
+  TempDir dir;
+  const std::vector<float> samples = {1.f, std::nanf(""), 1.f, -2.f, 0.5f, 0.5f};
+  const auto exr = testing::encode_exr(samples, 2, 1, {"R", "G", "B"}, false);
+  dir.write("nan.exr", std::string(exr.begin(), exr.end()));
+  const Scene s = load_scene(write_scene(dir, R"([{"type": "environment", "file": "nan.exr"}])"));
+  ASSERT_EQ(s.warnings.size(), 1u);
+  for (const char* part : {"/lights/0/file", "nan.exr", "2 sample(s)", "taken as black"})
+    EXPECT_NE(s.warnings[0].find(part), std::string::npos) << s.warnings[0];
 }
 
 }  // namespace

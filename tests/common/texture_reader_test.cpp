@@ -99,5 +99,36 @@ TEST(TextureReaderTest, ACorruptImageIsAnErrorNamingItsFile) {
   }
 }
 
+TEST(TextureReaderTest, ImagesBeyondTheSampleBudgetAreAnErrorNamingTheTextureAndTheBudget) {
+  TempDir dir;
+  // Two 2x1 RGB PNGs: 6 bytes of samples each.
+  write_png_rgb8(dir.path() / "one.png", {255, 0, 0, 0, 0, 255}, 2, 1);
+  write_png_rgb8(dir.path() / "two.png", {0, 255, 0, 0, 0, 255}, 2, 1);
+  const scene_json::Json textures = scene_json::Json::parse(R"({
+    "a": {"type": "image", "file": "one.png"},
+    "again": {"type": "image", "file": "one.png"},
+    "b": {"type": "image", "file": "two.png"}})");
+  std::vector<std::string> warnings;
+  const scene_json::Context context{"scene.json", &warnings};
+  const scene_json::Node node(textures, context, "/textures");
+  std::vector<TextureDesc> out;
+  std::vector<fs::path> referenced;
+  // 12 bytes fit a budget of 12: a file named twice counts once.
+  TextureReader(dir.path(), SceneImages::kCheckOnly, 12).read(node, out, referenced);
+  EXPECT_EQ(out.size(), 3u);
+  try {
+    out.clear();
+    TextureReader(dir.path(), SceneImages::kCheckOnly, 11).read(node, out, referenced);
+    ADD_FAILURE() << "12 bytes of samples passed a budget of 11";
+  } catch (const SceneError& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("scene.json"), std::string::npos) << message;
+    EXPECT_NE(message.find("/textures/b/file"), std::string::npos) << message;
+    EXPECT_NE(message.find("two.png"), std::string::npos) << message;
+    EXPECT_NE(message.find("hold 12 B of samples"), std::string::npos) << message;
+    EXPECT_NE(message.find("limit of 11 B"), std::string::npos) << message;
+  }
+}
+
 }  // namespace
 }  // namespace rayfarm
