@@ -101,6 +101,22 @@ TriangleMesh place_mesh(const TriangleMesh& mesh, const Transform& t) {
   return out;
 }
 
+std::optional<std::string> InstanceBudget::add(const Scene& scene, const MeshGroup& group) {
+  const uint64_t triangles = group_triangle_count(group);
+  triangles_ += triangles;
+  if (triangles_ > kMaxInstancedTriangles)
+    return "the instances place more than " + std::to_string(kMaxInstancedTriangles) +
+           " triangles in all";
+  if (group_emits(scene, group)) {
+    emissive_triangles_ += triangles;
+    if (emissive_triangles_ > kMaxEmissiveInstancedTriangles)
+      return "the instances of emissive groups place more than " +
+             std::to_string(kMaxEmissiveInstancedTriangles) +
+             " triangles in all (each is kept as a world triangle for light sampling)";
+  }
+  return std::nullopt;
+}
+
 size_t flatten_instances(Scene& scene, bool emissive_only) {
   std::vector<bool> emits;
   for (const MeshGroup& g : scene.groups) emits.push_back(!emissive_only || group_emits(scene, g));

@@ -19,6 +19,18 @@ uint64_t group_triangle_count(const MeshGroup& group);
 /// True when some triangle of the group has an emissive material of `scene`.
 bool group_emits(const Scene& scene, const MeshGroup& group);
 
+/// What a scene's instances place in all, against kMaxInstancedTriangles and (instances of
+/// emissive groups, which workers copy into the world for light sampling: they cost memory per
+/// instance) kMaxEmissiveInstancedTriangles.
+class InstanceBudget {
+ public:
+  /// Counts one more instance of `group`; why it is refused, or nothing.
+  std::optional<std::string> add(const Scene& scene, const MeshGroup& group);
+
+ private:
+  uint64_t triangles_ = 0, emissive_triangles_ = 0;
+};
+
 /// Whether every point of the group, placed by `t`, stays within kMaxCoordinate: the placed
 /// corners of its bounding box do.
 bool placed_in_range(const MeshGroup& group, const Transform& t);

@@ -279,22 +279,7 @@ class SceneReader {
       n.fail("more than " + std::to_string(kMaxInstances) + " instances");
     }
     const MeshGroup& group = scene_.groups[it->second];
-    uint64_t triangles = 0;
-    for (const TriangleMesh& m : group.meshes) triangles += m.triangle_count();
-    instanced_triangles_ += triangles;
-    if (instanced_triangles_ > kMaxInstancedTriangles) {
-      n.fail("the instances place more than " + std::to_string(kMaxInstancedTriangles) +
-             " triangles in all");
-    }
-    // Instances of emissive groups become world triangles on every worker (area lights need
-    // them): they cost memory per instance.
-    if (group_emits(scene_, group)) {
-      emissive_instanced_triangles_ += triangles;
-      if (emissive_instanced_triangles_ > kMaxEmissiveInstancedTriangles)
-        n.fail("the instances of emissive groups place more than " +
-               std::to_string(kMaxEmissiveInstancedTriangles) +
-               " triangles in all (each is kept as a world triangle for light sampling)");
-    }
+    if (auto refusal = instance_budget_.add(scene_, group)) n.fail(*refusal);
     Instance instance;
     instance.group = it->second;
     if (auto t = n.find("transform")) {
@@ -436,8 +421,7 @@ class SceneReader {
   TextureReader textures_;
   std::vector<TriangleMesh>* meshes_ = &scene_.meshes;  // where shapes go: the world or a group
   std::map<std::string, uint32_t> group_index_;
-  uint64_t instanced_triangles_ = 0;
-  uint64_t emissive_instanced_triangles_ = 0;
+  InstanceBudget instance_budget_;
 };
 
 }  // namespace
