@@ -3,11 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <utility>
-#include <variant>
 
 #include "common/limits.h"
 #include "common/math/wide.h"
-#include "common/util/text.h"
 
 namespace rayfarm {
 
@@ -49,25 +47,6 @@ bool placed_in_range(const MeshGroup& group, const Transform& t) {
     }
   }
   return true;
-}
-
-std::optional<std::string> not_instanceable(const Scene& scene, const TriangleMesh& mesh) {
-  const auto differ = [](const TexturedFloat& u, const TexturedFloat& v) {
-    return u.is_textured() || v.is_textured() || u.value != v.value;
-  };
-  for (const uint32_t index : mesh.materials) {
-    if (index >= scene.materials.size()) continue;
-    const Material& m = scene.materials[index];
-    const std::string name = "material \"" + printable(m.name) + "\" has ";
-    if (m.has_alpha()) return name + "an opacity cut-out";
-    if (m.normal_map) return name + "a normal map";
-    if (m.bump_map) return name + "a bump map";
-    const auto* c = std::get_if<RoughConductorMaterial>(&m.kind);
-    const auto* d = std::get_if<RoughDielectricMaterial>(&m.kind);
-    if ((c && differ(c->alpha_u, c->alpha_v)) || (d && differ(d->alpha_u, d->alpha_v)))
-      return name + "anisotropic roughness";
-  }
-  return std::nullopt;
 }
 
 TriangleMesh place_mesh(const TriangleMesh& mesh, const Transform& t) {

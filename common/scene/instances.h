@@ -2,8 +2,6 @@
 // Instances of mesh groups (Scene::groups, Scene::instances): their transforms, and placing a
 // group's meshes in the world where a consumer needs world-space triangles.
 #include <cstdint>
-#include <optional>
-#include <string>
 
 #include "common/math/transform.h"
 #include "common/scene/scene.h"
@@ -22,11 +20,6 @@ bool group_emits(const Scene& scene, const MeshGroup& group);
 /// Whether every point of the group, placed by `t`, stays within kMaxCoordinate: the placed
 /// corners of its bounding box do.
 bool placed_in_range(const MeshGroup& group, const Transform& t);
-
-/// Why `mesh` cannot be placed by instances, or nothing: instanced hits get neither cut-out
-/// filters nor tangent frames, so a material of the mesh with an opacity cut-out, a normal or
-/// bump map, or anisotropic roughness is refused rather than rendered differently.
-std::optional<std::string> not_instanceable(const Scene& scene, const TriangleMesh& mesh);
 
 /// A world-space copy of `mesh` placed by `t`: positions moved, normals by the inverse
 /// transpose, tangents by the matrix (handedness flipped under a mirror), and the winding reversed

@@ -250,13 +250,7 @@ class SceneReader {
       group.name = name;
       meshes_ = &group.meshes;
       for (size_t i = 0; i < shapes.array().size(); ++i) {
-        const size_t before = group.meshes.size();
         read_shape(shapes.child(i), "groups/" + name + "[" + std::to_string(i) + "]", true);
-        for (size_t m = before; m < group.meshes.size(); ++m) {
-          if (auto why = not_instanceable(scene_, group.meshes[m]))
-            shapes.child(i).fail(*why +
-                                 "; instances of a group support none: place it in \"shapes\"");
-        }
       }
       meshes_ = &scene_.meshes;
       if (group.meshes.empty()) shapes.warn("the group has no triangles");
