@@ -21,6 +21,17 @@ bool group_emits(const Scene& scene, const MeshGroup& group);
 /// corners of its bounding box do.
 bool placed_in_range(const MeshGroup& group, const Transform& t);
 
+/// The group's bounding box in its own space; lo > hi when it has no points.
+void group_box(const MeshGroup& group, WideVec3& lo, WideVec3& hi);
+
+/// placed_in_range() for a group whose box group_box() gave: for a group placed many times,
+/// whose points are then read once.
+bool box_placed_in_range(const WideVec3& lo, const WideVec3& hi, const Transform& t);
+
+/// Extends the box [lo, hi] by the points of the scene's world meshes and of its instances (each
+/// by its group's bounding box, placed: a box that holds the placed points).
+void extend_bounds(const Scene& scene, WideVec3& lo, WideVec3& hi);
+
 /// A world-space copy of `mesh` placed by `t`: positions moved, normals by the inverse
 /// transpose, tangents by the matrix (handedness flipped under a mirror), and the winding reversed
 /// under a mirror so that front faces stay front faces.
