@@ -17,7 +17,9 @@ inline constexpr std::uintmax_t kMaxObjFileBytes = std::uintmax_t{1} << 30;
 inline constexpr std::uintmax_t kMaxPlyFileBytes = std::uintmax_t{1} << 30;
 /// Most bytes a glTF scene reads: its .gltf or .glb file and every buffer and image file it names.
 inline constexpr std::uintmax_t kMaxGltfBytes = std::uintmax_t{1} << 30;
-/// Most triangles a glTF file's nodes may place (a mesh placed by many nodes counts each time).
+/// Most triangles a glTF file's meshes may hold: a mesh placed by several nodes is stored once
+/// and counts once (its instances count towards kMaxInstancedTriangles), unless it is emissive
+/// (the renderer stores its triangles once per node).
 inline constexpr uint64_t kMaxGltfTriangles = uint64_t{1} << 26;
 /// Most JSON objects in a glTF file's JSON (2^22: nodes, meshes, accessors and their parts).
 inline constexpr uint64_t kMaxGltfJsonObjects = uint64_t{1} << 22;

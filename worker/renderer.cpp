@@ -212,6 +212,9 @@ std::string surface_features(const SceneData& data) {
   }
   bool mesh_tangents = false;
   for (const TriangleMesh& mesh : data.scene().meshes) mesh_tangents |= !mesh.tangents.empty();
+  for (const MeshGroup& g : data.scene().groups) {
+    for (const TriangleMesh& mesh : g.meshes) mesh_tangents |= !mesh.tangents.empty();
+  }
   std::string out;
   const auto add = [&out](size_t count, const char* what) {
     if (count > 0) out += (out.empty() ? "" : ", ") + std::to_string(count) + " " + what;

@@ -56,16 +56,16 @@ SceneData::SceneData(const Scene& scene) : scene_(scene) {
   std::vector<Bvh::SphereInput> spheres;
   for (const Sphere& s : scene_.spheres) spheres.push_back({s.center, s.radius});
   sphere_lights_.assign(scene_.spheres.size(), -1);
-  const Bvh::HitFilter* sphere_filter = nullptr;
-  build_surface(meshes, sphere_filter);
-  build_instances();
   std::vector<std::vector<Bvh::Mesh>> groups;
-  std::vector<Bvh::InstanceInput> placements;
   for (const MeshGroup& g : scene_.groups) {
     groups.emplace_back();
     for (const TriangleMesh& mesh : g.meshes)
       groups.back().push_back({&mesh.positions, &mesh.indices});
   }
+  const Bvh::HitFilter* sphere_filter = nullptr;
+  build_surface(meshes, sphere_filter, groups);
+  build_instances();
+  std::vector<Bvh::InstanceInput> placements;
   for (const InstanceInfo& i : instances_) placements.push_back({i.group, i.m});
   const auto none = [](const std::vector<uint8_t>& v) {
     return std::none_of(v.begin(), v.end(), [](uint8_t x) { return x != 0; });
@@ -114,6 +114,7 @@ void SceneData::build_instances() {
     }
     // Columns of the normals' matrix: the images of the unit normals.
     const double outward = t.determinant() < 0.0 ? -1.0 : 1.0;
+    info.handedness = static_cast<float>(outward);
     for (int c = 0; c < 3; ++c) {
       const WideVec3 col = t.normal({c == 0 ? 1.0 : 0.0, c == 1 ? 1.0 : 0.0, c == 2 ? 1.0 : 0.0});
       info.normal[c] = static_cast<float>(outward * col.x);

@@ -154,6 +154,15 @@ class SceneData {
   /// Whether the candidate hit (geom, prim, barycentrics u v, point p) is there: false where its
   /// material's opacity falls below its cutoff.
   bool covered(uint32_t geom, uint32_t prim, float u, float v, const Vec3& p) const;
+  /// covered() for triangle `prim` of mesh `geom` of group `group`, hit through any instance:
+  /// the opacity is looked up at the object's own texture coordinates.
+  bool covered_in_group(uint32_t group, uint32_t geom, uint32_t prim, float u, float v) const;
+  /// What the cut-out filter of one group's geometries receives: Embree reports a hit through an
+  /// instance with the geometry's id within its group, so the group comes with the filter.
+  struct GroupFilter {
+    const SceneData* data;
+    uint32_t group;
+  };
   /// Light index of a primitive (-1 when it does not emit); set by LightSet.
   void set_light_index(uint32_t geom, uint32_t prim, int32_t light);
   /// Instances traced through their group's shared BVH.
@@ -183,13 +192,18 @@ class SceneData {
     std::array<float, 12> m;
     std::array<float, 9> normal;
     float norm;
+    float handedness;  // -1 when the placement mirrors, else 1
     uint32_t group;
   };
   SurfaceHit resolve_sphere(const Ray& ray, const RayHit& hit) const;
   SurfaceHit resolve_instanced(const RayHit& hit) const;
   void build_textures();
-  // Surface needs per material, and the cut-out filters of the BVH's geometries.
-  void build_surface(std::vector<Bvh::Mesh>& meshes, const Bvh::HitFilter*& sphere_filter);
+  // Surface needs per material, and the cut-out filters of the BVH's geometries (world meshes,
+  // spheres, and the meshes of groups).
+  void build_surface(std::vector<Bvh::Mesh>& meshes, const Bvh::HitFilter*& sphere_filter,
+                     std::vector<std::vector<Bvh::Mesh>>& groups);
+  // Whether the opacity of `material` at `uv` reaches its cutoff.
+  bool opaque_at(uint32_t material, const Vec2& uv) const;
   Vec2 sphere_uv(const Sphere& sphere, const Vec3& n) const;
   void build_instances();
   void add_triangles(const TriangleMesh& mesh, std::vector<TriangleInfo>& out);
@@ -205,6 +219,8 @@ class SceneData {
   bool plain_ = false;
   std::vector<uint8_t> surface_needs_;  // per material
   Bvh::HitFilter cut_out_filter_{};
+  std::vector<GroupFilter> group_filter_contexts_;  // one per group; addresses held by Embree
+  std::vector<Bvh::HitFilter> group_filters_;
   std::unique_ptr<Bvh> bvh_;
   TextureSet textures_;
   uint64_t degenerate_ = 0;

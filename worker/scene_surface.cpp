@@ -26,6 +26,20 @@ bool keep_covered(const void* context, uint32_t geom, uint32_t prim, float u, fl
   return static_cast<const SceneData*>(context)->covered(geom, prim, u, v, p);
 }
 
+bool keep_covered_in_group(const void* context, uint32_t geom, uint32_t prim, float u, float v,
+                           const Vec3&) {
+  const auto* g = static_cast<const SceneData::GroupFilter*>(context);
+  return g->data->covered_in_group(g->group, geom, prim, u, v);
+}
+
+/// The texture coordinates of barycentrics (u, v) on triangle `prim` of `mesh`: the
+/// barycentrics themselves when the mesh has none.
+Vec2 triangle_uv(const TriangleMesh& mesh, uint32_t prim, float u, float v) {
+  if (mesh.uvs.empty()) return {u, v};
+  const uint32_t* idx = &mesh.indices[3 * size_t(prim)];
+  return mesh.uvs[idx[0]] * (1.f - u - v) + mesh.uvs[idx[1]] * u + mesh.uvs[idx[2]] * v;
+}
+
 Vec3 unit_or_zero(const Vec3& v) {
   const float len = length(v);
   return len > 0.f && std::isfinite(len) ? v / len : Vec3(0.f);
@@ -33,8 +47,8 @@ Vec3 unit_or_zero(const Vec3& v) {
 
 }  // namespace
 
-void SceneData::build_surface(std::vector<Bvh::Mesh>& meshes,
-                              const Bvh::HitFilter*& sphere_filter) {
+void SceneData::build_surface(std::vector<Bvh::Mesh>& meshes, const Bvh::HitFilter*& sphere_filter,
+                              std::vector<std::vector<Bvh::Mesh>>& groups) {
   std::vector<uint8_t> cut_out;
   for (const Material& m : scene_.materials) {
     uint8_t needs = 0;
@@ -62,6 +76,34 @@ void SceneData::build_surface(std::vector<Bvh::Mesh>& meshes,
   for (const Sphere& s : scene_.spheres) {
     if (cut_out[s.material]) sphere_filter = &cut_out_filter_;
   }
+  // Sized once: Embree keeps the contexts' addresses.
+  group_filter_contexts_.resize(scene_.groups.size());
+  group_filters_.resize(scene_.groups.size());
+  for (uint32_t g = 0; g < scene_.groups.size(); ++g) {
+    group_filter_contexts_[g] = {this, g};
+    group_filters_[g] = {keep_covered_in_group, &group_filter_contexts_[g]};
+    for (size_t i = 0; i < scene_.groups[g].meshes.size(); ++i) {
+      for (const uint32_t material : scene_.groups[g].meshes[i].materials) {
+        if (cut_out[material]) {
+          groups[g][i].filter = &group_filters_[g];
+          break;
+        }
+      }
+    }
+  }
+}
+
+bool SceneData::opaque_at(uint32_t material, const Vec2& uv) const {
+  const Material& m = scene_.materials[material];
+  if (!m.has_alpha()) return true;
+  return !(TextureLookup(&textures_, uv).number(m.alpha) < m.alpha_cutoff);
+}
+
+bool SceneData::covered_in_group(uint32_t group, uint32_t geom, uint32_t prim, float u,
+                                 float v) const {
+  const size_t mesh = group_first_mesh_[group] + geom;
+  const uint32_t material = group_triangles_[group_mesh_offset_[mesh] + prim].material;
+  return opaque_at(material, triangle_uv(scene_.groups[group].meshes[geom], prim, u, v));
 }
 
 bool SceneData::covered(uint32_t geom, uint32_t prim, float u, float v, const Vec3& p) const {
@@ -73,16 +115,9 @@ bool SceneData::covered(uint32_t geom, uint32_t prim, float u, float v, const Ve
     uv = sphere_uv(sphere, unit_or_zero(p - sphere.center));
   } else {
     material = triangles_[mesh_offset_[geom] + prim].material;
-    const TriangleMesh& mesh = scene_.meshes[geom];
-    uv = {u, v};
-    if (!mesh.uvs.empty()) {
-      const uint32_t* idx = &mesh.indices[3 * size_t(prim)];
-      uv = mesh.uvs[idx[0]] * (1.f - u - v) + mesh.uvs[idx[1]] * u + mesh.uvs[idx[2]] * v;
-    }
+    uv = triangle_uv(scene_.meshes[geom], prim, u, v);
   }
-  const Material& m = scene_.materials[material];
-  if (!m.has_alpha()) return true;
-  return !(TextureLookup(&textures_, uv).number(m.alpha) < m.alpha_cutoff);
+  return opaque_at(material, uv);
 }
 
 TangentFrame SceneData::tangent_frame(const RayHit& hit, const SurfaceHit& s) const {
@@ -101,32 +136,58 @@ TangentFrame SceneData::tangent_frame(const RayHit& hit, const SurfaceHit& s) co
                (kPi * r);
     }
   } else {
-    const TriangleInfo& tri = triangles_[mesh_offset_[hit.geom] + hit.prim];
-    const TriangleMesh& mesh = scene_.meshes[hit.geom];
+    // An instanced hit's frame is found in object space, then placed: vectors by the instance's
+    // 3x3 part, as place_mesh places a world copy's positions and tangents.
+    const InstanceInfo* in = hit.inst != kNoInstance ? &instances_[hit.inst] : nullptr;
+    const TriangleInfo* tri;
+    const TriangleMesh* object;
+    if (in != nullptr) {
+      const size_t mesh = group_first_mesh_[in->group] + hit.geom;
+      tri = &group_triangles_[group_mesh_offset_[mesh] + hit.prim];
+      object = &scene_.groups[in->group].meshes[hit.geom];
+    } else {
+      tri = &triangles_[mesh_offset_[hit.geom] + hit.prim];
+      object = &scene_.meshes[hit.geom];
+    }
+    const TriangleMesh& mesh = *object;
+    const auto place = [in](const Vec3& v) {
+      if (in == nullptr) return v;
+      const auto& m = in->m;
+      return Vec3(m[0] * v.x + m[1] * v.y + m[2] * v.z, m[4] * v.x + m[5] * v.y + m[6] * v.z,
+                  m[8] * v.x + m[9] * v.y + m[10] * v.z);
+    };
     const uint32_t* idx = &mesh.indices[3 * size_t(hit.prim)];
     // p = v0 + b1 e1 + b2 e2; with texture coordinates, (e1 e2) = (dpdu dpdv) (duv1 duv2).
-    f.dpdu = tri.e1;
-    f.dpdv = tri.e2;
+    f.dpdu = tri->e1;
+    f.dpdv = tri->e2;
     if (!mesh.uvs.empty()) {
       const Vec2 d1 = mesh.uvs[idx[1]] - mesh.uvs[idx[0]], d2 = mesh.uvs[idx[2]] - mesh.uvs[idx[0]];
       const float det = d1.x * d2.y - d2.x * d1.y;
       if (std::fabs(det) > 1e-20f) {
         const float inv = 1.f / det;
-        f.dpdu = (tri.e1 * d2.y - tri.e2 * d1.y) * inv;
-        f.dpdv = (tri.e2 * d1.x - tri.e1 * d2.x) * inv;
+        f.dpdu = (tri->e1 * d2.y - tri->e2 * d1.y) * inv;
+        f.dpdv = (tri->e2 * d1.x - tri->e1 * d2.x) * inv;
       } else {
         f.dpdu = f.dpdv = Vec3(0.f);
       }
     }
+    f.dpdu = place(f.dpdu);
+    f.dpdv = place(f.dpdv);
     if (!mesh.tangents.empty()) {
       const float b0 = 1.f - hit.u - hit.v;
       const Vec4 &t0 = mesh.tangents[idx[0]], &t1 = mesh.tangents[idx[1]],
                  &t2 = mesh.tangents[idx[2]];
-      const Vec3 t = unit_or_zero(Vec3(t0.x, t0.y, t0.z) * b0 + Vec3(t1.x, t1.y, t1.z) * hit.u +
-                                  Vec3(t2.x, t2.y, t2.z) * hit.v);
+      // Each placed tangent is made unit before interpolating, as place_mesh stores them.
+      const auto vertex = [&](const Vec4& t) {
+        const Vec3 v(t.x, t.y, t.z);
+        return in == nullptr ? v : unit_or_zero(place(v));
+      };
+      const Vec3 t = unit_or_zero(vertex(t0) * b0 + vertex(t1) * hit.u + vertex(t2) * hit.v);
       if (!is_black(t)) {
+        // A mirror keeps the tangent and turns the bitangent: the handedness flips with it.
+        const float sign = (t0.w < 0.f ? -1.f : 1.f) * (in != nullptr ? in->handedness : 1.f);
         f.tangent = t;
-        f.bitangent = unit_or_zero(cross(s.ns, t) * (t0.w < 0.f ? -1.f : 1.f));
+        f.bitangent = unit_or_zero(cross(s.ns, t) * sign);
         return f;
       }
     }

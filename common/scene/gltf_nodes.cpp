@@ -5,6 +5,7 @@
 #include "common/limits.h"
 #include "common/math/transform.h"
 #include "common/math/wide.h"
+#include "common/scene/instances.h"
 #include "common/scene/json_reader.h"
 #include "common/scene/transform_reader.h"
 
@@ -58,6 +59,7 @@ class NodeReader {
       }
     }
     for (int root : roots) visit(root, Transform(), "scene", 0);
+    for (const Placement& p : placements_) place(p);
     if (!options_.camera.empty() && !result_.has_camera)
       throw SceneError(src_.display + ": no camera named \"" + options_.camera + "\"");
     return result_;
@@ -75,7 +77,7 @@ class NodeReader {
     if (++visited_ > kMaxGltfNodes) src_.fail(where, "more than 2^20 nodes");
     const tinygltf::Node& node = model_.nodes[static_cast<size_t>(index)];
     const Transform world = local_transform(node, where).then(parent);
-    if (node.mesh >= 0) add_mesh(node, world, where);
+    if (node.mesh >= 0) note_mesh(node, index, world, where);
     if (node.camera >= 0) consider_camera(node, world, where);
     if (auto it = node.extensions.find("KHR_lights_punctual"); it != node.extensions.end())
       add_light(it->second, world, where + "/extensions/KHR_lights_punctual");
@@ -124,25 +126,92 @@ class NodeReader {
     return t;
   }
 
-  void add_mesh(const tinygltf::Node& node, const Transform& world, const std::string& where) {
+  // Meshes are placed once the walk has counted every node that uses them: a mesh placed by one
+  // node becomes world meshes, one placed by several a group (its primitives stored once, in
+  // object space) with an instance per node.
+  struct Placement {
+    int mesh;
+    int node;
+    Transform world;
+  };
+
+  void note_mesh(const tinygltf::Node& node, int index, const Transform& world,
+                 const std::string& where) {
     if (static_cast<size_t>(node.mesh) >= model_.meshes.size())
       src_.fail(where + "/mesh", "mesh " + std::to_string(node.mesh) + " does not exist");
     if (node.skin >= 0 && !warned_skin_) {
       warned_skin_ = true;
       src_.warn(where + "/skin", "skins are not supported; the mesh is rendered in its bind pose");
     }
-    const tinygltf::Mesh& mesh = model_.meshes[static_cast<size_t>(node.mesh)];
+    uses_.resize(model_.meshes.size(), 0);
+    ++uses_[static_cast<size_t>(node.mesh)];
+    placements_.push_back({node.mesh, index, world});
+  }
+
+  /// The mesh's primitives in its own space, empty ones left out.
+  std::vector<TriangleMesh> read_mesh(int index) {
+    const tinygltf::Mesh& mesh = model_.meshes[static_cast<size_t>(index)];
+    std::vector<TriangleMesh> out;
     for (size_t p = 0; p < mesh.primitives.size(); ++p) {
       const std::string at =
-          "meshes[" + std::to_string(node.mesh) + "]/primitives[" + std::to_string(p) + "]";
-      TriangleMesh out = primitive(mesh.primitives[p], at);
-      if (out.triangle_count() == 0) continue;
-      if (!world.is_identity()) {
-        const scene_json::Json none;
-        transform_mesh(out, world, scene_json::Node(none, context_, "/" + where));
-      }
-      scene_.meshes.push_back(std::move(out));
+          "meshes[" + std::to_string(index) + "]/primitives[" + std::to_string(p) + "]";
+      TriangleMesh m = primitive(mesh.primitives[p], at);
+      if (m.triangle_count() > 0) out.push_back(std::move(m));
     }
+    return out;
+  }
+
+  void place(const Placement& p) {
+    const std::string where = node_name(p.node);
+    const double det = p.world.determinant();
+    // A singular placement flattens the mesh: as world triangles it is seen edge on, if at all.
+    if (uses_[static_cast<size_t>(p.mesh)] < 2 || !(std::fabs(det) > 0.0) || !std::isfinite(det)) {
+      for (TriangleMesh& m : read_mesh(p.mesh)) {
+        if (!p.world.is_identity()) {
+          const scene_json::Json none;
+          transform_mesh(m, p.world, scene_json::Node(none, context_, "/" + where));
+        }
+        scene_.meshes.push_back(std::move(m));
+      }
+      return;
+    }
+    group_of_.resize(model_.meshes.size(), -1);
+    int& group = group_of_[static_cast<size_t>(p.mesh)];
+    const bool first = group < 0;
+    if (first) {
+      MeshGroup g;
+      g.name = src_.display + " meshes[" + std::to_string(p.mesh) + "]";
+      g.meshes = read_mesh(p.mesh);
+      group = static_cast<int>(scene_.groups.size());
+      scene_.groups.push_back(std::move(g));
+      made_.push_back({{}, {}, group_emits(scene_, scene_.groups.back())});
+      group_box(scene_.groups.back(), made_.back().lo, made_.back().hi);
+    }
+    const MeshGroup& g = scene_.groups[static_cast<size_t>(group)];
+    const MadeGroup& made = made_[static_cast<size_t>(group) - first_group_];
+    if (g.meshes.empty()) return;
+    if (scene_.instances.size() >= kMaxInstances)
+      src_.fail(where, "more than 2^20 instances (placements of meshes that several nodes use)");
+    const uint64_t triangles = group_triangle_count(g);
+    // The renderer places an emissive group's instances as world triangles (area lights need
+    // them): each placement after the first is stored again, and counts so.
+    if (!first && made.emits) {
+      triangles_ += triangles;
+      if (triangles_ > kMaxGltfTriangles)
+        src_.fail(where,
+                  "the file's meshes hold more than 2^26 triangles (an emissive mesh "
+                  "counts once per node that places it)");
+    }
+    placed_ += triangles;
+    if (placed_ > kMaxInstancedTriangles)
+      src_.fail(where, "the nodes place more than 2^36 triangles in all");
+    if (!box_placed_in_range(made.lo, made.hi, p.world))
+      src_.fail(where, "places the mesh's points beyond 1e17, the largest coordinate handled");
+    Instance instance;
+    instance.group = static_cast<uint32_t>(group);
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 4; ++c) instance.world_from_object[4 * r + c] = p.world.at(r, c);
+    scene_.instances.push_back(instance);
   }
 
   TriangleMesh primitive(const tinygltf::Primitive& prim, const std::string& at) {
@@ -175,7 +244,7 @@ class NodeReader {
     out.indices = triangles(index, prim.mode);
     triangles_ += out.indices.size() / 3;
     if (triangles_ > kMaxGltfTriangles)
-      src_.fail(at, "the file's nodes place more than 2^26 triangles");
+      src_.fail(at, "the file's meshes hold more than 2^26 triangles");
 
     auto same_count = [&](size_t count, const char* what) {
       if (count != n)
@@ -339,7 +408,19 @@ class NodeReader {
   scene_json::Context context_;
   std::vector<uint32_t> parents_;
   size_t visited_ = 0;
-  uint64_t triangles_ = 0;
+  uint64_t triangles_ = 0;      // stored: a mesh used by several nodes counts once
+  uint64_t placed_ = 0;         // placed by instances: a mesh counts once per node
+  std::vector<uint32_t> uses_;  // per mesh: the nodes that place it
+  std::vector<int> group_of_;   // per mesh used more than once: its group, once made
+  std::vector<Placement> placements_;
+  // What each group made here needs for every placement, found once: its box, and whether it
+  // emits (a group's points and materials are read once, not once per node).
+  struct MadeGroup {
+    WideVec3 lo, hi;
+    bool emits;
+  };
+  std::vector<MadeGroup> made_;
+  const size_t first_group_ = scene_.groups.size();  // groups already in the scene
   bool warned_skin_ = false, warned_morph_ = false;
   GltfResult result_;
 };

@@ -3,11 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <utility>
-#include <variant>
 
 #include "common/limits.h"
 #include "common/math/wide.h"
-#include "common/util/text.h"
 
 namespace rayfarm {
 
@@ -31,18 +29,41 @@ bool group_emits(const Scene& scene, const MeshGroup& group) {
   return false;
 }
 
-bool placed_in_range(const MeshGroup& group, const Transform& t) {
-  WideVec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+namespace {
+
+void extend(WideVec3& lo, WideVec3& hi, const WideVec3& p) {
+  lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
+  hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
+}
+
+}  // namespace
+
+void group_box(const MeshGroup& group, WideVec3& lo, WideVec3& hi) {
+  lo = {1e300, 1e300, 1e300};
+  hi = {-1e300, -1e300, -1e300};
   for (const TriangleMesh& m : group.meshes) {
-    for (const Vec3& p : m.positions) {
-      lo = {std::min(lo.x, double(p.x)), std::min(lo.y, double(p.y)), std::min(lo.z, double(p.z))};
-      hi = {std::max(hi.x, double(p.x)), std::max(hi.y, double(p.y)), std::max(hi.z, double(p.z))};
-    }
+    for (const Vec3& p : m.positions) extend(lo, hi, wide(p));
   }
+}
+
+namespace {
+
+WideVec3 box_corner(const WideVec3& lo, const WideVec3& hi, int corner) {
+  return {corner & 1 ? hi.x : lo.x, corner & 2 ? hi.y : lo.y, corner & 4 ? hi.z : lo.z};
+}
+
+}  // namespace
+
+bool placed_in_range(const MeshGroup& group, const Transform& t) {
+  WideVec3 lo, hi;
+  group_box(group, lo, hi);
+  return box_placed_in_range(lo, hi, t);
+}
+
+bool box_placed_in_range(const WideVec3& lo, const WideVec3& hi, const Transform& t) {
   if (lo.x > hi.x) return true;  // no points
   for (int corner = 0; corner < 8; ++corner) {
-    const WideVec3 p =
-        t.point({corner & 1 ? hi.x : lo.x, corner & 2 ? hi.y : lo.y, corner & 4 ? hi.z : lo.z});
+    const WideVec3 p = t.point(box_corner(lo, hi, corner));
     if (!(std::fabs(p.x) <= kMaxCoordinate && std::fabs(p.y) <= kMaxCoordinate &&
           std::fabs(p.z) <= kMaxCoordinate)) {
       return false;
@@ -51,23 +72,20 @@ bool placed_in_range(const MeshGroup& group, const Transform& t) {
   return true;
 }
 
-std::optional<std::string> not_instanceable(const Scene& scene, const TriangleMesh& mesh) {
-  const auto differ = [](const TexturedFloat& u, const TexturedFloat& v) {
-    return u.is_textured() || v.is_textured() || u.value != v.value;
-  };
-  for (const uint32_t index : mesh.materials) {
-    if (index >= scene.materials.size()) continue;
-    const Material& m = scene.materials[index];
-    const std::string name = "material \"" + printable(m.name) + "\" has ";
-    if (m.has_alpha()) return name + "an opacity cut-out";
-    if (m.normal_map) return name + "a normal map";
-    if (m.bump_map) return name + "a bump map";
-    const auto* c = std::get_if<RoughConductorMaterial>(&m.kind);
-    const auto* d = std::get_if<RoughDielectricMaterial>(&m.kind);
-    if ((c && differ(c->alpha_u, c->alpha_v)) || (d && differ(d->alpha_u, d->alpha_v)))
-      return name + "anisotropic roughness";
+void extend_bounds(const Scene& scene, WideVec3& lo, WideVec3& hi) {
+  for (const TriangleMesh& m : scene.meshes) {
+    for (const Vec3& p : m.positions) extend(lo, hi, wide(p));
   }
-  return std::nullopt;
+  std::vector<std::pair<WideVec3, WideVec3>> boxes(scene.groups.size());
+  for (size_t g = 0; g < scene.groups.size(); ++g)
+    group_box(scene.groups[g], boxes[g].first, boxes[g].second);
+  for (const Instance& instance : scene.instances) {
+    const auto& [glo, ghi] = boxes.at(instance.group);
+    if (glo.x > ghi.x) continue;
+    const Transform t = instance_transform(instance);
+    for (int corner = 0; corner < 8; ++corner)
+      extend(lo, hi, t.point(box_corner(glo, ghi, corner)));
+  }
 }
 
 TriangleMesh place_mesh(const TriangleMesh& mesh, const Transform& t) {

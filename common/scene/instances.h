@@ -2,8 +2,6 @@
 // Instances of mesh groups (Scene::groups, Scene::instances): their transforms, and placing a
 // group's meshes in the world where a consumer needs world-space triangles.
 #include <cstdint>
-#include <optional>
-#include <string>
 
 #include "common/math/transform.h"
 #include "common/scene/scene.h"
@@ -35,10 +33,16 @@ class InstanceBudget {
 /// corners of its bounding box do.
 bool placed_in_range(const MeshGroup& group, const Transform& t);
 
-/// Why `mesh` cannot be placed by instances, or nothing: instanced hits get neither cut-out
-/// filters nor tangent frames, so a material of the mesh with an opacity cut-out, a normal or
-/// bump map, or anisotropic roughness is refused rather than rendered differently.
-std::optional<std::string> not_instanceable(const Scene& scene, const TriangleMesh& mesh);
+/// The group's bounding box in its own space; lo > hi when it has no points.
+void group_box(const MeshGroup& group, WideVec3& lo, WideVec3& hi);
+
+/// placed_in_range() for a group whose box group_box() gave: for a group placed many times,
+/// whose points are then read once.
+bool box_placed_in_range(const WideVec3& lo, const WideVec3& hi, const Transform& t);
+
+/// Extends the box [lo, hi] by the points of the scene's world meshes and of its instances (each
+/// by its group's bounding box, placed: a box that holds the placed points).
+void extend_bounds(const Scene& scene, WideVec3& lo, WideVec3& hi);
 
 /// A world-space copy of `mesh` placed by `t`: positions moved, normals by the inverse
 /// transpose, tangents by the matrix (handedness flipped under a mirror), and the winding reversed

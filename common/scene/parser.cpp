@@ -168,7 +168,11 @@ class SceneReader {
     if (!is_gltf_path(relative)) file.fail("expected a .gltf or .glb file");
     GltfOptions options;
     if (auto c = n.find("camera")) options.camera = read_string(*c);
+    const size_t instances_before = scene_.instances.size();
     const GltfResult result = load_gltf(folder_, relative, options, images_, scene_);
+    // The file's instances count towards the scene's placed triangles, as the JSON ones do.
+    for (size_t i = instances_before; i < scene_.instances.size(); ++i)
+      instanced_triangles_ += group_triangle_count(scene_.groups[scene_.instances[i].group]);
     for (uint32_t i = 0; i < scene_.materials.size(); ++i)
       material_index_.try_emplace(scene_.materials[i].name, i);
     return result;
@@ -250,13 +254,7 @@ class SceneReader {
       group.name = name;
       meshes_ = &group.meshes;
       for (size_t i = 0; i < shapes.array().size(); ++i) {
-        const size_t before = group.meshes.size();
         read_shape(shapes.child(i), "groups/" + name + "[" + std::to_string(i) + "]", true);
-        for (size_t m = before; m < group.meshes.size(); ++m) {
-          if (auto why = not_instanceable(scene_, group.meshes[m]))
-            shapes.child(i).fail(*why +
-                                 "; instances of a group support none: place it in \"shapes\"");
-        }
       }
       meshes_ = &scene_.meshes;
       if (group.meshes.empty()) shapes.warn("the group has no triangles");
@@ -439,12 +437,7 @@ namespace {
 /// from far enough that they fit the view.
 Camera default_camera(const Scene& scene) {
   WideVec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
-  for (const TriangleMesh& m : scene.meshes) {
-    for (const Vec3& p : m.positions) {
-      lo = {std::min(lo.x, double(p.x)), std::min(lo.y, double(p.y)), std::min(lo.z, double(p.z))};
-      hi = {std::max(hi.x, double(p.x)), std::max(hi.y, double(p.y)), std::max(hi.z, double(p.z))};
-    }
-  }
+  extend_bounds(scene, lo, hi);
   Camera c;
   if (!(lo.x <= hi.x)) return c;  // no meshes: whatever lights there are, seen from the origin
   const WideVec3 mid{(lo.x + hi.x) / 2, (lo.y + hi.y) / 2, (lo.z + hi.z) / 2};

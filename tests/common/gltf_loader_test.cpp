@@ -1,5 +1,6 @@
 // glTF 2.0 import: what each part of a file becomes in the scene, .gltf and .glb alike, the JSON
 // format's "gltf" key, and malformed files (each a SceneError naming the file and the object).
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <variant>
@@ -605,6 +606,79 @@ TEST(Gltf, MalformedVolumesNameThePlace) {
     const std::string error = glb_error(glass_scene(volume));
     EXPECT_NE(error.find("bad.glb: " + where), std::string::npos) << volume << ": " << error;
   }
+}
+
+// A mesh placed by several nodes is stored once, as a group in its own space, with one instance
+// per node whose matrix is the node's world transform (a parent's included, a mirror kept); a
+// mesh placed by one node stays a world mesh.
+TEST(Gltf, AMeshUsedByThreeNodesIsOneGroupAndThreeInstances) {
+  GltfBuilder b;
+  const int shared = b.add_quad(-1);
+  const int single = b.add_quad(-1);
+  const double s = std::sin(kPi / 4), c = std::cos(kPi / 4);
+  b.push("nodes", {{"mesh", shared}, {"translation", {1, 2, 3}}, {"scale", {2, 2, 2}}});
+  b.push("nodes", {{"translation", {10, 0, 0}}, {"children", {2}}});
+  b.push("nodes", {{"mesh", shared}, {"rotation", {0, 0, s, c}}});  // 90 degrees about +z
+  b.push("nodes", {{"mesh", shared}, {"translation", {0, 0, 5}}, {"scale", {-1, 1, 1}}});
+  b.push("nodes", {{"mesh", single}, {"translation", {0, -3, 0}}});
+  b.doc["scenes"] = {{{"nodes", {0, 1, 3, 4}}}};
+  TempDir dir;
+  const Scene scene = load_scene(dir.write("m.glb", b.glb()));
+  ASSERT_EQ(scene.groups.size(), 1u);
+  ASSERT_EQ(scene.groups[0].meshes.size(), 1u);
+  EXPECT_EQ(scene.groups[0].meshes[0].positions,
+            (std::vector<Vec3>{{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}}));
+  ASSERT_EQ(scene.instances.size(), 3u);
+  const std::array<double, 16> want[] = {
+      {2, 0, 0, 1, 0, 2, 0, 2, 0, 0, 2, 3, 0, 0, 0, 1},
+      {0, -1, 0, 10, 1, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1},
+      {-1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 5, 0, 0, 0, 1},
+  };
+  for (size_t i = 0; i < 3; ++i) {
+    EXPECT_EQ(scene.instances[i].group, 0u);
+    for (size_t k = 0; k < 16; ++k)
+      EXPECT_NEAR(scene.instances[i].world_from_object[k], want[i][k], 1e-12)
+          << "instance " << i << " element " << k;
+  }
+  ASSERT_EQ(scene.meshes.size(), 1u);  // the mesh used once, in the world
+  EXPECT_EQ(scene.meshes[0].positions,
+            (std::vector<Vec3>{{0, -3, 0}, {1, -3, 0}, {1, -2, 0}, {0, -2, 0}}));
+  // Without a camera, the default view frames the instances too: their middle is above the world
+  // mesh's, and the view looks at it.
+  EXPECT_GT(scene.camera.look_at.x, 2.f);
+  EXPECT_GT(scene.camera.look_at.z, 1.f);
+}
+
+// 2^19 + 1 nodes placing one mesh of 2^17 triangles: stored once, it is within the file's 2^26
+// triangles, but placed it would be 2^36 + 2^17 triangles to traverse; refused, naming the node.
+TEST(Gltf, InstancesMayPlaceAtMost2To36Triangles) {
+  GltfBuilder b;
+  const uint32_t strip = (1u << 17) + 2;  // a strip of n + 2 points has n triangles
+  std::vector<float> points(3 * size_t(strip));
+  for (uint32_t i = 0; i < strip; ++i) {
+    points[3 * i] = float(i % 2);
+    points[3 * i + 1] = float(i / 2) * 1e-3f;
+  }
+  const int pos = b.add_floats(points, "VEC3");
+  b.push("meshes",
+         {{"primitives", Json::array({{{"attributes", {{"POSITION", pos}}}, {"mode", 5}}})}});
+  const size_t nodes = (size_t{1} << 19) + 1;
+  b.doc["nodes"] = Json::array();
+  Json roots = Json::array();
+  for (size_t i = 0; i < nodes; ++i) {
+    b.doc["nodes"].push_back({{"mesh", 0}});
+    roots.push_back(i);
+  }
+  b.doc["scenes"] = {{{"nodes", roots}}};
+  const std::string error = glb_error(b);
+  EXPECT_NE(error.find("nodes[524288]: the nodes place more than 2^36 triangles in all"),
+            std::string::npos)
+      << error;
+  // One node fewer is within the limit.
+  b.doc["nodes"].erase(nodes - 1);
+  roots.erase(nodes - 1);
+  b.doc["scenes"] = {{{"nodes", roots}}};
+  EXPECT_EQ(glb_error(b), "");
 }
 
 TEST(Gltf, NoCameraGivesADefaultView) {

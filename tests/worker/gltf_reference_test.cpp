@@ -1,14 +1,14 @@
 // A glTF file that no one here wrote, against an image that no one here rendered: Blender built
 // tests/data/gltf-references/showcase (scripts/blender_gltf_reference.py), exported it with its
 // glTF exporter, and rendered the same Blender scene with Cycles. Our import of the file (camera,
-// node transforms, a mesh placed by two nodes, smooth normals, texture coordinates, the mirror
-// material) must give the image Cycles gives. The materials whose glTF meaning is not what Cycles
-// rendered are replaced by showcase-scene.json: Lambert floor and wall (Cycles' Principled diffuse
-// is not Lambert), the emitter (an Emission shader alone in Cycles), and the glass cube (glTF's
-// KHR_materials_transmission is thin-walled, Cycles' Principled transmission refracts: a solid
-// `dielectric` of ior 1.5 is what Cycles rendered). The statistics are those of
-// tests/support/reference_compare.h: per 8x8 block and channel, z against both variances,
-// Bonferroni at a family-wise error of 1e-3, and a chi-square test per channel.
+// node transforms, a mesh placed by two nodes (one group, two instances), smooth normals, texture
+// coordinates, the mirror material) must give the image Cycles gives. The materials whose glTF
+// meaning is not what Cycles rendered are replaced by showcase-scene.json: Lambert floor and wall
+// (Cycles' Principled diffuse is not Lambert), the emitter (an Emission shader alone in Cycles),
+// and the glass cube (glTF's KHR_materials_transmission is thin-walled, Cycles' Principled
+// transmission refracts: a solid `dielectric` of ior 1.5 is what Cycles rendered). The statistics
+// are those of tests/support/reference_compare.h: per 8x8 block and channel, z against both
+// variances, Bonferroni at a family-wise error of 1e-3, and a chi-square test per channel.
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -86,6 +86,12 @@ TEST(GltfCyclesReference, TheFileAloneGivesTheSameCameraGeometryAndMirror) {
   for (const TriangleMesh& m : direct.meshes) direct_tris += m.triangle_count();
   for (const TriangleMesh& m : wrapped.meshes) wrapped_tris += m.triangle_count();
   EXPECT_EQ(direct_tris, wrapped_tris);
+  // The ball, placed by two nodes, is one group and two instances either way.
+  for (const Scene* s : {&direct, &wrapped}) {
+    ASSERT_EQ(s->groups.size(), 1u);
+    EXPECT_EQ(s->instances.size(), 2u);
+  }
+  EXPECT_EQ(direct.groups[0].meshes.size(), wrapped.groups[0].meshes.size());
   const auto* mirror = std::get_if<MetallicRoughnessMaterial>(&material(direct, "mirror").kind);
   ASSERT_NE(mirror, nullptr);
   EXPECT_EQ(mirror->base_color.value, Vec3(1.f));

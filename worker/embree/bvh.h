@@ -65,7 +65,8 @@ class Bvh {
   /// Builds the BVH. Mesh i gets geometry id i. Each group becomes one Embree scene, built
   /// once and shared by every instance that places it. Throws std::runtime_error with Embree's
   /// message.
-  /// Group meshes carry no filter: groups with cut-out materials are refused by the reader.
+  /// A group mesh's filter is called for hits through every instance of the group, with geom
+  /// the mesh's index within the group.
   Bvh(const std::vector<Mesh>& meshes, const std::vector<SphereInput>& spheres,
       const HitFilter* sphere_filter = nullptr, const std::vector<std::vector<Mesh>>& groups = {},
       const std::vector<InstanceInput>& instances = {});

@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cmath>
 
+#include "common/math/wide.h"
+#include "common/scene/instances.h"
+
 namespace rayfarm {
 
 namespace {
@@ -17,8 +20,12 @@ double scene_radius(const Scene& scene) {
       hi[i] = std::max(hi[i], double(p[i]) + r);
     }
   };
-  for (const TriangleMesh& m : scene.meshes) {
-    for (const Vec3& p : m.positions) grow(p, 0.0);
+  // Instances count by their placed groups' boxes: the lights' power follows the whole scene.
+  WideVec3 mesh_lo{INFINITY, INFINITY, INFINITY}, mesh_hi{-INFINITY, -INFINITY, -INFINITY};
+  extend_bounds(scene, mesh_lo, mesh_hi);
+  if (mesh_lo.x <= mesh_hi.x) {
+    lo[0] = mesh_lo.x, lo[1] = mesh_lo.y, lo[2] = mesh_lo.z;
+    hi[0] = mesh_hi.x, hi[1] = mesh_hi.y, hi[2] = mesh_hi.z;
   }
   for (const Sphere& s : scene.spheres) grow(s.center, s.radius);
   if (!(hi[0] >= lo[0])) return 1.0;
