@@ -28,6 +28,8 @@ inline constexpr uint64_t kMaxGltfJsonValues = uint64_t{1} << 24;
 /// Most elements of one glTF accessor (3 x 2^26: the indices of the most triangles a file may
 /// place); an accessor without a buffer view (all zeros) is held to it too.
 inline constexpr uint64_t kMaxGltfAccessorElements = uint64_t{3} << 26;
+/// Most vertices a glTF file's meshes may hold (a mesh used by several nodes counts once).
+inline constexpr uint64_t kMaxGltfVertices = uint64_t{1} << 26;
 /// Most nodes of a glTF file that are visited (each may place a mesh, a camera or a light).
 inline constexpr size_t kMaxGltfNodes = size_t{1} << 20;
 /// Largest texture image file read (PNG, JPEG, OpenEXR, HDR).

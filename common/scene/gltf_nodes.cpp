@@ -228,6 +228,17 @@ class NodeReader {
     }
     const auto position = prim.attributes.find("POSITION");
     if (position == prim.attributes.end()) src_.fail(at + "/attributes", "no POSITION");
+    // What the primitive will hold, against the file's limits, before any of it is read: its
+    // accessors may share one large buffer, or declare counts without one.
+    const size_t declared = accessor_count(src_, position->second, at + "/attributes/POSITION");
+    vertices_ += declared;
+    if (vertices_ > kMaxGltfVertices)
+      src_.fail(at + "/attributes/POSITION", "the file's meshes hold more than 2^26 vertices");
+    const size_t corners =
+        prim.indices >= 0 ? accessor_count(src_, prim.indices, at + "/indices") : declared;
+    const bool list = prim.mode == TINYGLTF_MODE_TRIANGLES || prim.mode == -1;
+    if (triangles_ + (list ? corners / 3 : corners) > kMaxGltfTriangles)
+      src_.fail(at, "the file's meshes hold more than 2^26 triangles");
     out.positions = read_vec3(src_, position->second, at + "/attributes/POSITION");
     for (const Vec3& p : out.positions) {
       if (!(std::fabs(p.x) <= kMaxCoordinate && std::fabs(p.y) <= kMaxCoordinate &&
@@ -262,23 +273,28 @@ class NodeReader {
     const uint32_t material = materials_.material(prim.material);
     out.materials.assign(out.indices.size() / 3, material);
     const Material& mat = scene_.materials[material];
-    if (mat.normal_map) {
+    // A material that the JSON scene replaces may read what the glTF's own does not.
+    const bool replaced = options_.replaced_materials.count(mat.name) > 0;
+    if (mat.normal_map || replaced) {
       if (auto it = prim.attributes.find("TANGENT"); it != prim.attributes.end()) {
         out.tangents = read_vec4(src_, it->second, at + "/attributes/TANGENT");
         same_count(out.tangents.size(), "TANGENT");
         for (Vec4& t : out.tangents) {
           const double len = std::sqrt(double(t.x) * t.x + double(t.y) * t.y + double(t.z) * t.z);
-          if (!(len > 0.0)) src_.fail(at + "/attributes/TANGENT", "a tangent is zero");
-          t = Vec4(float(t.x / len), float(t.y / len), float(t.z / len), t.w < 0.f ? -1.f : 1.f);
+          // Exporters write zero tangents where the texture coordinates are degenerate; the
+          // renderer derives the frame there instead.
+          const float w = t.w < 0.f ? -1.f : 1.f;
+          t = len > 0.0 ? Vec4(float(t.x / len), float(t.y / len), float(t.z / len), w)
+                        : Vec4(0.f, 0.f, 0.f, w);
         }
       }
     }
-    if (mat.uses_uv()) {
+    if (mat.uses_uv() || replaced) {
       const std::string set = "TEXCOORD_" + std::to_string(materials_.texcoord(prim.material));
       if (auto it = prim.attributes.find(set); it != prim.attributes.end()) {
         out.uvs = read_vec2(src_, it->second, at + "/attributes/" + set);
         same_count(out.uvs.size(), set.c_str());
-      } else {
+      } else if (!replaced) {
         src_.warn(at + "/attributes", "no " + set + " for its textured material; the " +
                                           "textures are read at the triangles' barycentrics");
       }
@@ -408,6 +424,7 @@ class NodeReader {
   scene_json::Context context_;
   std::vector<uint32_t> parents_;
   size_t visited_ = 0;
+  uint64_t vertices_ = 0;       // stored, as triangles_
   uint64_t triangles_ = 0;      // stored: a mesh used by several nodes counts once
   uint64_t placed_ = 0;         // placed by instances: a mesh counts once per node
   std::vector<uint32_t> uses_;  // per mesh: the nodes that place it

@@ -1,5 +1,6 @@
 #pragma once
 // What a caller chooses about a glTF file, and what reading one found besides the scene.
+#include <set>
 #include <string>
 
 namespace rayfarm {
@@ -9,6 +10,9 @@ struct GltfOptions {
   /// The camera to render through: a camera's or its node's name. Empty: the first camera met in
   /// the scene's node hierarchy (depth first, in the order the nodes list their children).
   std::string camera;
+  /// Names of the file's materials that the JSON scene replaces: their meshes keep texture
+  /// coordinates and tangents even where the file's own material would not read them.
+  std::set<std::string> replaced_materials;
 };
 
 /// What load_gltf() found besides what it added to the scene.

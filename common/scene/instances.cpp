@@ -119,20 +119,38 @@ TriangleMesh place_mesh(const TriangleMesh& mesh, const Transform& t) {
   return out;
 }
 
-std::optional<std::string> InstanceBudget::add(const Scene& scene, const MeshGroup& group) {
-  const uint64_t triangles = group_triangle_count(group);
-  triangles_ += triangles;
+const InstanceBudget::Facts& InstanceBudget::facts(const Scene& scene, uint32_t group) {
+  if (groups_.size() <= group) groups_.resize(size_t(group) + 1);
+  Facts& f = groups_[group];
+  if (!f.known) {
+    const MeshGroup& g = scene.groups[group];
+    f.known = true;
+    f.triangles = group_triangle_count(g);
+    f.emits = group_emits(scene, g);
+    group_box(g, f.lo, f.hi);
+  }
+  return f;
+}
+
+std::optional<std::string> InstanceBudget::add(const Scene& scene, uint32_t group) {
+  const Facts& f = facts(scene, group);
+  triangles_ += f.triangles;
   if (triangles_ > kMaxInstancedTriangles)
     return "the instances place more than " + std::to_string(kMaxInstancedTriangles) +
            " triangles in all";
-  if (group_emits(scene, group)) {
-    emissive_triangles_ += triangles;
+  if (f.emits) {
+    emissive_triangles_ += f.triangles;
     if (emissive_triangles_ > kMaxEmissiveInstancedTriangles)
       return "the instances of emissive groups place more than " +
              std::to_string(kMaxEmissiveInstancedTriangles) +
              " triangles in all (each is kept as a world triangle for light sampling)";
   }
   return std::nullopt;
+}
+
+bool InstanceBudget::placed_in_range(const Scene& scene, uint32_t group, const Transform& t) {
+  const Facts& f = facts(scene, group);
+  return box_placed_in_range(f.lo, f.hi, t);
 }
 
 size_t flatten_instances(Scene& scene, bool emissive_only) {

@@ -19,13 +19,24 @@ bool group_emits(const Scene& scene, const MeshGroup& group);
 
 /// What a scene's instances place in all, against kMaxInstancedTriangles and (instances of
 /// emissive groups, which workers copy into the world for light sampling: they cost memory per
-/// instance) kMaxEmissiveInstancedTriangles.
+/// instance) kMaxEmissiveInstancedTriangles. What it needs of a group is found once, so that a
+/// group placed a million times is not read a million times.
 class InstanceBudget {
  public:
-  /// Counts one more instance of `group`; why it is refused, or nothing.
-  std::optional<std::string> add(const Scene& scene, const MeshGroup& group);
+  /// Counts one more instance of group `group` of `scene`; why it is refused, or nothing.
+  std::optional<std::string> add(const Scene& scene, uint32_t group);
+  /// placed_in_range() for group `group` of `scene`.
+  bool placed_in_range(const Scene& scene, uint32_t group, const Transform& t);
 
  private:
+  struct Facts {
+    bool known = false, emits = false;
+    uint64_t triangles = 0;
+    WideVec3 lo, hi;
+  };
+  const Facts& facts(const Scene& scene, uint32_t group);
+
+  std::vector<Facts> groups_;
   uint64_t triangles_ = 0, emissive_triangles_ = 0;
 };
 

@@ -41,17 +41,6 @@ void read_params(const Node& n, DielectricMaterial& d, const TextureReader& tex)
   if (auto tint = n.find("tint")) d.tint = tex.reflectance(*tint);
 }
 
-/// A number in [lo, hi].
-float read_in_range(const Node& n, float lo, float hi) {
-  const float v = read_float(n);
-  if (!(v >= lo && v <= hi)) {
-    std::ostringstream range;
-    range << "expected a number in [" << lo << ", " << hi << "], got " << as_written(n.json());
-    n.fail(range.str());
-  }
-  return v;
-}
-
 /// A GGX roughness: in [0, 1] (alpha above 1 is a surface rougher than any the model describes).
 TexturedFloat read_alpha(const Node& n, const TextureReader& tex) {
   return tex.number(n, 0.f, 1.f);

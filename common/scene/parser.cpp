@@ -59,7 +59,7 @@ class SceneReader {
     }
     bool has_camera = false;
     if (gltf) {
-      const GltfResult result = read_gltf(*gltf);
+      const GltfResult result = read_gltf(*gltf, root.find("materials"));
       has_camera = result.has_camera;
       if (!film) {
         scene_.film = default_gltf_film(result.aspect);
@@ -161,18 +161,22 @@ class SceneReader {
 
   /// "gltf": {"file": NAME, "camera": NAME}: the file's meshes, materials (which "materials"
   /// may then override by name) and lights join the scene.
-  GltfResult read_gltf(const Node& n) {
+  GltfResult read_gltf(const Node& n, const std::optional<Node>& materials) {
     n.allow_keys({"file", "camera"});
     const Node file = n.require("file");
     const fs::path relative = mesh_path(file);
     if (!is_gltf_path(relative)) file.fail("expected a .gltf or .glb file");
     GltfOptions options;
     if (auto c = n.find("camera")) options.camera = read_string(*c);
+    if (materials)
+      for (const auto& [name, value] : materials->object().items())
+        options.replaced_materials.insert(name);
     const size_t instances_before = scene_.instances.size();
     const GltfResult result = load_gltf(folder_, relative, options, images_, scene_);
     // The file's instances count towards the scene's placed triangles, as the JSON ones do.
     for (size_t i = instances_before; i < scene_.instances.size(); ++i)
-      instanced_triangles_ += group_triangle_count(scene_.groups[scene_.instances[i].group]);
+      if (auto refusal = instance_budget_.add(scene_, scene_.instances[i].group))
+        file.fail(*refusal);
     for (uint32_t i = 0; i < scene_.materials.size(); ++i)
       material_index_.try_emplace(scene_.materials[i].name, i);
     return result;
@@ -276,8 +280,7 @@ class SceneReader {
     if (scene_.instances.size() >= kMaxInstances) {
       n.fail("more than " + std::to_string(kMaxInstances) + " instances");
     }
-    const MeshGroup& group = scene_.groups[it->second];
-    if (auto refusal = instance_budget_.add(scene_, group)) n.fail(*refusal);
+    if (auto refusal = instance_budget_.add(scene_, it->second)) n.fail(*refusal);
     Instance instance;
     instance.group = it->second;
     if (auto t = n.find("transform")) {
@@ -285,7 +288,7 @@ class SceneReader {
       const double det = transform.determinant();
       if (!(std::fabs(det) > 0.0) || !std::isfinite(det))
         t->fail("the transform is not invertible (determinant " + std::to_string(det) + ")");
-      if (!placed_in_range(group, transform))
+      if (!instance_budget_.placed_in_range(scene_, it->second, transform))
         t->fail(
             "the transform places the group's points beyond 1e17, the largest coordinate "
             "that the renderer handles");

@@ -157,6 +157,31 @@ TEST(Gltf, JsonSceneAddsFilmAndOverridesMaterials) {
   EXPECT_EQ(scene.render.spp, 4u);
 }
 
+// The file's own material reads no texture, so on its own its mesh keeps no texture
+// coordinates; replaced by a textured material from the JSON scene, the mesh keeps them (and
+// its tangents), or the texture would be read at barycentrics.
+TEST(Gltf, ReplacedMaterialsKeepTheMeshTextureCoordinates) {
+  TempDir dir;
+  GltfBuilder b = sample_scene();
+  const int tangents = b.add_floats({1, 0, 0, 1, 0, 0, 0, -1, 1, 0, 0, 1, 1, 0, 0, 1}, "VEC4");
+  b.doc["meshes"][0]["primitives"][0]["attributes"]["TANGENT"] = tangents;  // one zero tangent
+  dir.write("m.glb", b.glb());
+  EXPECT_TRUE(load_scene(dir.path() / "m.glb").meshes[0].uvs.empty());
+  const Scene scene = load_scene(dir.write("scene.json", R"({
+    "gltf": {"file": "m.glb"},
+    "textures": {"c": {"type": "checkerboard", "color0": [0, 0, 0], "color1": [1, 1, 1]}},
+    "materials": {"paint": {"type": "diffuse", "albedo": {"texture": "c"}}}
+  })"));
+  ASSERT_EQ(scene.meshes[0].uvs.size(), 4u);
+  ASSERT_EQ(scene.meshes[0].tangents.size(), 4u);
+  // Exporters write zero tangents where texture coordinates are degenerate: kept as zero (the
+  // renderer derives the frame there), not an error.
+  EXPECT_EQ(scene.meshes[0].tangents[1].x, 0.f);
+  EXPECT_EQ(scene.meshes[0].tangents[1].w, -1.f);
+  const Vec4& t0 = scene.meshes[0].tangents[0];  // +x, turned by the node to -z
+  expect_near(Vec3(t0.x, t0.y, t0.z), Vec3(0, 0, -1));
+}
+
 TEST(Gltf, CameraChosenByName) {
   GltfBuilder b = sample_scene();
   b.doc["cameras"].push_back(
@@ -388,11 +413,21 @@ TEST(Gltf, MalformedFilesNameThePlace) {
 TEST(Gltf, HostileSizesAreRefusedBeforeAllocating) {
   {
     GltfBuilder b = sample_scene();
-    b.doc["accessors"][0].erase("bufferView");
-    b.doc["accessors"][0]["count"] = uint64_t{1} << 31;
-    EXPECT_NE(glb_error(b).find("accessors[0]: count 2147483648 exceeds the limit"),
+    b.doc["accessors"][1].erase("bufferView");  // the normals
+    b.doc["accessors"][1]["count"] = uint64_t{1} << 31;
+    EXPECT_NE(glb_error(b).find("accessors[1]: count 2147483648 exceeds the limit"),
               std::string::npos)
         << glb_error(b);
+  }
+  {
+    // Within one accessor's limit, beyond the file's vertices: refused before it is read.
+    GltfBuilder b = sample_scene();
+    b.doc["accessors"][0].erase("bufferView");
+    b.doc["accessors"][0]["count"] = (uint64_t{1} << 26) + 1;
+    b.doc["meshes"][0]["primitives"][0].erase("indices");
+    b.doc["meshes"][0]["primitives"][0]["attributes"].erase("NORMAL");
+    b.doc["meshes"][0]["primitives"][0]["attributes"].erase("TEXCOORD_0");
+    EXPECT_NE(glb_error(b).find("more than 2^26 vertices"), std::string::npos) << glb_error(b);
   }
   {
     std::string glb = sample_scene().glb();
