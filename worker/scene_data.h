@@ -110,22 +110,13 @@ class SceneData {
 
   /// Resolves an Embree hit into position, normal, material and light.
   SurfaceHit resolve(const Ray& ray, const RayHit& hit) const {
-    if (hit.geom == kSphereGeometry) return resolve_sphere(ray, hit);
-    if (hit.inst != kNoInstance) return resolve_instanced(hit);
-    const TriangleInfo& tri = triangles_[mesh_offset_[hit.geom] + hit.prim];
-    SurfaceHit s;
-    s.p = tri.v0 + tri.e1 * hit.u + tri.e2 * hit.v;
-    s.n = tri.n;
-    s.ns = tri.n;
-    s.uv = {hit.u, hit.v};
-    s.p_error = tri.p_error;
-    s.material = tri.material;
-    s.light = tri.light;
-    if (interpolates_[hit.geom]) interpolate(scene_.meshes[hit.geom], hit, s);
+    SurfaceHit s = resolve_plain(ray, hit);  // spheres and instances read their attributes
+    if (hit.geom != kSphereGeometry && hit.inst == kNoInstance && interpolates_[hit.geom])
+      interpolate(scene_.meshes[hit.geom], hit, s);
     return s;
   }
-  /// Resolves a hit of a plain() scene: what resolve() gives there, without its tests for
-  /// vertex attributes (texture coordinates are the barycentrics, the normal is flat).
+  /// Resolves a hit of a plain() scene: what resolve() gives there, without its test for a
+  /// world mesh's vertex attributes (texture coordinates are the barycentrics, the normal flat).
   SurfaceHit resolve_plain(const Ray& ray, const RayHit& hit) const {
     if (hit.geom == kSphereGeometry) return resolve_sphere(ray, hit);
     if (hit.inst != kNoInstance) return resolve_instanced(hit);
