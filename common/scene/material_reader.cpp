@@ -41,7 +41,7 @@ void read_params(const Node& n, DielectricMaterial& d, const TextureReader& tex)
   if (auto tint = n.find("tint")) d.tint = tex.reflectance(*tint);
 }
 
-/// A GGX roughness: in [0, 1] (alpha above 1 is a surface rougher than any the model describes).
+/// A roughness: in [0, 1] (alpha above 1 is a surface rougher than any the model describes).
 TexturedFloat read_alpha(const Node& n, const TextureReader& tex) {
   return tex.number(n, 0.f, 1.f);
 }
@@ -61,9 +61,17 @@ void read_alphas(const Node& n, TexturedFloat& alpha_u, TexturedFloat& alpha_v,
   }
 }
 
+/// "distribution": the microfacet normals' distribution, "ggx" or "beckmann".
+MicrofacetType read_distribution(const Node& n) {
+  const std::string name = read_string(n);
+  if (name == "ggx") return MicrofacetType::kGgx;
+  if (name == "beckmann") return MicrofacetType::kBeckmann;
+  n.fail("unknown distribution " + as_written(n.json()) + "; expected ggx or beckmann");
+}
+
 void read_params(const Node& n, RoughConductorMaterial& c, const TextureReader& tex) {
-  n.allow_keys({"type", "eta", "k", "f0", "alpha", "alpha_u", "alpha_v", "specular_reflectance",
-                "emission", "two_sided", SURFACE_KEYS});
+  n.allow_keys({"type", "eta", "k", "f0", "alpha", "alpha_u", "alpha_v", "distribution",
+                "specular_reflectance", "emission", "two_sided", SURFACE_KEYS});
   const auto f0 = n.find("f0");
   if (f0) {
     if (auto e = n.find("eta")) e->fail("give either \"f0\" or \"eta\" and \"k\"");
@@ -82,14 +90,16 @@ void read_params(const Node& n, RoughConductorMaterial& c, const TextureReader& 
       if (!(c.k[i] >= 0.f)) k->fail("every channel of k must be >= 0");
   }
   read_alphas(n, c.alpha_u, c.alpha_v, tex);
+  if (auto d = n.find("distribution")) c.distribution = read_distribution(*d);
   if (auto s = n.find("specular_reflectance")) c.specular_reflectance = tex.reflectance(*s);
 }
 
 void read_params(const Node& n, RoughDielectricMaterial& d, const TextureReader& tex) {
-  n.allow_keys({"type", "ior", "alpha", "alpha_u", "alpha_v", "tint", "emission", "two_sided",
-                SURFACE_KEYS});
+  n.allow_keys({"type", "ior", "alpha", "alpha_u", "alpha_v", "distribution", "tint", "emission",
+                "two_sided", SURFACE_KEYS});
   if (auto ior = n.find("ior")) d.ior = read_positive(*ior);
   read_alphas(n, d.alpha_u, d.alpha_v, tex);
+  if (auto dist = n.find("distribution")) d.distribution = read_distribution(*dist);
   if (auto tint = n.find("tint")) d.tint = tex.reflectance(*tint);
 }
 
@@ -100,11 +110,12 @@ void read_params(const Node& n, ThinDielectricMaterial& d, const TextureReader& 
 }
 
 void read_params(const Node& n, PlasticMaterial& p, const TextureReader& tex) {
-  n.allow_keys({"type", "diffuse_reflectance", "ior", "alpha", "nonlinear", "emission", "two_sided",
-                SURFACE_KEYS});
+  n.allow_keys({"type", "diffuse_reflectance", "ior", "alpha", "distribution", "nonlinear",
+                "emission", "two_sided", SURFACE_KEYS});
   if (auto r = n.find("diffuse_reflectance")) p.diffuse_reflectance = tex.reflectance(*r);
   if (auto ior = n.find("ior")) p.ior = read_positive(*ior);
   if (auto a = n.find("alpha")) p.alpha = read_alpha(*a, tex);
+  if (auto d = n.find("distribution")) p.distribution = read_distribution(*d);
   if (auto nl = n.find("nonlinear")) p.nonlinear = read_bool(*nl);
 }
 

@@ -77,8 +77,12 @@ struct DielectricMaterial {
   static constexpr auto textured() { return std::make_tuple(&DielectricMaterial::tint); }
 };
 
-/// A metal with GGX microfacets: exact conductor Fresnel from eta + i k, or Schlick's from f0.
-/// alpha 0 on both axes is a smooth conductor (a Dirac lobe).
+/// The distribution of microfacet normals of a rough kind: GGX (Trowbridge-Reitz), with long
+/// tails, or Beckmann, a Gaussian of the slopes (a sharper highlight with less haze around it).
+enum class MicrofacetType : uint8_t { kGgx, kBeckmann };
+
+/// A metal with GGX or Beckmann microfacets: exact conductor Fresnel from eta + i k, or Schlick's
+/// from f0. alpha 0 on both axes is a smooth conductor (a Dirac lobe).
 struct RoughConductorMaterial {
   static constexpr const char* kName = "roughconductor";
   /// Gold's complex index per channel (linear sRGB, red green blue): the values renderers
@@ -87,9 +91,10 @@ struct RoughConductorMaterial {
   Vec3 k{3.98316f, 2.38572f, 1.60322f};
   bool use_f0 = false;             ///< Schlick's approximation with f0 instead of eta, k
   TexturedRgb f0{Vec3(1.f)};       ///< reflectance at normal incidence, when use_f0
-  TexturedFloat alpha_u = 0.1f;    ///< GGX roughness along the surface tangent
-  TexturedFloat alpha_v = 0.1f;    ///< GGX roughness along the bitangent
+  TexturedFloat alpha_u = 0.1f;    ///< roughness along the surface tangent
+  TexturedFloat alpha_v = 0.1f;    ///< roughness along the bitangent
   TexturedRgb specular_reflectance{Vec3(1.f)};  ///< multiplier
+  MicrofacetType distribution = MicrofacetType::kGgx;
   static constexpr auto textured() {
     return std::make_tuple(&RoughConductorMaterial::f0, &RoughConductorMaterial::alpha_u,
                            &RoughConductorMaterial::alpha_v,
@@ -97,14 +102,15 @@ struct RoughConductorMaterial {
   }
 };
 
-/// Glass with GGX microfacets: rough reflection and refraction (Walter et al. 2007). alpha 0 is
-/// the smooth dielectric.
+/// Glass with GGX or Beckmann microfacets: rough reflection and refraction (Walter et al. 2007).
+/// alpha 0 is the smooth dielectric.
 struct RoughDielectricMaterial {
   static constexpr const char* kName = "roughdielectric";
   float ior = 1.5f;
   TexturedFloat alpha_u = 0.1f;
   TexturedFloat alpha_v = 0.1f;
   TexturedRgb tint{Vec3(1.f)};  ///< transmission colour
+  MicrofacetType distribution = MicrofacetType::kGgx;
   static constexpr auto textured() {
     return std::make_tuple(&RoughDielectricMaterial::alpha_u, &RoughDielectricMaterial::alpha_v,
                            &RoughDielectricMaterial::tint);
@@ -120,13 +126,14 @@ struct ThinDielectricMaterial {
   static constexpr auto textured() { return std::make_tuple(&ThinDielectricMaterial::tint); }
 };
 
-/// A diffuse base under a smooth (alpha 0) or GGX-rough dielectric coating.
+/// A diffuse base under a smooth (alpha 0) or rough (GGX or Beckmann) dielectric coating.
 struct PlasticMaterial {
   static constexpr const char* kName = "plastic";
   TexturedRgb diffuse_reflectance{Vec3(0.5f)};
   float ior = 1.49f;          ///< of the coating (polypropylene)
-  TexturedFloat alpha = 0.f;  ///< GGX roughness of the coating; 0 = smooth
+  TexturedFloat alpha = 0.f;  ///< roughness of the coating; 0 = smooth
   bool nonlinear = false;  ///< internal reflections darken and saturate the base's colour
+  MicrofacetType distribution = MicrofacetType::kGgx;
   static constexpr auto textured() {
     return std::make_tuple(&PlasticMaterial::diffuse_reflectance, &PlasticMaterial::alpha);
   }

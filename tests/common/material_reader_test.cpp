@@ -164,6 +164,52 @@ TEST(MaterialReader, PlasticAndRoughPlastic) {
   expect_material_error(R"({"type": "plastic", "alpha": 3})", {"/materials/m/alpha", "[0, 1]"});
 }
 
+TEST(MaterialReader, MicrofacetDistribution) {
+  // GGX unless "distribution" says otherwise, on each of the three rough kinds.
+  EXPECT_EQ(load_params<RoughConductorMaterial>(R"({"type": "roughconductor"})").distribution,
+            MicrofacetType::kGgx);
+  EXPECT_EQ(load_params<RoughDielectricMaterial>(R"({"type": "roughdielectric"})").distribution,
+            MicrofacetType::kGgx);
+  EXPECT_EQ(load_params<PlasticMaterial>(R"({"type": "roughplastic"})").distribution,
+            MicrofacetType::kGgx);
+  const auto c = load_params<RoughConductorMaterial>(
+      R"({"type": "roughconductor", "alpha_u": 0.2, "alpha_v": 0.3, "distribution": "beckmann"})");
+  EXPECT_EQ(c.distribution, MicrofacetType::kBeckmann);
+  EXPECT_EQ(c.alpha_u, 0.2f);
+  EXPECT_EQ(c.alpha_v, 0.3f);
+  EXPECT_EQ(
+      load_params<RoughConductorMaterial>(R"({"type": "roughconductor", "distribution": "ggx"})")
+          .distribution,
+      MicrofacetType::kGgx);
+  EXPECT_EQ(load_params<RoughDielectricMaterial>(
+                R"({"type": "roughdielectric", "distribution": "beckmann"})")
+                .distribution,
+            MicrofacetType::kBeckmann);
+  const auto p = load_params<PlasticMaterial>(
+      R"({"type": "roughplastic", "alpha": 0.3, "distribution": "beckmann"})");
+  EXPECT_EQ(p.distribution, MicrofacetType::kBeckmann);
+  EXPECT_EQ(p.alpha, 0.3f);
+  EXPECT_EQ(load_params<PlasticMaterial>(R"({"type": "plastic", "distribution": "beckmann"})")
+                .distribution,
+            MicrofacetType::kBeckmann);
+
+  expect_material_error(R"({"type": "roughconductor", "distribution": "phong"})",
+                        {"/materials/m/distribution", "\"phong\"", "ggx or beckmann"});
+  expect_material_error(R"({"type": "roughdielectric", "distribution": "Beckmann"})",
+                        {"/materials/m/distribution", "\"Beckmann\""});
+  expect_material_error(R"({"type": "roughplastic", "distribution": 1})",
+                        {"/materials/m/distribution"});
+  // Kinds without microfacets do not take the key: a warning names it, as for any unknown key.
+  for (const char* material : {R"({"type": "conductor", "distribution": "beckmann"})",
+                               R"({"type": "dielectric", "distribution": "ggx"})"}) {
+    TempDir dir;
+    const Scene scene = load_scene(dir.write("scene.json", scene_with_material(material)));
+    ASSERT_EQ(scene.warnings.size(), 1u) << material;
+    EXPECT_NE(scene.warnings[0].find("/materials/m/distribution"), std::string::npos)
+        << scene.warnings[0];
+  }
+}
+
 TEST(MaterialReader, MetallicRoughness) {
   auto m = load_params<MetallicRoughnessMaterial>(R"({"type": "metallic_roughness"})");
   EXPECT_EQ(m.base_color, Vec3(1.f));

@@ -55,7 +55,9 @@ float internal_diffuse_reflectance(float ior) {
 }
 
 PlasticBsdf::PlasticBsdf(const PlasticMaterial& m)
-    : ior_(m.ior), ggx_(m.alpha, m.alpha), base_weight_(luminance(m.diffuse_reflectance)) {
+    : ior_(m.ior),
+      facets_(m.distribution, m.alpha, m.alpha),
+      base_weight_(luminance(m.diffuse_reflectance)) {
   // Constructed at every path vertex: the one integral is remembered per thread for the last
   // index asked, which in most scenes is the only one.
   thread_local float last_ior = -1.f, last_fdr = 0.f;
@@ -84,9 +86,9 @@ float PlasticBsdf::coat_probability(float fresnel_o) const {
 
 Vec3 PlasticBsdf::eval_upper(const Vec3& wo, const Vec3& wi) const {
   Vec3 f = diffuse_ * ((1.f - fresnel(wi.z)) * (1.f - fresnel(wo.z)) * wi.z);
-  if (!ggx_.is_smooth()) {
+  if (!facets_.is_smooth()) {
     const Vec3 wm = normalize(wo + wi);
-    f += Vec3(ggx_.d(wm) * ggx_.g(wo, wi) * fresnel(dot(wo, wm)) / (4.f * wo.z));
+    f += Vec3(facets_.d(wm) * facets_.g(wo, wi) * fresnel(dot(wo, wm)) / (4.f * wo.z));
   }
   return f;
 }
@@ -94,10 +96,10 @@ Vec3 PlasticBsdf::eval_upper(const Vec3& wo, const Vec3& wi) const {
 float PlasticBsdf::pdf_upper(const Vec3& wo, const Vec3& wi) const {
   const float p_coat = coat_probability(fresnel(wo.z));
   float pdf = (1.f - p_coat) * wi.z * kInvPi;
-  if (!ggx_.is_smooth()) {
+  if (!facets_.is_smooth()) {
     const Vec3 wm = normalize(wo + wi);
     const float c = dot(wo, wm);
-    if (c > 0.f) pdf += p_coat * ggx_.visible_pdf(wo, wm) / (4.f * c);
+    if (c > 0.f) pdf += p_coat * facets_.visible_pdf(wo, wm) / (4.f * c);
   }
   return pdf;
 }
@@ -123,14 +125,14 @@ bool PlasticBsdf::sample(const Vec3& wo_in, float u_lobe, float u1, float u2,
   const float p_coat = coat_probability(f_o);
   Vec3 wi;
   if (u_lobe < p_coat) {
-    if (ggx_.is_smooth()) {
+    if (facets_.is_smooth()) {
       out.wi = to_upper(reflect_z(wo), flip);
       out.weight = Vec3(f_o / p_coat);
       out.pdf = 0.f;
       out.specular = true;
       return true;
     }
-    wi = normalize(reflect_about(wo, ggx_.sample_visible(wo, u1, u2)));
+    wi = normalize(reflect_about(wo, facets_.sample_visible(wo, u1, u2)));
   } else {
     wi = sample_cosine_hemisphere(u1, u2);
   }

@@ -1,11 +1,13 @@
 #pragma once
-// A diffuse base under a dielectric coating, smooth (alpha 0: a Dirac reflection) or GGX-rough.
-// Light enters the coating (1 - F(wi)), scatters diffusely off the base, and leaves (1 - F(wo));
-// what the coating reflects back inside returns to the base, which the factor 1 / (1 - Fdr_int)
-// (or, `nonlinear`, 1 / (1 - Fdr_int rho)) sums. On both sides (mirrored to wo's side).
+// A diffuse base under a dielectric coating, smooth (alpha 0: a Dirac reflection) or rough (GGX
+// or Beckmann microfacets). Light enters the coating (1 - F(wi)), scatters diffusely off the base,
+// and leaves (1 - F(wo)); what the coating reflects back inside returns to the base, which the
+// factor 1 / (1 - Fdr_int) (or, `nonlinear`, 1 / (1 - Fdr_int rho)) sums. On both sides (mirrored
+// to wo's side).
 #include "common/scene/scene.h"
 #include "worker/bsdfs/bsdf_sample.h"
 #include "worker/bsdfs/microfacet.h"
+#include "worker/bsdfs/microfacet_distribution.h"
 
 namespace rayfarm {
 
@@ -37,7 +39,7 @@ class PlasticBsdf {
   float pdf_upper(const Vec3& wo, const Vec3& wi) const;
 
   float ior_;
-  GgxDistribution ggx_;
+  MicrofacetDistribution facets_;
   Vec3 diffuse_;       // rho / (pi eta^2 (1 - Fdr_int [rho]))
   float base_weight_;  // luminance of rho: the base's share before Fresnel
 };

@@ -10,18 +10,18 @@ Vec3 RoughConductorBsdf::fresnel(float cos_i) const {
 }
 
 Vec3 RoughConductorBsdf::eval(const Vec3& wo_in, const Vec3& wi_in) const {
-  if (ggx_.is_smooth() || wo_in.z * wi_in.z <= 0.f) return Vec3(0.f);
+  if (facets_.is_smooth() || wo_in.z * wi_in.z <= 0.f) return Vec3(0.f);
   const bool flip = wo_in.z < 0.f;
   const Vec3 wo = to_upper(wo_in, flip), wi = to_upper(wi_in, flip);
   const Vec3 h = wo + wi;
   if (dot(h, h) == 0.f) return Vec3(0.f);
   const Vec3 wm = normalize(h);
   // D G F / (4 cos_o cos_i), times cos_i.
-  return fresnel(dot(wo, wm)) * (ggx_.d(wm) * ggx_.g(wo, wi) / (4.f * wo.z));
+  return fresnel(dot(wo, wm)) * (facets_.d(wm) * facets_.g(wo, wi) / (4.f * wo.z));
 }
 
 float RoughConductorBsdf::pdf(const Vec3& wo_in, const Vec3& wi_in) const {
-  if (ggx_.is_smooth() || wo_in.z * wi_in.z <= 0.f) return 0.f;
+  if (facets_.is_smooth() || wo_in.z * wi_in.z <= 0.f) return 0.f;
   const bool flip = wo_in.z < 0.f;
   const Vec3 wo = to_upper(wo_in, flip), wi = to_upper(wi_in, flip);
   const Vec3 h = wo + wi;
@@ -29,7 +29,7 @@ float RoughConductorBsdf::pdf(const Vec3& wo_in, const Vec3& wi_in) const {
   const Vec3 wm = normalize(h);
   // The visible normals' density times the Jacobian of reflection, 1 / (4 wo.wm).
   const float c = dot(wo, wm);
-  return c > 0.f ? ggx_.visible_pdf(wo, wm) / (4.f * c) : 0.f;
+  return c > 0.f ? facets_.visible_pdf(wo, wm) / (4.f * c) : 0.f;
 }
 
 bool RoughConductorBsdf::sample(const Vec3& wo_in, float /*u_lobe*/, float u1, float u2,
@@ -37,21 +37,21 @@ bool RoughConductorBsdf::sample(const Vec3& wo_in, float /*u_lobe*/, float u1, f
   if (wo_in.z == 0.f) return false;
   const bool flip = wo_in.z < 0.f;
   const Vec3 wo = to_upper(wo_in, flip);
-  if (ggx_.is_smooth()) {
+  if (facets_.is_smooth()) {
     out.wi = to_upper(reflect_z(wo), flip);
     out.weight = fresnel(wo.z);
     out.pdf = 0.f;
     out.specular = true;
     return true;
   }
-  const Vec3 wm = ggx_.sample_visible(wo, u1, u2);
+  const Vec3 wm = facets_.sample_visible(wo, u1, u2);
   const Vec3 wi = normalize(reflect_about(wo, wm));
   if (wi.z <= 0.f) return false;
   const float c = dot(wo, wm);
-  const float pdf = c > 0.f ? ggx_.visible_pdf(wo, wm) / (4.f * c) : 0.f;
+  const float pdf = c > 0.f ? facets_.visible_pdf(wo, wm) / (4.f * c) : 0.f;
   if (!(pdf > 0.f)) return false;
   // eval / pdf simplifies to F G / G1(wo), which stays finite where D and the pdf are huge.
-  out.weight = fresnel(c) * (ggx_.g(wo, wi) / ggx_.g1(wo));
+  out.weight = fresnel(c) * (facets_.g(wo, wi) / facets_.g1(wo));
   out.wi = to_upper(wi, flip);
   out.pdf = pdf;
   out.specular = false;

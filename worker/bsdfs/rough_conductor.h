@@ -1,9 +1,10 @@
 #pragma once
-// A metal: GGX microfacets with the conductor's Fresnel reflectance, on both sides (mirrored to
-// wo's side). Roughness 0 on both axes is a smooth conductor, a Dirac lobe.
+// A metal: GGX or Beckmann microfacets with the conductor's Fresnel reflectance, on both sides
+// (mirrored to wo's side). Roughness 0 on both axes is a smooth conductor, a Dirac lobe.
 #include "common/scene/scene.h"
 #include "worker/bsdfs/bsdf_sample.h"
 #include "worker/bsdfs/microfacet.h"
+#include "worker/bsdfs/microfacet_distribution.h"
 
 namespace rayfarm {
 
@@ -12,9 +13,9 @@ class RoughConductorBsdf {
   using Params = RoughConductorMaterial;
 
   explicit RoughConductorBsdf(const RoughConductorMaterial& m)
-      : m_(m), ggx_(m.alpha_u, m.alpha_v) {}
+      : m_(m), facets_(m.distribution, m.alpha_u, m.alpha_v) {}
 
-  bool is_specular() const { return ggx_.is_smooth(); }
+  bool is_specular() const { return facets_.is_smooth(); }
   /// f(wo, wi) * |cos(wi)|; zero when smooth.
   Vec3 eval(const Vec3& wo, const Vec3& wi) const;
   /// Solid-angle density with which sample() draws wi given wo; zero when smooth.
@@ -27,7 +28,7 @@ class RoughConductorBsdf {
 
  private:
   RoughConductorMaterial m_;
-  GgxDistribution ggx_;
+  MicrofacetDistribution facets_;
 };
 
 }  // namespace rayfarm

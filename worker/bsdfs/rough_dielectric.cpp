@@ -14,7 +14,7 @@ constexpr float kMatchedIndex = 1e-4f;
 RoughDielectricBsdf::RoughDielectricBsdf(const RoughDielectricMaterial& m)
     : ior_(m.ior),
       tint_(m.tint),
-      ggx_(m.alpha_u, m.alpha_v),
+      facets_(m.distribution, m.alpha_u, m.alpha_v),
       index_matched_(std::fabs(m.ior - 1.f) < kMatchedIndex),
       smooth_(DielectricMaterial{m.ior, m.tint}) {}
 
@@ -61,7 +61,7 @@ Vec3 RoughDielectricBsdf::eval(const Vec3& wo, const Vec3& wi) const {
   if (is_specular()) return Vec3(0.f);
   Half h;
   if (!half_vector(wo, wi, h)) return Vec3(0.f);
-  const float d = ggx_.d(h.wm), g = ggx_.g(wo, wi);
+  const float d = facets_.d(h.wm), g = facets_.g(wo, wi);
   const float cos_o = std::fabs(wo.z);
   if (wo.z * wi.z > 0.f) return Vec3(d * g * h.fresnel / (4.f * cos_o));
   // Walter's BTDF with the radiance factor: |wi.m| |wo.m| D G (1 - F) / (cos_o (wi.m + wo.m /
@@ -78,7 +78,7 @@ float RoughDielectricBsdf::pdf(const Vec3& wo, const Vec3& wi) const {
   // Micro-normals are drawn as seen from wo mirrored to the upper side (D is symmetric under
   // w -> -w, so -wo serves as well as the mirror image).
   const Vec3 wo_up = wo.z > 0.f ? wo : -wo;
-  const float visible = ggx_.visible_pdf(wo_up, h.wm);
+  const float visible = facets_.visible_pdf(wo_up, h.wm);
   if (wo.z * wi.z > 0.f) return visible * h.fresnel / (4.f * std::fabs(h.co));
   // |d wm / d wi| = eta^2 |wi.m| / (eta wi.m + wo.m)^2.
   return visible * (1.f - h.fresnel) * h.eta * h.eta * std::fabs(h.ci) / (h.denom * h.denom);
@@ -87,7 +87,7 @@ float RoughDielectricBsdf::pdf(const Vec3& wo, const Vec3& wi) const {
 bool RoughDielectricBsdf::sample(const Vec3& wo, float u_lobe, float u1, float u2,
                                  BsdfSample& out) const {
   if (wo.z == 0.f) return false;
-  if (ggx_.is_smooth()) return smooth_.sample(wo, u_lobe, u1, u2, out);
+  if (facets_.is_smooth()) return smooth_.sample(wo, u_lobe, u1, u2, out);
   if (index_matched_) {
     out.wi = -wo;
     out.weight = tint_;
@@ -96,7 +96,7 @@ bool RoughDielectricBsdf::sample(const Vec3& wo, float u_lobe, float u1, float u
     return true;
   }
   const Vec3 wo_up = wo.z > 0.f ? wo : -wo;
-  const Vec3 wm = ggx_.sample_visible(wo_up, u1, u2);
+  const Vec3 wm = facets_.sample_visible(wo_up, u1, u2);
   const float co = dot(wo, wm);                      // same sign as wo.z
   const float eta = wo.z > 0.f ? ior_ : 1.f / ior_;  // eta_t / eta_i
   float cos_t = 0.f;

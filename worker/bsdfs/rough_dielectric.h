@@ -1,12 +1,13 @@
 #pragma once
-// Rough glass: reflection and refraction through GGX microfacets (Walter et al. 2007). z > 0 is
-// outside (index 1), z < 0 inside (index ior). Roughness 0 is the smooth dielectric; an index of 1
-// is an invisible interface whatever the roughness (every micro-facet passes light straight on),
-// also a Dirac lobe.
+// Rough glass: reflection and refraction through GGX or Beckmann microfacets (Walter et al. 2007).
+// z > 0 is outside (index 1), z < 0 inside (index ior). Roughness 0 is the smooth dielectric; an
+// index of 1 is an invisible interface whatever the roughness (every micro-facet passes light
+// straight on), also a Dirac lobe.
 #include "common/scene/scene.h"
 #include "worker/bsdfs/bsdf_sample.h"
 #include "worker/bsdfs/dielectric.h"
 #include "worker/bsdfs/microfacet.h"
+#include "worker/bsdfs/microfacet_distribution.h"
 
 namespace rayfarm {
 
@@ -16,7 +17,7 @@ class RoughDielectricBsdf {
 
   explicit RoughDielectricBsdf(const RoughDielectricMaterial& m);
 
-  bool is_specular() const { return ggx_.is_smooth() || index_matched_; }
+  bool is_specular() const { return facets_.is_smooth() || index_matched_; }
   /// f(wo, wi) * |cos(wi)|, reflection and transmission; radiance transmitted into the denser
   /// side is compressed by (n_o / n_i)^2, so f(wo, wi) / n_o^2 = f(wi, wo) / n_i^2.
   Vec3 eval(const Vec3& wo, const Vec3& wi) const;
@@ -39,7 +40,7 @@ class RoughDielectricBsdf {
 
   float ior_;
   Vec3 tint_;
-  GgxDistribution ggx_;
+  MicrofacetDistribution facets_;
   bool index_matched_;
   DielectricBsdf smooth_;
 };
