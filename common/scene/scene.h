@@ -280,6 +280,11 @@ struct EnvironmentMap {
   Vec3 scale{1.f};  ///< image: factor on every texel; constant: the radiance
   /// World from map (a rotation), row-major: the map's own +y is up, its centre looks along +z.
   std::array<double, 9> rotation{1, 0, 0, 0, 1, 0, 0, 0, 1};
+  /// How an image is read between texels: false, the texel a direction falls in (each texel a
+  /// cell of the image); true, bilinear interpolation between texel centres placed as Mitsuba 3's
+  /// envmap places them: column i at u = (i + 1/2) / width (wrapping around), row j at
+  /// v = j / (height - 1) (the first row straight up, the last straight down).
+  bool bilinear = false;
 };
 
 enum class IntegratorType : uint8_t { kNaive, kNee, kMis };
