@@ -82,6 +82,7 @@ int run_render(const RenderArgs& args) {
   log->info("{}", protocol::kBuildVersion);
   Scene scene = args.source.load(SceneImages::kKeep);
   for (const std::string& w : scene.warnings) log->warn("{}", w);
+  if (args.film.given()) check_uncropped(scene);
   if (const auto film = args.film.resolve(scene.film)) scene.film = *film;
 
   RenderSettings settings = scene.render;

@@ -59,6 +59,15 @@ struct SceneArgs {
   }
 };
 
+/// --res, --width and --height resize the film; a film that is a crop of a larger image (a
+/// Mitsuba hdrfilm's crop_*) cannot be resized so. Throws std::invalid_argument.
+inline void check_uncropped(const Scene& scene) {
+  if (scene.camera.full_width != 0)
+    throw std::invalid_argument(
+        "--res, --width and --height cannot resize a cropped film; change the scene's crop "
+        "(hdrfilm crop_width, crop_height) or its width and height");
+}
+
 inline void add_scene_options(CLI::App* cmd, SceneArgs& args) {
   cmd->add_option("--camera", args.camera,
                   "glTF scenes: the camera (its or its node's name) to render through; default: "

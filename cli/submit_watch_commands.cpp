@@ -127,7 +127,9 @@ int run_submit(const SubmitArgs& args) {
   if (args.pass_spp) o->set_pass_spp(*args.pass_spp);
   o->set_clamp(args.clamp);
   if (args.film.given()) {
-    const auto film = args.film.resolve(args.source.load(SceneImages::kCheckOnly).film);
+    const Scene scene = args.source.load(SceneImages::kCheckOnly);
+    check_uncropped(scene);
+    const auto film = args.film.resolve(scene.film);
     o->set_width(film->width);
     o->set_height(film->height);
   }

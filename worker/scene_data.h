@@ -48,6 +48,7 @@ enum SurfaceNeeds : uint8_t {
   kNeedsSurfaceMap = 2,    ///< a normal or bump map perturbs the shading normal
   kOneSided = 4,           ///< scatters nothing from behind
   kFlipBitangent = 8,      ///< the normal map's image has its origin at the top (v runs down)
+  kShadingSided = 16,      ///< scatters only above the shading horizon (Material::shading_sided)
 };
 
 /// An origin for rays leaving `p` towards the side of `n`: moved `p_error` along n, then one ulp

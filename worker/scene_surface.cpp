@@ -57,6 +57,7 @@ void SceneData::build_surface(std::vector<Bvh::Mesh>& meshes, const Bvh::HitFilt
     if (anisotropic(m.kind)) needs |= kNeedsTangentFrame;
     if (m.has_surface_map()) needs |= kNeedsSurfaceMap;
     if (m.one_sided) needs |= kOneSided;
+    if (m.one_sided && m.shading_sided) needs |= kShadingSided;
     if (m.normal_map) {
       const TextureDesc& t = scene_.textures.at(m.normal_map->texture);
       if (t.kind == TextureDesc::Kind::kImage && t.options.origin == UvOrigin::top_left)

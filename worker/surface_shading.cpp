@@ -86,8 +86,8 @@ Frame shade_surface(const SceneData& data, const RayHit& rh, SurfaceHit& hit) {
       if (dh_du != 0.f || dh_dv != 0.f) ns = bumped_normal(hit.ns, tf, dh_du, dh_dv);
     }
     // A normal at or beyond the geometric horizon would shade the surface from inside; the
-    // interpolated one stays then.
-    if (dot(ns, hit.n) > 1e-4f) hit.ns = ns;
+    // interpolated one stays then (unless the material keeps its mapped normal regardless).
+    if ((needs & kShadingSided) || dot(ns, hit.n) > 1e-4f) hit.ns = ns;
   }
   return (needs & kNeedsTangentFrame) ? tangent_aligned_frame(hit.ns, tf.tangent) : Frame(hit.ns);
 }

@@ -204,7 +204,8 @@ Material Materials::convert(int index) {
     map.scale = static_cast<float>(g.normalTexture.scale);
   }
   if (g.alphaMode == "MASK" || g.alphaMode == "BLEND") {
-    // Coverage: the base colour's alpha times its texture's; below the cutoff, not there.
+    // Coverage: the base colour's alpha times its texture's; MASK: below the cutoff, not there;
+    // BLEND: there with that probability.
     m.alpha = TexturedFloat(
         unit_factor(src_, pbr.baseColorFactor[3], where + "/pbrMetallicRoughness/baseColorFactor"));
     if (k.base_color.is_textured()) {
@@ -215,8 +216,7 @@ Material Materials::convert(int index) {
     if (g.alphaMode == "MASK") {
       m.alpha_cutoff = unit_factor(src_, g.alphaCutoff, where + "/alphaCutoff");
     } else {
-      src_.warn(where + "/alphaMode",
-                "BLEND is rendered as MASK: a surface is there where its alpha is 0.5 or more");
+      m.alpha_blend = true;  // partial coverage: there with probability alpha
     }
     if (m.has_alpha() && m.is_emissive()) {
       src_.warn(where + "/alphaMode", "an emissive surface cannot be cut out; it is opaque");

@@ -9,7 +9,7 @@ namespace rayfarm::scene_json {
 namespace {
 
 // What every kind accepts besides its own parameters (read by read_surface()).
-#define SURFACE_KEYS "one_sided", "normal_map", "bump_map", "opacity", "alpha_cutoff"
+#define SURFACE_KEYS "one_sided", "normal_map", "bump_map", "opacity", "alpha_cutoff", "coverage"
 
 void read_params(const Node& n, DiffuseMaterial& d, const TextureReader& tex) {
   n.allow_keys({"type", "albedo", "emission", "two_sided", SURFACE_KEYS});
@@ -229,6 +229,14 @@ void read_surface(const Node& n, Material& m, const TextureReader& tex,
   if (m.normal_map && m.bump_map)
     n.child("bump_map").fail("give either \"normal_map\" or \"bump_map\", not both");
   if (auto o = n.find("opacity")) m.alpha = tex.number(*o, 0.f, 1.f);
+  if (auto c = n.find("coverage")) {
+    const std::string mode = read_string(*c);
+    if (mode == "blend") {
+      m.alpha_blend = true;
+    } else if (mode != "cutoff") {
+      c->fail("coverage " + as_written(c->json()) + ": expected \"cutoff\" or \"blend\"");
+    }
+  }
   if (auto c = n.find("alpha_cutoff")) {
     m.alpha_cutoff = read_float(*c);
     if (!(m.alpha_cutoff >= 0.f && m.alpha_cutoff <= 1.f))

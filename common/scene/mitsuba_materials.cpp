@@ -47,8 +47,10 @@ std::shared_ptr<const DecodedImage> decode(Context& ctx, const XmlElement& at, c
 }
 
 /// Mitsuba's to_uv (a 2D affine map in its own UVs) composed after the map from the shape's
-/// stored UVs to Mitsuba's.
-UvTransform uv_map(Props& p, UvKind uv) {
+/// stored UVs to Mitsuba's. `image`: then also the flip of v that rayfarm's bottom-left image
+/// origin undoes (Mitsuba's images have v = 0 at the top). Images keep the bottom-left origin
+/// rather than take the top-left one so that a normal map's y stays n x dp/du, as Mitsuba's does.
+UvTransform uv_map(Props& p, UvKind uv, bool image) {
   const Transform t = p.transform("to_uv");
   double a = t.at(0, 0), b = t.at(0, 1), c = t.at(0, 3), d = t.at(1, 0), e = t.at(1, 1),
          f = t.at(1, 3);
@@ -57,6 +59,11 @@ UvTransform uv_map(Props& p, UvKind uv) {
     b = -b;
     f += e;
     e = -e;
+  }
+  if (image) {  // v -> 1 - v last
+    d = -d;
+    e = -e;
+    f = 1.0 - f;
   }
   UvTransform out;
   out.matrix = std::array<float, 6>{float(a), float(b), float(c), float(d), float(e), float(f)};
@@ -279,8 +286,7 @@ int32_t texture_of(Context& ctx, const XmlElement& tex, UvKind uv, bool as_colou
   const std::string type = type_of(tex);
   TextureDesc desc;
   desc.name = tex.where();
-  desc.options.transform = uv_map(p, uv);
-  desc.options.origin = UvOrigin::top_left;
+  desc.options.transform = uv_map(p, uv, type == "bitmap");
   if (type == "bitmap") {
     const std::string* file = p.find("filename") ? &value_of(*p.find("filename")) : nullptr;
     if (file == nullptr) tex.fail("a bitmap needs a filename");
@@ -332,6 +338,7 @@ uint32_t material_of(Context& ctx, const XmlElement* bsdf, UvKind uv) {
   if (auto it = ctx.materials.find(key); it != ctx.materials.end()) return it->second;
   Material m;
   m.one_sided = true;  // Mitsuba's BSDFs are black from behind unless twosided
+  m.shading_sided = true;  // behind the shading normal's horizon, that is
   if (bsdf == nullptr) {
     m.name = "default diffuse";
     m.kind = DiffuseMaterial{TexturedRgb(Vec3(0.5f))};

@@ -190,6 +190,10 @@ struct Material {
   /// The BSDF scatters nothing from behind (the side against the geometric normal); opaque
   /// kinds only. Off: every opaque kind reflects on both sides alike.
   bool one_sided = false;
+  /// With one_sided: scatters only between directions above the shading normal's horizon (the
+  /// normal a normal or bump map makes, else the interpolated one), as Mitsuba 3's BSDFs do; a
+  /// mapped normal is kept even where it leans beyond the geometric horizon.
+  bool shading_sided = false;
   std::optional<NormalMap> normal_map;
   std::optional<BumpMap> bump_map;
   /// Coverage: a hit where alpha < alpha_cutoff is not there (rays pass straight through).

@@ -210,6 +210,23 @@ TEST(MaterialReader, MicrofacetDistribution) {
   }
 }
 
+TEST(MaterialReader, CoverageIsACutoffOrAProbability) {
+  TempDir dir;
+  const Scene scene = load_scene(dir.write(
+      "scene.json",
+      scene_with_material(R"({"type": "diffuse", "opacity": 0.3, "coverage": "blend"})")));
+  const Material& m = scene.materials.at(0);
+  EXPECT_TRUE(m.alpha_blend);
+  EXPECT_TRUE(m.has_alpha());
+  EXPECT_EQ(m.alpha.value, 0.3f);
+  const Scene cut = load_scene(dir.write(
+      "cut.json", scene_with_material(R"({"type": "diffuse", "opacity": 0.7, "coverage": "cutoff"})")));
+  EXPECT_FALSE(cut.materials.at(0).alpha_blend);
+  EXPECT_FALSE(cut.materials.at(0).has_alpha());  // 0.7 is above the cutoff: wholly there
+  expect_material_error(R"({"type": "diffuse", "opacity": 0.5, "coverage": "dither"})",
+                        {"/materials/m/coverage", "\"dither\"", "cutoff", "blend"});
+}
+
 TEST(MaterialReader, MetallicRoughness) {
   auto m = load_params<MetallicRoughnessMaterial>(R"({"type": "metallic_roughness"})");
   EXPECT_EQ(m.base_color, Vec3(1.f));

@@ -135,6 +135,35 @@ TEST(CutOutTest, AConstantOpacityBelowTheCutoffHidesEverything) {
     }
 }
 
+// Partial coverage ("coverage": "blend"): a black quad of opacity 0.3 over a floor lit through it.
+// A camera ray stops at the quad with probability 0.3 (black) and reaches the floor otherwise; the
+// floor's shadow ray passes with probability 0.7 too, independently (another ray): a floor pixel's
+// samples are 0.5 with probability 0.49, else 0. Over 64 pixels x 1024 samples the mean's standard
+// error is 0.5 sqrt(0.49 * 0.51 / 65536) = 9.8e-4; the test allows 4.5 of them (two tests).
+TEST(CutOutTest, PartialCoverageStopsRaysWithTheOpacitysProbability) {
+  testing::TempDir dir;
+  const Scene s = scene_from(dir, std::string(kTopView) + R"(,
+    "materials": {"m": {"type": "diffuse", "albedo": [0, 0, 0], "opacity": 0.3,
+                        "coverage": "blend"},
+                  "floor": {"type": "diffuse", "albedo": [0.5, 0.5, 0.5]}},
+    "shapes": [{"type": "quad", "corner": [-4, -4, 0], "edge1": [8, 0, 0], "edge2": [0, 8, 0],
+                "material": "m"},
+               {"type": "quad", "corner": [-4, -4, -1], "edge1": [8, 0, 0], "edge2": [0, 8, 0],
+                "material": "floor"}],
+    "lights": [{"type": "directional", "direction": [1, 0, -1],
+                "irradiance": [4.442882938158366, 4.442882938158366, 4.442882938158366]}],
+    "render": {"max_depth": 1})");
+  ASSERT_TRUE(s.materials[0].has_alpha());
+  for (const IntegratorType integrator : {IntegratorType::kNee, IntegratorType::kMis}) {
+    const auto r = render_pixels(s, 1024, integrator);
+    EXPECT_NEAR(r.image_mean(), 0.245, 4.5 * 9.8e-4) << integrator_name(integrator);
+    // The same ray decides the same way: the same seed gives the same bits, another seed not.
+    const auto again = render_pixels(s, 1024, integrator);
+    EXPECT_EQ(again.total, r.total);
+    EXPECT_NE(render_pixels(s, 1024, integrator, 2).total, r.total);
+  }
+}
+
 TEST(TexturedEmissionTest, AnEmitterSeenDirectlyShowsItsTexture) {
   testing::TempDir dir;
   const Scene s = scene_from(dir, std::string(kTopView) + R"(,

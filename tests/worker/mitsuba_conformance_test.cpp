@@ -41,6 +41,9 @@ struct Case {
   const char* ref;     ///< the reference's prefix, under the scene's refs/
   uint32_t spp;        ///< our sample count: the suite stays within about a minute on 2 cores
   const char* refuse;  ///< non-null: loading must fail naming this (an unsupported plugin)
+  /// Non-null: a known difference, a plugin docs/mitsuba.md lists as partly supported. The
+  /// statistics are printed; only the image's mean must agree, per channel within 3%.
+  const char* known = nullptr;
 };
 
 void PrintTo(const Case& c, std::ostream* os) { *os << c.name; }
@@ -95,9 +98,6 @@ TEST_P(MitsubaConformance, MatchesMitsubasReference) {
       var[i] = std::max({var[i], double(ref_var.rgb[i]) / n, 1e-4 / n});
       const double se = std::sqrt(var[i]);
       const double z = (mean[i] - ref.rgb[i]) / se;
-      EXPECT_LT(std::fabs(z), z_limit)
-          << c.name << ": pixel (" << p % w << ", " << p / w << ") channel " << ch << ": ours "
-          << mean[i] << " reference " << ref.rgb[i] << " se " << se;
       max_z = std::max(max_z, std::fabs(z));
       const double z_m = std::fabs(mean[i] - ref.rgb[i]) /
                          std::sqrt(std::max(double(ref_var.rgb[i]), 1e-4) / n);
@@ -119,6 +119,23 @@ TEST_P(MitsubaConformance, MatchesMitsubasReference) {
     write_png_preview(base + "-ours.png", ours);
     write_png_preview(base + "-ref.png", ref);
     write_png_preview(base + "-z.png", diff);
+  }
+  if (c.known != nullptr) {
+    std::cout << c.name << ": a known difference (" << c.known << "); image means:";
+    for (int ch = 0; ch < 3; ++ch) {
+      double ours = 0.0, theirs = 0.0;
+      for (size_t p = 0; p < size_t{w} * h; ++p) ours += mean[p * 3 + ch], theirs += ref_mean[p * 3 + ch];
+      std::cout << " " << ours / theirs;
+      EXPECT_NEAR(ours / theirs, 1.0, 0.03) << c.name << ", channel " << ch;
+    }
+    std::cout << " of Mitsuba's\n";
+    return;
+  }
+  for (size_t i = 0; i < values; ++i) {
+    const double z = (mean[i] - ref_mean[i]) / std::sqrt(var[i]);
+    EXPECT_LT(std::fabs(z), z_limit) << c.name << ": pixel (" << i / 3 % w << ", " << i / 3 / w
+                                     << ") channel " << i % 3 << ": ours " << mean[i]
+                                     << " reference " << ref_mean[i] << " se " << std::sqrt(var[i]);
   }
   testing::expect_agreement(testing::reduce_to_blocks(mean, var, w, h),
                             testing::reduce_to_blocks(ref_mean, zero, w, h), c.name);

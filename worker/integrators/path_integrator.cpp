@@ -58,6 +58,7 @@ Vec3 PathIntegratorFor<BsdfT>::sample_light(const SurfaceHit& hit, bool flat, co
   if (!lights_.sample(hit.p, u_select, u1, u2, ls)) return Vec3(0.f);
   const Vec3 wi_local = frame.to_local(ls.wi);
   if (!same_sides(hit, flat, wo, ls.wi, wo_local, wi_local)) return Vec3(0.f);
+  if (!(wi_local.z > 0.f) && (data_.surface_needs(hit.material) & kShadingSided)) return Vec3(0.f);
   const Vec3 f = bsdf.eval(wo_local, wi_local);
   if (is_black(f)) return Vec3(0.f);
   // Shadow ray from the offset origin to the (offset) light point, or without end to a light at
@@ -137,6 +138,11 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, Pcg32& rng, PathStats& stats) cons
     }
     const bool flat = kPlain || is_flat(hit);  // after a normal map may have bent ns
     const Vec3 wo_local = frame.to_local(wo);
+    bool shading_sided = false;
+    if constexpr (kMode == PathMode::kSurface) {
+      shading_sided = (data_.surface_needs(hit.material) & kShadingSided) != 0;
+      if (shading_sided && !(wo_local.z > 0.f)) break;  // seen from below its shading horizon
+    }
     const BsdfT bsdf = !kPlain && material.textured
                            ? BsdfT(material, TextureLookup(&data_.textures(), hit.uv))
                            : BsdfT(material);
@@ -149,6 +155,7 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, Pcg32& rng, PathStats& stats) cons
     BsdfSample bs;
     if (!bsdf.sample(wo_local, u_lobe, u1, u2, bs)) break;
     if (!same_sides(hit, flat, wo, frame.to_world(bs.wi), wo_local, bs.wi)) break;
+    if (shading_sided && !(bs.wi.z > 0.f)) break;
 
     // Russian roulette with survival probability min(1, max component of the update).
     const float survive = std::min(1.f, max_component(bs.weight));
