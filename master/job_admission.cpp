@@ -115,7 +115,7 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
   try {
     const fs::path dir = unpack_bundle(bundle, scratch, hash);
     try {
-      scene = load_scene(dir / request.scene_path(), check, SceneImages::kCheckOnly);
+      scene = load_scene(dir / request.scene_path(), check, SceneImages::kCheckOnly, {}, dir);
     } catch (const std::exception& e) {
       throw JobRejected(replace_all(e.what(), dir.string() + "/", ""));
     }

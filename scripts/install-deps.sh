@@ -5,7 +5,7 @@ set -euo pipefail
 packages=(
   cmake ninja-build g++ pkg-config git
   libembree-dev libopenexr-dev libspdlog-dev libfmt-dev libcli11-dev nlohmann-json3-dev
-  libtbb-dev libpng-dev libjpeg62-turbo-dev libtinygltf-dev
+  libtbb-dev libpng-dev libjpeg62-turbo-dev libtinygltf-dev libpugixml-dev
   libzmq3-dev cppzmq-dev libprotobuf-dev protobuf-compiler libssl-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   python3

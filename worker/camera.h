@@ -21,6 +21,11 @@ class CameraModel {
     right_ = normalize_wide(cross(forward_, normalize_wide(c.up)));
     up_ = cross(right_, forward_);
     tan_half_ = std::tan(0.5f * c.fov_y_deg * kPi / 180.f);
+    if (c.full_width > 0 && c.full_height > 0) {  // a crop of a larger image
+      film = {c.full_width, c.full_height};
+      crop_x_ = static_cast<float>(c.crop_x);
+      crop_y_ = static_cast<float>(c.crop_y);
+    }
     aspect_ = static_cast<float>(film.width) / static_cast<float>(film.height);
     inv_w_ = 1.f / static_cast<float>(film.width);
     inv_h_ = 1.f / static_cast<float>(film.height);
@@ -32,6 +37,8 @@ class CameraModel {
 
   /// Ray through film position (x + jx, y + jy) in pixels; (lu, lv) pick the lens point.
   Ray generate(float fx, float fy, float lu, float lv) const {
+    fx += crop_x_;
+    fy += crop_y_;
     const float sx = (2.f * fx * inv_w_ - 1.f) * tan_half_ * aspect_;
     const float sy = (1.f - 2.f * fy * inv_h_) * tan_half_;
     if (ortho_) {
@@ -58,6 +65,7 @@ class CameraModel {
   float tan_half_ = 1.f, aspect_ = 1.f, inv_w_ = 1.f, inv_h_ = 1.f, lens_ = 0.f, focus_ = 1.f;
   bool ortho_ = false;
   float ortho_half_ = 0.f;  // orthographic: half the view height
+  float crop_x_ = 0.f, crop_y_ = 0.f;  // the film's offset in the whole image
 };
 
 }  // namespace rayfarm

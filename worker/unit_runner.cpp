@@ -119,8 +119,9 @@ std::shared_ptr<const UnitRunner::Prepared> UnitRunner::prepare(const wire::Work
   auto p = std::make_shared<Prepared>();
   p->key = key;
   p->job_id = unit.job_id();
-  p->scene =
-      std::make_unique<Scene>(load_scene(cache_dir_ / unit.bundle_hash() / unit.scene_path()));
+  const std::filesystem::path bundle = cache_dir_ / unit.bundle_hash();
+  p->scene = std::make_unique<Scene>(
+      load_scene(bundle / unit.scene_path(), {}, SceneImages::kKeep, {}, bundle));
   if (unit.film_width() != 0 && unit.film_height() != 0) {  // the job's film
     p->scene->film = {unit.film_width(), unit.film_height()};
   }

@@ -3,6 +3,7 @@
 // samples, its filter, wrap modes, UV transform and UV origin. The scene describes textures with
 // these; the worker's textures (worker/textures/) apply them.
 #include <array>
+#include <optional>
 
 namespace rayfarm {
 
@@ -18,6 +19,9 @@ struct UvTransform {
   std::array<float, 2> offset{0.f, 0.f};
   std::array<float, 2> scale{1.f, 1.f};
   float rotation = 0.f;
+  /// When set, the whole map instead: u' = m0 u + m1 v + m2, v' = m3 u + m4 v + m5 (Mitsuba's
+  /// to_uv, which may shear).
+  std::optional<std::array<float, 6>> matrix;
 };
 
 enum class TextureFilter { bilinear, nearest };

@@ -96,10 +96,33 @@ DirectionalLight read_directional(const Node& n) {
   return {read_direction(n.require("direction")), read_radiance(n.require("irradiance"))};
 }
 
-/// The environment's radiances as the worker builds its light from them (texel times scale, in
-/// float; negative and non-finite samples black): one whose luminance overflows would make the
-/// light's power infinite, and the light could be neither sampled nor weighed against the others.
-/// Samples that the worker turns black are worth a warning: an HDR with NaNs renders darker.
+EnvironmentMap read_environment(const Node& n, const fs::path& folder, SceneImages images) {
+  n.allow_keys({"type", "file", "scale", "transform"});
+  EnvironmentMap env;
+  const Node file = n.require("file");
+  std::string why;
+  const auto relative = resolve_scene_path(fs::path(), read_string(file), &why);
+  if (!relative) file.fail(as_written(file.json()) + ": " + why);
+  env.file = *relative;
+  // Kept until its radiances are checked, whatever `images` says.
+  env.image = decode_scene_image(file, folder, env.file, SceneImages::kKeep, "environment image");
+  if (!(env.image->width > 0 && env.image->height > 0)) file.fail("the image is empty");
+  if (auto s = n.find("scale")) env.scale = read_scale(*s);
+  check_environment_radiance(file, env.file, *env.image, env.scale);
+  if (images == SceneImages::kCheckOnly) env.image.reset();
+  if (auto t = n.find("transform")) env.rotation = read_rotation(*t);
+  return env;
+}
+
+EnvironmentMap read_constant(const Node& n) {
+  n.allow_keys({"type", "radiance"});
+  EnvironmentMap env;
+  env.scale = read_radiance(n.require("radiance"));
+  return env;
+}
+
+}  // namespace
+
 void check_environment_radiance(const Node& file_node, const fs::path& file,
                                 const DecodedImage& image, const Vec3& scale) {
   if (!image.is_float()) return;  // 8-bit samples are at most 1
@@ -128,33 +151,6 @@ void check_environment_radiance(const Node& file_node, const fs::path& file,
                    " sample(s) are negative, infinite or NaN and are taken as black");
   }
 }
-
-EnvironmentMap read_environment(const Node& n, const fs::path& folder, SceneImages images) {
-  n.allow_keys({"type", "file", "scale", "transform"});
-  EnvironmentMap env;
-  const Node file = n.require("file");
-  std::string why;
-  const auto relative = resolve_scene_path(fs::path(), read_string(file), &why);
-  if (!relative) file.fail(as_written(file.json()) + ": " + why);
-  env.file = *relative;
-  // Kept until its radiances are checked, whatever `images` says.
-  env.image = decode_scene_image(file, folder, env.file, SceneImages::kKeep, "environment image");
-  if (!(env.image->width > 0 && env.image->height > 0)) file.fail("the image is empty");
-  if (auto s = n.find("scale")) env.scale = read_scale(*s);
-  check_environment_radiance(file, env.file, *env.image, env.scale);
-  if (images == SceneImages::kCheckOnly) env.image.reset();
-  if (auto t = n.find("transform")) env.rotation = read_rotation(*t);
-  return env;
-}
-
-EnvironmentMap read_constant(const Node& n) {
-  n.allow_keys({"type", "radiance"});
-  EnvironmentMap env;
-  env.scale = read_radiance(n.require("radiance"));
-  return env;
-}
-
-}  // namespace
 
 void read_lights(const Node& n, const fs::path& folder, SceneImages images, Scene& scene) {
   std::string first_environment;

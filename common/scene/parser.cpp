@@ -14,6 +14,7 @@
 #include "common/scene/json_reader.h"
 #include "common/scene/light_reader.h"
 #include "common/scene/material_reader.h"
+#include "common/scene/mitsuba_loader.h"
 #include "common/scene/obj_loader.h"
 #include "common/scene/ply_loader.h"
 #include "common/scene/texture_reader.h"
@@ -473,8 +474,9 @@ Scene load_gltf_scene(const fs::path& file, const SceneCheck& check, SceneImages
 }  // namespace
 
 Scene load_scene(const fs::path& file, const SceneCheck& check, SceneImages images,
-                 const GltfOptions& gltf) {
+                 const GltfOptions& gltf, const fs::path& root) {
   if (is_gltf_path(file)) return load_gltf_scene(file, check, images, gltf);
+  if (is_mitsuba_path(file)) return load_mitsuba_scene(file, check, images, root);
   const std::string name = file.string();
   const Json root = parse_json(read_text_file(file, kMaxSceneFileBytes, name), name);
   Scene scene;

@@ -27,9 +27,12 @@ class SceneRefused : public SceneError {
 /// Loads, resolves (OBJ meshes, quads, triangles) and validates a scene file, decoding every
 /// texture image (kept, or dropped once checked: `images`). A ".gltf" or ".glb" file is read as
 /// glTF 2.0 (docs/gltf.md), through the camera `gltf` names; a JSON scene names its glTF file
-/// itself. Throws SceneError (SceneRefused when `check` refuses it).
+/// itself. A ".xml" file is read as a Mitsuba 3 scene (docs/mitsuba.md), which may read files
+/// anywhere under `root` (empty: its own folder). Throws SceneError (SceneRefused when `check`
+/// refuses it).
 Scene load_scene(const std::filesystem::path& file, const SceneCheck& check = {},
-                 SceneImages images = SceneImages::kKeep, const GltfOptions& gltf = {});
+                 SceneImages images = SceneImages::kKeep, const GltfOptions& gltf = {},
+                 const std::filesystem::path& root = {});
 
 /// Film of a glTF file rendered directly: 540 rows, as wide as its camera's aspect ratio says
 /// (16:9 when it says none).

@@ -32,6 +32,9 @@ struct Camera {
   float fov_y_deg = 40.f;        ///< vertical field of view, degrees
   float aperture_radius = 0.f;   ///< lens radius in scene units; 0 = pinhole
   float focus_distance = 0.f;    ///< distance to the plane in focus; 0 = |look_at - eye|
+  /// A crop: the film is the window at (crop_x, crop_y) of an image of full_width x
+  /// full_height pixels, whose aspect ratio the field of view refers to. 0: no crop.
+  uint32_t full_width = 0, full_height = 0, crop_x = 0, crop_y = 0;
 };
 
 struct FilmSize {

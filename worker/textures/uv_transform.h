@@ -13,6 +13,10 @@ class UvMap {
  public:
   UvMap() = default;
   explicit UvMap(const UvTransform& t) {
+    if (t.matrix) {
+      for (int i = 0; i < 6; ++i) m_[i] = (*t.matrix)[i];
+      return;
+    }
     const double c = std::cos(double{t.rotation}), s = std::sin(double{t.rotation});
     m_ = {c * t.scale[0],  s * t.scale[1], t.offset[0],
           -s * t.scale[0], c * t.scale[1], t.offset[1]};

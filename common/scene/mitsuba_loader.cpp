@@ -1,0 +1,294 @@
+// A Mitsuba 3 scene, top down (docs/mitsuba.md): the integrator and the sensor first (the caller
+// checks the film and the render settings before any mesh is read), then the emitters and shapes.
+#include "common/scene/mitsuba_loader.h"
+
+#include <cmath>
+
+#include "common/limits.h"
+#include "common/scene/json_reader.h"
+#include "common/scene/light_reader.h"
+#include "common/scene/mitsuba_reader.h"
+#include "common/util/text.h"
+
+namespace rayfarm {
+namespace fs = std::filesystem;
+
+namespace mitsuba {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+double degrees(double radians) { return radians * 180.0 / kPi; }
+double radians(double degrees) { return degrees * kPi / 180.0; }
+Vec3 to_vec(const WideVec3& v) { return {float(v.x), float(v.y), float(v.z)}; }
+WideVec3 unit(const WideVec3& v) {
+  const double l = length(v);
+  return {v.x / l, v.y / l, v.z / l};
+}
+
+void collect_ids(const XmlElement& e, std::map<std::string, const XmlElement*>& ids) {
+  for (const XmlElement& c : e.children) {
+    if (const std::string* id = c.find("id"); id != nullptr && c.tag != "ref") {
+      if (!ids.emplace(*id, &c).second) c.fail("the id \"" + printable(*id, 64) + "\" is given twice");
+    }
+    collect_ids(c, ids);
+  }
+}
+
+/// Mitsuba's depth counts path segments (1: emitters seen directly, 2: direct light); rayfarm's
+/// counts scattering vertices (0 and 1 for those): one less. -1 is unlimited.
+void read_integrator(Context& ctx, const XmlElement& e, RenderSettings& r) {
+  Props p(e, ctx);
+  const std::string type = type_of(e);
+  if (type == "moment") {
+    const auto inner = p.plugins("integrator");
+    if (inner.size() != 1) e.fail("a moment integrator wraps one integrator");
+    p.finish();
+    read_integrator(ctx, *inner[0], r);
+    return;
+  }
+  r.integrator = IntegratorType::kMis;
+  if (type == "direct") {
+    r.max_depth = 1;
+    p.finish({"emitter_samples", "bsdf_samples", "shading_samples"});
+    return;
+  }
+  if (type != "path" && type != "volpath" && type != "volpathmis") {
+    e.fail("the integrator \"" + printable(type, 40) + "\" is not supported (path and direct are)");
+  }
+  const int64_t depth = p.integer("max_depth", -1, -1, INT32_MAX);
+  (void)p.integer("rr_depth", 5, 1, INT32_MAX);  // roulette changes the noise, not the image
+  if (p.boolean("hide_emitters", false)) p.find("hide_emitters")->fail("hide_emitters is not supported");
+  p.finish();
+  if (depth == 0) e.fail("max_depth 0 renders nothing");
+  if (depth == -1 || depth - 1 > int64_t{kMaxDepth}) {
+    ctx.warn_once("depth", e, "paths are cut at " + std::to_string(kMaxDepth) +
+                                  " scattering vertices, rayfarm's most (Mitsuba's max_depth " +
+                                  std::to_string(kMaxDepth + 1) + ")");
+    r.max_depth = kMaxDepth;
+  } else {
+    r.max_depth = static_cast<uint32_t>(depth - 1);
+  }
+}
+
+/// The horizontal field of view Mitsuba derives from fov / fov_axis or focal_length.
+double x_fov(Props& p, double aspect) {
+  if (p.has("fov") && p.has("focal_length")) p.element().fail("give fov or focal_length, not both");
+  double fov = 0.0;
+  std::string axis;
+  if (p.has("fov")) {
+    fov = p.number("fov", 0.0);
+    axis = p.string("fov_axis", "x");
+    if (axis == "smaller") axis = aspect > 1 ? "y" : "x";
+    if (axis == "larger") axis = aspect > 1 ? "x" : "y";
+  } else {
+    const XmlElement* given = p.find("focal_length");
+    std::string f = given != nullptr ? value_of(*given) : "50mm";
+    if (f.size() > 2 && f.compare(f.size() - 2, 2, "mm") == 0) f.resize(f.size() - 2);
+    const std::vector<double> mm = parse_numbers(given != nullptr ? *given : p.element(), f);
+    if (mm.size() != 1 || !(mm[0] > 0.0)) p.element().fail("focal_length must be a positive length in mm");
+    fov = 2.0 * degrees(std::atan(std::sqrt(36.0 * 36.0 + 24.0 * 24.0) / (2.0 * mm[0])));
+    axis = "diagonal";
+  }
+  if (!(fov > 0.0 && fov < 180.0)) p.element().fail("the field of view must lie in (0, 180) degrees");
+  if (axis == "x") return fov;
+  if (axis == "y") return degrees(2.0 * std::atan(std::tan(0.5 * radians(fov)) * aspect));
+  if (axis == "diagonal") {
+    const double diagonal = 2.0 * std::tan(0.5 * radians(fov));
+    return degrees(2.0 * std::atan(0.5 * diagonal / std::sqrt(1.0 + 1.0 / (aspect * aspect))));
+  }
+  p.find("fov_axis")->fail("fov_axis must be x, y, diagonal, smaller or larger");
+}
+
+void read_film(Context& ctx, const XmlElement& e, Camera& camera) {
+  Props p(e, ctx);
+  if (type_of(e) != "hdrfilm") e.fail("the film \"" + printable(type_of(e), 32) + "\" is not supported (hdrfilm is)");
+  const int64_t w = p.integer("width", 768, 1, kMaxFilmSide), h = p.integer("height", 576, 1, kMaxFilmSide);
+  const int64_t cx = p.integer("crop_offset_x", 0, 0, w - 1), cy = p.integer("crop_offset_y", 0, 0, h - 1);
+  const int64_t cw = p.integer("crop_width", w - cx, 1, w - cx), ch = p.integer("crop_height", h - cy, 1, h - cy);
+  if (cw * ch > kMaxFilmPixels) e.fail("the film has more pixels than the limit of 2^26");
+  const auto filters = p.plugins("rfilter");
+  const std::string filter = filters.empty() ? "gaussian" : type_of(*filters[0]);
+  if (filter != "box") {
+    ctx.warn_once("rfilter", filters.empty() ? e : *filters[0],
+                  "the reconstruction filter \"" + printable(filter, 32) +
+                      "\" is not supported: rayfarm's box filter is used (each pixel's own samples)");
+  }
+  p.finish({"pixel_format", "component_format", "file_format", "banner", "high_quality_edges",
+            "sample_border", "compensate"});
+  ctx.scene.film = {static_cast<uint32_t>(cw), static_cast<uint32_t>(ch)};
+  if (cw != w || ch != h) {
+    camera.full_width = static_cast<uint32_t>(w);
+    camera.full_height = static_cast<uint32_t>(h);
+    camera.crop_x = static_cast<uint32_t>(cx);
+    camera.crop_y = static_cast<uint32_t>(cy);
+  }
+}
+
+void read_sensor(Context& ctx, const XmlElement& e) {
+  Props p(e, ctx);
+  const std::string type = type_of(e);
+  if (type != "perspective" && type != "thinlens" && type != "orthographic")
+    e.fail("the sensor \"" + printable(type, 32) + "\" is not supported (perspective, thinlens and orthographic are)");
+  Camera& c = ctx.scene.camera;
+  const auto films = p.plugins("film");
+  if (films.size() > 1) e.fail("a sensor has one film");
+  XmlElement default_film{"film", {{"type", "hdrfilm"}}, {}, e.file, e.line};
+  read_film(ctx, films.empty() ? default_film : *films[0], c);
+  const auto samplers = p.plugins("sampler");
+  if (samplers.size() > 1) e.fail("a sensor has one sampler");
+  ctx.scene.render.spp = 4;  // Mitsuba's default sample_count
+  if (!samplers.empty()) {
+    Props s(*samplers[0], ctx);
+    ctx.scene.render.spp = static_cast<uint32_t>(s.integer("sample_count", 4, 1, kMaxSpp));
+    s.finish({"seed", "jitter"});
+    if (type_of(*samplers[0]) != "independent") {
+      ctx.warn_once("sampler", *samplers[0], "rayfarm's own sampler is used (the image converges to the same)");
+    }
+  }
+  const Transform t = p.transform("to_world");
+  const WideVec3 eye = t.point({0, 0, 0}), x = t.vector({1, 0, 0}), y = t.vector({0, 1, 0}),
+                 z = t.vector({0, 0, 1});
+  if (t.determinant() < 0.0) e.fail("a mirroring to_world (it flips the image) is not supported");
+  const double aspect = c.full_width > 0 ? double(c.full_width) / c.full_height
+                                         : double(ctx.scene.film.width) / ctx.scene.film.height;
+  c.eye = to_vec(eye);
+  c.up = to_vec(unit(y));
+  const WideVec3 forward = unit(z);
+  c.look_at = to_vec({eye.x + forward.x, eye.y + forward.y, eye.z + forward.z});
+  if (type == "orthographic") {
+    const double sx = length(x), sy = length(y);
+    if (std::fabs(sx - sy) > 1e-6 * sx) e.fail("an orthographic sensor's to_world must scale x and y alike");
+    c.projection = Camera::Projection::kOrthographic;
+    c.view_height = static_cast<float>(2.0 * sy / aspect);
+    p.finish({"near_clip", "far_clip"});
+    return;
+  }
+  if (t.uniform_scale() == 0.0 || std::fabs(t.uniform_scale() - 1.0) > 1e-5)
+    e.fail("scale factors in a camera's to_world are not allowed");
+  c.fov_y_deg = static_cast<float>(degrees(2.0 * std::atan(std::tan(0.5 * radians(x_fov(p, aspect))) / aspect)));
+  for (const char* k : {"principal_point_offset_x", "principal_point_offset_y"}) {
+    if (p.number(k, 0.0) != 0.0) p.find(k)->fail("an off-centre principal point is not supported");
+  }
+  if (type == "thinlens") {
+    c.aperture_radius = static_cast<float>(p.number("aperture_radius", 0.0));
+    if (!(c.aperture_radius >= 0.f)) p.find("aperture_radius")->fail("must not be negative");
+    c.focus_distance = static_cast<float>(p.number("focus_distance", 0.0));
+    if (!(c.focus_distance > 0.f)) e.fail("a thinlens sensor needs a positive focus_distance");
+  }
+  p.finish({"near_clip", "far_clip", "shutter_open", "shutter_close", "srf"});
+}
+
+}  // namespace
+
+void read_emitter(Context& ctx, const XmlElement& e) {
+  Props p(e, ctx);
+  const std::string type = type_of(e);
+  Scene& scene = ctx.scene;
+  const Transform t = p.transform("to_world");
+  if (type == "point") {
+    PointLight l;
+    const auto position = p.point("position");
+    l.position = to_vec(position ? *position : t.point({0, 0, 0}));
+    l.intensity = p.colour("intensity", Vec3(1.f), SpectrumRole::emission).value;
+    p.finish();
+    scene.point_lights.push_back(l);
+  } else if (type == "spot") {
+    SpotLight l;
+    l.position = to_vec(t.point({0, 0, 0}));
+    l.direction = to_vec(unit(t.vector({0, 0, 1})));
+    l.intensity = p.colour("intensity", Vec3(1.f), SpectrumRole::emission).value;
+    l.cutoff_deg = static_cast<float>(p.number("cutoff_angle", 20.0));
+    l.beam_width_deg = static_cast<float>(p.number("beam_width", l.cutoff_deg * 0.75));
+    if (p.find("texture") != nullptr) e.fail("a textured spot light is not supported");
+    p.finish();
+    if (!(l.cutoff_deg > 0.f && l.cutoff_deg <= 90.f)) e.fail("cutoff_angle must lie in (0, 90] degrees");
+    if (!(l.beam_width_deg >= 0.f && l.beam_width_deg <= l.cutoff_deg))
+      e.fail("beam_width must lie in [0, cutoff_angle]");
+    scene.spot_lights.push_back(l);
+  } else if (type == "directional") {
+    DirectionalLight l;
+    const auto direction = p.point("direction");
+    const WideVec3 d = direction ? *direction : t.vector({0, 0, 1});
+    if (!(length(d) > 0.0)) e.fail("the direction must not be zero");
+    l.direction = to_vec(unit(d));
+    l.irradiance = p.colour("irradiance", Vec3(1.f), SpectrumRole::emission).value;
+    p.finish();
+    scene.directional_lights.push_back(l);
+  } else if (type == "constant" || type == "envmap") {
+    if (scene.environment) e.fail("a scene has at most one constant or envmap emitter");
+    EnvironmentMap env;
+    if (type == "constant") {
+      const Colour c = p.colour("radiance", Vec3(1.f), SpectrumRole::emission);
+      if (c.texture != nullptr) e.fail("a textured constant emitter is not supported");
+      env.scale = c.value;
+    } else {
+      const XmlElement* file = p.find("filename");
+      if (file == nullptr) e.fail("an envmap needs a filename");
+      env.file = resolve_mitsuba_file(ctx.files, *file, value_of(*file));
+      env.scale = Vec3(static_cast<float>(p.number("scale", 1.0)));
+      if (!(env.scale.x >= 0.f)) e.fail("scale must not be negative");
+      for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) env.rotation[3 * i + j] = t.at(i, j);
+      }
+      if (t.at(0, 3) != 0.0 || t.at(1, 3) != 0.0 || t.at(2, 3) != 0.0 || std::fabs(t.uniform_scale() - 1.0) > 1e-5 ||
+          !(t.determinant() > 0.0))
+        e.fail("an envmap's to_world must be a rotation");
+      scene_json::Json null;
+      scene_json::Context jc{e.where(), &scene.warnings};
+      scene_json::Node at(null, jc, "filename");
+      env.image = decode_scene_image(at, ctx.files.scene_dir, env.file, SceneImages::kKeep, "environment image");
+      check_environment_radiance(at, env.file, *env.image, env.scale);
+      if (ctx.images == SceneImages::kCheckOnly) env.image.reset();
+    }
+    p.finish();
+    scene.environment = std::move(env);
+  } else if (type == "area") {
+    e.fail("an area emitter belongs inside a <shape>");
+  } else {
+    e.fail("the emitter \"" + printable(type, 40) + "\" is not supported (docs/mitsuba.md lists the emitters rayfarm reads)");
+  }
+}
+
+}  // namespace mitsuba
+
+Scene load_mitsuba_scene(const fs::path& file, const SceneCheck& check, SceneImages images,
+                         const fs::path& root, const XmlParameters& parameters) {
+  using namespace mitsuba;  // NOLINT(google-build-using-namespace): the reader's parts
+  XmlScene xml = read_mitsuba_xml(file, root, parameters);
+  Scene scene;
+  scene.source = file;
+  Context ctx{scene, xml.files, images};
+  collect_ids(xml.root, ctx.ids);
+  const XmlElement* sensor = nullptr;
+  const XmlElement* integrator = nullptr;
+  for (const XmlElement& c : xml.root.children) {
+    const XmlElement*& slot = c.tag == "sensor" ? sensor : c.tag == "integrator" ? integrator : sensor;
+    if (c.tag != "sensor" && c.tag != "integrator") continue;
+    if (slot != nullptr) c.fail("the scene has more than one <" + c.tag + ">; rayfarm renders one");
+    slot = &c;
+  }
+  if (sensor == nullptr) xml.root.fail("the scene has no <sensor>");
+  scene.render.max_depth = kMaxDepth;  // Mitsuba's path integrator is unlimited by default
+  if (integrator != nullptr) read_integrator(ctx, *integrator, scene.render);
+  read_sensor(ctx, *sensor);
+  if (check) {
+    if (auto refusal = check(scene.film, scene.render)) throw SceneRefused(*refusal);
+  }
+  std::map<const XmlElement*, uint32_t> groups;
+  for (const XmlElement& c : xml.root.children) {
+    if (c.tag == "sensor" || c.tag == "integrator") continue;
+    if (c.tag == "shape") {
+      read_shape(ctx, c, scene.meshes, false, groups);
+    } else if (c.tag == "emitter") {
+      read_emitter(ctx, c);
+    } else if (c.tag == "bsdf" || c.tag == "texture") {
+      if (c.find("id") == nullptr) ctx.warn_once("unused " + c.tag, c, "ignored: it has no id, so nothing uses it");
+    } else {
+      c.fail("<" + printable(c.tag, 32) + "> is not supported here (docs/mitsuba.md lists what is)");
+    }
+  }
+  for (const fs::path& f : xml.files.read) scene.referenced.push_back(f);
+  return scene;
+}
+
+}  // namespace rayfarm
