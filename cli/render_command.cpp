@@ -10,6 +10,7 @@
 #include "cli/commands.h"
 #include "cli/film_option.h"
 #include "cli/output_path.h"
+#include "cli/scene_option.h"
 #include "cli/stop_options.h"
 #include "common/image/film_output.h"
 #include "common/image/png.h"
@@ -24,8 +25,7 @@ namespace rayfarm::cli {
 namespace {
 
 struct RenderArgs {
-  std::string scene;
-  std::string camera;
+  SceneArgs source;
   std::string output;
   std::optional<uint32_t> spp, max_depth, tile, pass_spp;
   std::optional<uint64_t> seed;
@@ -80,13 +80,7 @@ int run_render(const RenderArgs& args) {
   auto log = get_logger("render");
   const OutputFormat format = check_output_path(args.output);  // before any work
   log->info("{}", protocol::kBuildVersion);
-  if (!args.camera.empty() && !is_gltf_path(args.scene))
-    throw std::invalid_argument(
-        "--camera chooses among a glTF file's cameras; a JSON scene names "
-        "its glTF camera in \"gltf\" (docs/gltf.md)");
-  GltfOptions gltf;
-  gltf.camera = args.camera;
-  Scene scene = load_scene(args.scene, {}, SceneImages::kKeep, gltf);
+  Scene scene = args.source.load(SceneImages::kKeep);
   for (const std::string& w : scene.warnings) log->warn("{}", w);
   if (const auto film = args.film.resolve(scene.film)) scene.film = *film;
 
@@ -112,7 +106,7 @@ int run_render(const RenderArgs& args) {
 
   Renderer renderer(scene, settings);
   drop_images(scene);  // the renderer holds its own texels
-  log->info("{}: {}x{}, {} spp, seed {}; {}", args.scene, scene.film.width, scene.film.height,
+  log->info("{}: {}x{}, {} spp, seed {}; {}", args.source.scene, scene.film.width, scene.film.height,
             settings.spp, settings.seed, renderer.plan());
   if (options.stop.target_error > 0 || options.stop.time_limit_s > 0) {
     log->info("stopping rules: {} spp{}{}", settings.spp,
@@ -156,7 +150,7 @@ int run_render(const RenderArgs& args) {
       {"rayfarm:integrator", integrator_name(settings.integrator)},
       {"rayfarm:seed", std::to_string(settings.seed)},
       {"rayfarm:max_depth", std::to_string(settings.max_depth)},
-      {"rayfarm:scene", std::filesystem::path(args.scene).filename().string()},
+      {"rayfarm:scene", std::filesystem::path(args.source.scene).filename().string()},
       {"rayfarm:stop", stop_reason_name(final_progress.reason)},
       {"rayfarm:est_rel_mse", fmt::format("{:.6g}", last.est_rel_mse)}};
   if (settings.clamp > 0) attributes["rayfarm:clamp"] = fmt::format("{:g}", settings.clamp);
@@ -169,7 +163,7 @@ int run_render(const RenderArgs& args) {
   }
   write_error_csv(error_csv_path(args.output), rows);
   write_error_plot(error_plot_path(args.output), rows,
-                   fmt::format("{} ({}, {})", std::filesystem::path(args.scene).filename().string(),
+                   fmt::format("{} ({}, {})", std::filesystem::path(args.source.scene).filename().string(),
                                integrator_name(settings.integrator),
                                tracker.has_reference() ? "estimated and measured" : "estimated"));
 
@@ -208,10 +202,10 @@ int run_render(const RenderArgs& args) {
 void add_render_command(CLI::App& app, int& exit_code) {
   auto args = std::make_shared<RenderArgs>();
   CLI::App* cmd = app.add_subcommand("render", "Render a scene on this machine to an EXR (+ PNG preview)");
-  cmd->add_option("scene", args->scene, "Scene file: JSON, or glTF 2.0 (.gltf, .glb)")->required();
-  cmd->add_option("--camera", args->camera,
-                  "glTF scenes: the camera (its or its node's name) to render through; default: "
-                  "the first in the scene");
+  cmd->add_option("scene", args->source.scene,
+                  "Scene file: JSON, glTF 2.0 (.gltf, .glb) or Mitsuba 3 XML (.xml)")
+      ->required();
+  add_scene_options(cmd, args->source);
   cmd->add_option("-o,--output", args->output,
                   "Output: x.exr (float EXR, and an sRGB preview x.png beside it) or x.png (the "
                   "preview alone); checked before rendering")

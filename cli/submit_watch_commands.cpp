@@ -10,6 +10,7 @@
 
 #include <fmt/format.h>
 
+#include "cli/scene_option.h"
 #include "cli/farm_client.h"
 #include "cli/farm_commands.h"
 #include "cli/farm_output.h"
@@ -87,8 +88,7 @@ int watch_job(StatusPoller& poller, const std::string& job, bool json) {
 
 struct SubmitArgs {
   ClientArgs client;
-  std::string scene;
-  std::string camera;
+  SceneArgs source;
   std::optional<uint32_t> spp, max_depth, tile, pass_spp;
   std::optional<uint64_t> seed;
   std::optional<std::string> integrator;
@@ -108,17 +108,12 @@ int run_submit(const SubmitArgs& args) {
       throw std::invalid_argument("-o needs --wait: the image is fetched when the job is done");
     format = check_output_path(args.output);  // before the job is sent
   }
-  if (!args.camera.empty() && !is_gltf_path(args.scene))
-    throw std::invalid_argument(
-        "--camera chooses among a glTF file's cameras; a JSON scene names "
-        "its glTF camera in \"gltf\" (docs/gltf.md)");
-  const PackedScene packed =
-      args.camera.empty() ? pack_scene(args.scene) : pack_gltf_scene(args.scene, args.camera);
+  const PackedScene packed = args.source.pack();
   wire::SubmitJob request;
   protocol::bundle_to_wire(packed.bundle, request.mutable_bundle());
   request.set_scene_path(packed.scene_path);
   // Default name: the scene's folder and file, e.g. "cornell-box/scene.json".
-  const fs::path scene_file(args.scene);
+  const fs::path scene_file(args.source.scene);
   const fs::path folder = fs::absolute(scene_file).parent_path().filename();
   request.set_name(!args.name.empty() ? args.name
                                       : (folder / scene_file.filename()).generic_string());
@@ -132,10 +127,7 @@ int run_submit(const SubmitArgs& args) {
   if (args.pass_spp) o->set_pass_spp(*args.pass_spp);
   o->set_clamp(args.clamp);
   if (args.film.given()) {
-    GltfOptions gltf;
-    gltf.camera = args.camera;
-    const auto film =
-        args.film.resolve(load_scene(args.scene, {}, SceneImages::kCheckOnly, gltf).film);
+    const auto film = args.film.resolve(args.source.load(SceneImages::kCheckOnly).film);
     o->set_width(film->width);
     o->set_height(film->height);
   }
@@ -188,13 +180,11 @@ int run_submit(const SubmitArgs& args) {
 void add_submit(CLI::App& app, int& exit_code) {
   auto args = std::make_shared<SubmitArgs>();
   CLI::App* cmd = app.add_subcommand("submit", "Submit a scene to a farm; prints the job id");
-  cmd->add_option("scene", args->scene,
-                  "Scene file (JSON, or glTF 2.0: .gltf, .glb); it and every file it uses "
-                  "travel with the job")
+  cmd->add_option("scene", args->source.scene,
+                  "Scene file (JSON, glTF 2.0: .gltf, .glb, or Mitsuba 3 XML: .xml); it and every "
+                  "file it uses travel with the job")
       ->required();
-  cmd->add_option("--camera", args->camera,
-                  "glTF scenes: the camera (its or its node's name) to render through; default: "
-                  "the first in the scene");
+  add_scene_options(cmd, args->source);
   add_client_options(cmd, args->client);
   cmd->add_option("--spp", args->spp, "Samples per pixel (default: the scene's)");
   cmd->add_option("--integrator", args->integrator, "naive, nee or mis (default: the scene's)")

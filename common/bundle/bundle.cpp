@@ -12,6 +12,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "common/scene/mitsuba_loader.h"
 #include "common/scene/parser.h"
 #include "common/util/atomic_file.h"
 
@@ -187,8 +188,8 @@ std::string canonical_bytes(const Bundle& bundle) {
 
 std::string bundle_hash(const Bundle& bundle) { return sha256_hex(canonical_bytes(bundle)); }
 
-PackedScene pack_scene(const fs::path& scene_file) {
-  const Scene scene = load_scene(scene_file, {}, SceneImages::kCheckOnly);
+PackedScene pack_scene(const fs::path& scene_file, const fs::path& scene_root) {
+  const Scene scene = load_scene(scene_file, {}, SceneImages::kCheckOnly, {}, scene_root);
   const fs::path scene_abs = fs::absolute(scene_file).lexically_normal();
   const fs::path scene_dir = scene_abs.parent_path();
 
@@ -249,6 +250,40 @@ PackedScene pack_gltf_scene(const fs::path& gltf_file, const std::string& camera
     wrapper.insert(wrapper.size() - 5, "_");
   }
   files.push_back({wrapper, json});
+  packed.scene_path = wrapper;
+  packed.bundle = make_bundle(std::move(files));
+  packed.hash = bundle_hash(packed.bundle);
+  return packed;
+}
+
+PackedScene pack_mitsuba_scene(const fs::path& xml_file, const fs::path& scene_root,
+                               const std::map<std::string, std::string>& parameters) {
+  (void)load_mitsuba_scene(xml_file, {}, SceneImages::kCheckOnly, scene_root, parameters);
+  PackedScene packed = pack_scene(xml_file, scene_root);
+  if (parameters.empty()) return packed;
+  auto escape = [](const std::string& text) {
+    std::string out;
+    for (const char c : text) {
+      switch (c) {
+        case '&': out += "&amp;"; break;
+        case '<': out += "&lt;"; break;
+        case '>': out += "&gt;"; break;
+        case '"': out += "&quot;"; break;
+        default: out += c;
+      }
+    }
+    return out;
+  };
+  const fs::path scene(packed.scene_path);
+  std::string xml = "<scene version=\"3.0.0\">\n";
+  for (const auto& [name, value] : parameters)
+    xml += "  <default name=\"" + escape(name) + "\" value=\"" + escape(value) + "\"/>\n";
+  xml += "  <include filename=\"" + escape(scene.filename().generic_string()) + "\"/>\n</scene>\n";
+  std::string wrapper = (scene.parent_path() / (scene.stem().string() + ".defines.xml")).generic_string();
+  std::vector<BundleFile> files = packed.bundle.files;
+  while (std::any_of(files.begin(), files.end(), [&](const BundleFile& f) { return f.path == wrapper; }))
+    wrapper.insert(wrapper.size() - 4, "_");
+  files.push_back({wrapper, xml});
   packed.scene_path = wrapper;
   packed.bundle = make_bundle(std::move(files));
   packed.hash = bundle_hash(packed.bundle);

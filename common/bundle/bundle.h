@@ -7,6 +7,7 @@
 // path (UTF-8, '/' separators), the data's length as 8 bytes little-endian, the data.
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -64,10 +65,19 @@ std::string bundle_hash(const Bundle& bundle);
 /// carry another file's content (e.g. /etc/passwd as an MTL) to the master. Throws BundleError
 /// naming the file and the cause on a link, on anything but a regular file, or on an unreadable
 /// file.
-PackedScene pack_scene(const std::filesystem::path& scene_file);
+/// A Mitsuba XML scene may read files anywhere under `root` (empty: its own folder).
+PackedScene pack_scene(const std::filesystem::path& scene_file,
+                       const std::filesystem::path& root = {});
 /// pack_scene() of a glTF file rendered through the camera named `camera`: the bundle's scene is
 /// then a JSON file beside the glTF that names both (docs/gltf.md).
 PackedScene pack_gltf_scene(const std::filesystem::path& gltf_file, const std::string& camera);
+
+/// pack_scene() of a Mitsuba XML scene read under `root` with the $name values `parameters`:
+/// when there are any, the bundle's scene is an XML file beside it that sets them as <default>s
+/// and includes it (docs/mitsuba.md).
+PackedScene pack_mitsuba_scene(const std::filesystem::path& xml_file,
+                               const std::filesystem::path& root,
+                               const std::map<std::string, std::string>& parameters);
 
 /// Unpacks `bundle` into cache_dir/expected_hash/ and returns that folder. Verifies the hash
 /// first (BundleError on a mismatch) and writes into a temporary folder that is renamed into

@@ -226,6 +226,7 @@ void read_emitter(Context& ctx, const XmlElement& e) {
       if (file == nullptr) e.fail("an envmap needs a filename");
       env.file = resolve_mitsuba_file(ctx.files, *file, value_of(*file));
       env.scale = Vec3(static_cast<float>(p.number("scale", 1.0)));
+      env.bilinear = true;  // as Mitsuba reads its envmap
       if (!(env.scale.x >= 0.f)) e.fail("scale must not be negative");
       for (int i = 0; i < 3; ++i) {
         for (int j = 0; j < 3; ++j) env.rotation[3 * i + j] = t.at(i, j);

@@ -5,7 +5,8 @@
 #include <filesystem>
 
 #include "common/scene/mitsuba_xml.h"
-#include "common/scene/parser.h"
+#include "common/scene/scene_files.h"
+#include "common/scene/texture_reader.h"
 
 namespace rayfarm {
 

@@ -9,6 +9,16 @@
 
 namespace rayfarm::mitsuba {
 
+namespace {
+
+/// What Mitsuba 3's RGB variants make of its emitters' default spectrum, the D65 white point
+/// (scaled so that a constant emitter of radiance 1 has luminance 1): read from its render of a
+/// constant emitter (tests/data/mitsuba/.../test_constant_ref_rgb.exr, every background pixel).
+/// An emitter's number or one-valued spectrum is this white times the value.
+constexpr Vec3 kEmitterWhite{1.00108f, 0.99971f, 0.99970f};
+
+}  // namespace
+
 void Context::warn_once(const std::string& kind, const XmlElement& at, const std::string& what) {
   if (!warned.insert(kind).second) return;
   scene.warnings.push_back(at.where() + ": " + what);
@@ -213,9 +223,10 @@ Transform Props::transform(std::string_view name) {
 
 Colour Props::colour(std::string_view name, const Vec3& fallback, SpectrumRole role) {
   const bool bounded = role == SpectrumRole::reflectance;
+  const Vec3 white = role == SpectrumRole::emission ? kEmitterWhite : Vec3(1.f);
   const XmlElement* e = find(name);
   Colour c;
-  c.value = fallback;
+  c.value = fallback * white;
   if (e == nullptr) return c;
   if (e->tag == "texture") {
     c.texture = e;
@@ -227,14 +238,14 @@ Colour Props::colour(std::string_view name, const Vec3& fallback, SpectrumRole r
     else if (v.size() == 3) c.value = Vec3(float(v[0]), float(v[1]), float(v[2]));
     else e->fail("an RGB has 1 or 3 numbers, got " + std::to_string(v.size()));
   } else if (e->tag == "float" || e->tag == "integer") {
-    c.value = Vec3(float(one_number(*e)));
+    c.value = float(one_number(*e)) * white;
   } else if (e->tag == "spectrum") {
     if (e->find("filename") != nullptr) e->fail("spectra from files are not supported; give wavelength:value pairs");
     const std::string& text = value_of(*e);
     if (text.find(':') == std::string::npos) {
       const std::vector<double> v = parse_numbers(*e, text);
       if (v.size() != 1) e->fail("a spectrum is one number or wavelength:value pairs");
-      c.value = uniform_spectrum_to_rgb(v[0], role);
+      c.value = float(v[0]) * white;  // in RGB, a uniform spectrum is grey (emitters: white)
     } else {
       std::vector<double> wavelengths, values;
       std::string cleaned = text;

@@ -474,9 +474,9 @@ Scene load_gltf_scene(const fs::path& file, const SceneCheck& check, SceneImages
 }  // namespace
 
 Scene load_scene(const fs::path& file, const SceneCheck& check, SceneImages images,
-                 const GltfOptions& gltf, const fs::path& root) {
+                 const GltfOptions& gltf, const fs::path& scene_root) {
   if (is_gltf_path(file)) return load_gltf_scene(file, check, images, gltf);
-  if (is_mitsuba_path(file)) return load_mitsuba_scene(file, check, images, root);
+  if (is_mitsuba_path(file)) return load_mitsuba_scene(file, check, images, scene_root);
   const std::string name = file.string();
   const Json root = parse_json(read_text_file(file, kMaxSceneFileBytes, name), name);
   Scene scene;

@@ -12,17 +12,6 @@
 
 namespace rayfarm {
 
-/// A caller's limits on a scene's film and render settings (the master's, for a job): called
-/// once load_scene() has read "film" and "render", before the camera, the materials and the
-/// shapes (so before any mesh is loaded); returns the refusal, or nothing when the scene may load.
-using SceneCheck =
-    std::function<std::optional<std::string>(const FilmSize& film, const RenderSettings& render)>;
-
-/// A scene refused by the caller's SceneCheck; what() is the check's message alone.
-class SceneRefused : public SceneError {
- public:
-  using SceneError::SceneError;
-};
 
 /// Loads, resolves (OBJ meshes, quads, triangles) and validates a scene file, decoding every
 /// texture image (kept, or dropped once checked: `images`). A ".gltf" or ".glb" file is read as

@@ -4,6 +4,7 @@
 // reading.
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -18,6 +19,18 @@ namespace rayfarm {
 class SceneError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
+};
+
+/// A caller's limits on a scene's film and render settings (the master's, for a job): called
+/// once load_scene() has read "film" and "render", before the camera, the materials and the
+/// shapes (so before any mesh is loaded); returns the refusal, or nothing when the scene may load.
+using SceneCheck =
+    std::function<std::optional<std::string>(const FilmSize& film, const RenderSettings& render)>;
+
+/// A scene refused by the caller's SceneCheck; what() is the check's message alone.
+class SceneRefused : public SceneError {
+ public:
+  using SceneError::SceneError;
 };
 
 /// A loaded mesh file (OBJ or PLY): one mesh whose material indices point into `materials`.

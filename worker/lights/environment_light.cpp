@@ -50,6 +50,7 @@ std::optional<EnvironmentLight> EnvironmentLight::make(const Scene& scene, doubl
     }
   }
   for (int i = 0; i < 9; ++i) env.to_world_[i] = static_cast<float>(map.rotation[i]);
+  env.bilinear_ = map.bilinear && !map.file.empty();
 
   const uint32_t w = env.width_, h = env.height_;
   env.weight_.resize(size_t(w) * h);
@@ -64,7 +65,16 @@ std::optional<EnvironmentLight> EnvironmentLight::make(const Scene& scene, doubl
     cdf[0] = 0.0;
     for (uint32_t x = 0; x < w; ++x) {
       const float lum = luminance(env.radiance_[size_t(y) * w + x]);
-      const float weight = std::max(lum, 0.f) * sin_theta;
+      float reach = lum;  // what a bilinear lookup in this cell may return
+      if (env.bilinear_) {
+        for (uint32_t yy = y > 0 ? y - 1 : 0; yy <= std::min(y + 1, h - 1); ++yy) {
+          for (uint32_t dx = 0; dx < 3; ++dx) {
+            const uint32_t xx = (x + w - 1 + dx) % w;
+            reach = std::max(reach, luminance(env.radiance_[size_t(yy) * w + xx]));
+          }
+        }
+      }
+      const float weight = std::max(reach, 0.f) * sin_theta;
       env.weight_[size_t(y) * w + x] = weight;
       cdf[x + 1] = cdf[x] + weight;
       integral += std::max(lum, 0.f) * row_solid_angle;
@@ -119,7 +129,26 @@ float EnvironmentLight::pdf_uv(uint32_t index) const {
 
 Vec3 EnvironmentLight::eval(const Vec3& dir) const {
   const auto [u, v] = uv(dir);
-  return radiance_[cell(u, v)];
+  if (!bilinear_) return radiance_[cell(u, v)];
+  if (!(u >= 0.f && v >= 0.f)) return radiance_[0];  // NaN: a degenerate direction
+  const float w = static_cast<float>(width_);
+  float x = std::min(u, 1.f) * w - 0.5f;
+  if (x < 0.f) x += w;
+  const auto x0 = std::min(static_cast<uint32_t>(x), width_ - 1);
+  const uint32_t x1 = x0 + 1 == width_ ? 0 : x0 + 1;
+  const float fx = std::clamp(x - static_cast<float>(x0), 0.f, 1.f);
+  uint32_t y0 = 0, y1 = 0;
+  float fy = 0.f;
+  if (height_ > 1) {
+    const float y = std::min(v, 1.f) * static_cast<float>(height_ - 1);
+    y0 = std::min(static_cast<uint32_t>(y), height_ - 2);
+    y1 = y0 + 1;
+    fy = std::clamp(y - static_cast<float>(y0), 0.f, 1.f);
+  }
+  const auto at = [&](uint32_t xx, uint32_t yy) { return radiance_[size_t(yy) * width_ + xx]; };
+  const Vec3 top = at(x0, y0) * (1.f - fx) + at(x1, y0) * fx;
+  const Vec3 bottom = at(x0, y1) * (1.f - fx) + at(x1, y1) * fx;
+  return top * (1.f - fy) + bottom * fy;
 }
 
 float EnvironmentLight::pdf_direction(const Vec3& dir) const {

@@ -3,7 +3,9 @@
 // importance-sampled by luminance times sin(theta) with a piecewise-constant 2D distribution
 // over the image's texels (rows by their total, then a column within the row). Lookups take the
 // nearest texel, the same cell whose density the sampler uses, so that eval and pdf agree
-// exactly and MIS sees one consistent estimator.
+// exactly and MIS sees one consistent estimator. A map read bilinearly (EnvironmentMap::bilinear)
+// weighs each cell by the brightest texel its interpolation reads, so that the density is
+// positive wherever the radiance is.
 //
 // Orientation (docs/scene-format.md, "Lights"), in the map's own frame before its rotation: the
 // top row looks up (+y), the bottom row down; u runs from -z (u = 0) through +x (u = 1/4), +z
@@ -63,6 +65,7 @@ class EnvironmentLight {
   double total_weight_ = 0.0;        // sum of weight_
   std::array<float, 9> to_world_{};  // row-major rotation, world from map
   double power_ = 0.0;
+  bool bilinear_ = false;            // EnvironmentMap::bilinear
 };
 
 }  // namespace rayfarm

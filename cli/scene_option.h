@@ -1,0 +1,73 @@
+#pragma once
+// --camera, --scene-root and -D: how `rayfarm render` and `rayfarm submit` read a scene file
+// (docs/gltf.md for cameras, docs/mitsuba.md for Mitsuba XML's root and $name parameters).
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "common/bundle/bundle.h"
+#include "common/scene/mitsuba_loader.h"
+#include "common/scene/parser.h"
+
+namespace rayfarm::cli {
+
+struct SceneArgs {
+  std::string scene;
+  std::string camera;
+  std::string root;
+  std::vector<std::string> defines;
+
+  /// -D NAME=VALUE pairs; throws std::invalid_argument on a malformed one.
+  XmlParameters parameters() const {
+    XmlParameters out;
+    for (const std::string& d : defines) {
+      const size_t eq = d.find('=');
+      bool ok = eq != std::string::npos && eq > 0;
+      for (size_t i = 0; ok && i < eq; ++i)
+        ok = std::isalnum(static_cast<unsigned char>(d[i])) != 0 || d[i] == '_';
+      if (!ok) throw std::invalid_argument("-D " + d + ": expected NAME=VALUE, NAME of letters, digits and _");
+      out[d.substr(0, eq)] = d.substr(eq + 1);
+    }
+    return out;
+  }
+
+  /// Throws std::invalid_argument when an option does not apply to the scene's format.
+  void check() const {
+    if (!camera.empty() && !is_gltf_path(scene))
+      throw std::invalid_argument(
+          "--camera chooses among a glTF file's cameras; a JSON scene names "
+          "its glTF camera in \"gltf\" (docs/gltf.md)");
+    if ((!root.empty() || !defines.empty()) && !is_mitsuba_path(scene))
+      throw std::invalid_argument("--scene-root and -D apply to Mitsuba XML scenes (.xml)");
+  }
+
+  Scene load(SceneImages images) const {
+    check();
+    if (is_mitsuba_path(scene)) return load_mitsuba_scene(scene, {}, images, root, parameters());
+    GltfOptions gltf;
+    gltf.camera = camera;
+    return load_scene(scene, {}, images, gltf);
+  }
+
+  PackedScene pack() const {
+    check();
+    if (is_mitsuba_path(scene)) return pack_mitsuba_scene(scene, root, parameters());
+    return camera.empty() ? pack_scene(scene) : pack_gltf_scene(scene, camera);
+  }
+};
+
+inline void add_scene_options(CLI::App* cmd, SceneArgs& args) {
+  cmd->add_option("--camera", args.camera,
+                  "glTF scenes: the camera (its or its node's name) to render through; default: "
+                  "the first in the scene");
+  cmd->add_option("--scene-root", args.root,
+                  "Mitsuba XML scenes: the folder the scene may read files from (default: the "
+                  "scene's own folder)");
+  cmd->add_option("-D,--define", args.defines,
+                  "Mitsuba XML scenes: NAME=VALUE, the value of $NAME (over the scene's <default>)");
+}
+
+}  // namespace rayfarm::cli
