@@ -3,7 +3,8 @@
 // sample() agrees with pdf() and eval(), the pdf integrates to one less what sample() rejects or
 // draws from a Dirac lobe, eval() is reciprocal (in the eta^2 form across an interface), no
 // surface reflects more than it receives, sampled directions follow pdf() (chi-square), and the
-// smooth limits are the smooth BSDFs.
+// smooth limits are the smooth BSDFs. The three kinds that take either microfacet distribution
+// run these checks on GGX and on Beckmann.
 //
 // Statistics. The file makes at most kHypotheses Monte Carlo hypothesis tests, held together at
 // significance kAlpha = 0.01 by a Bonferroni correction: each runs at kAlpha / kHypotheses (a
@@ -109,6 +110,13 @@ MetallicRoughnessMaterial gltf(const Vec3& base, float metallic, float roughness
   return m;
 }
 
+/// Material parameters m on Beckmann microfacets.
+template <class M>
+M beckmann(M m) {
+  m.distribution = MicrofacetType::kBeckmann;
+  return m;
+}
+
 /// Every rough case of every kind, at several roughnesses.
 const std::vector<Case>& cases() {
   static const std::vector<Case> all = [] {
@@ -143,6 +151,22 @@ const std::vector<Case>& cases() {
                           gltf(Vec3(0.9f, 0.9f, 0.5f), 0.f, 0.5f, 0.7f, 1.4f), 0.25));
     v.push_back(make_case("gltf smooth, transmission 0.5",
                           gltf(Vec3(0.7f, 0.8f, 0.9f), 0.2f, 0.f, 0.5f), 1.0));
+    // The three kinds that take either distribution, on Beckmann microfacets (narrower lobes
+    // are in beckmann_test.cpp).
+    for (float a : {0.1f, 1.f})
+      v.push_back(
+          make_case("beckmann gold alpha " + std::to_string(a), beckmann(conductor(a, a)), a));
+    v.push_back(make_case("beckmann gold alpha 0.2 x 0.6", beckmann(conductor(0.2f, 0.6f)), 0.2));
+    for (float a : {0.1f, 1.f})
+      v.push_back(make_case("beckmann glass alpha " + std::to_string(a),
+                            beckmann(glass(1.5f, a, a)), a, 1.5f));
+    v.push_back(make_case("beckmann bubble in water alpha 0.3",
+                          beckmann(glass(1.f / 1.33f, 0.3f, 0.3f)), 0.3, 1.f / 1.33f));
+    v.push_back(make_case("beckmann diamond alpha 0.45 x 0.15", beckmann(glass(2.4f, 0.45f, 0.15f)),
+                          0.15, 2.4f));
+    for (float a : {0.2f, 1.f})
+      v.push_back(make_case("beckmann rough plastic alpha " + std::to_string(a),
+                            beckmann(plastic(Vec3(0.5f), a)), a));
     return v;
   }();
   return all;
@@ -899,8 +923,15 @@ TEST(MicrofacetStabilityTest, ExtremeParametersGiveFiniteValues) {
   // The scene format allows roughness down to the smooth threshold, indices from 1e-30 to 1e30,
   // and indices a hair's breadth from 1: every sample, eval and pdf must stay finite and >= 0.
   std::vector<MaterialKind> kinds;
-  for (const float a : {1e-4f, 2e-4f, 1.f}) kinds.push_back(conductor(a, a));
+  for (const float a : {1e-4f, 2e-4f, 1.f}) {
+    kinds.push_back(conductor(a, a));
+    kinds.push_back(beckmann(conductor(a, a)));
+    kinds.push_back(beckmann(glass(1.5f, a, a)));
+    kinds.push_back(beckmann(plastic(Vec3(1.f), a)));
+  }
   kinds.push_back(conductor(1.f, 1e-4f));
+  kinds.push_back(beckmann(conductor(1.f, 1e-4f)));
+  kinds.push_back(beckmann(glass(1.0001f, 1e-4f, 1.f)));
   RoughConductorMaterial odd = conductor(0.3f, 0.3f);
   odd.eta = Vec3(1e-30f);
   odd.k = Vec3(0.f);
@@ -976,6 +1007,49 @@ TEST(MicrofacetFurnaceTest, WhiteRoughConductorLosesTheSingleScatteringDeficit) 
     const testing::Estimate e = testing::image_estimate(scene, settings);
     const double expected = white_albedo_at_normal(alpha);
     SCOPED_TRACE("alpha " + std::to_string(alpha));
+    EXPECT_NEAR(e.mean, expected, kZ * e.standard_error + 1e-4) << "se " << e.standard_error;
+    EXPECT_LT(e.standard_error, 0.01 * (1.0 - expected)) << "too few samples to see the loss";
+    EXPECT_EQ(e.nonfinite, 0u);
+  }
+}
+
+/// Albedo of a white isotropic Beckmann conductor at normal incidence, as white_albedo_at_normal
+/// with D = exp(-tan^2 / a^2) / (pi a^2 cos^4) and Lambda = (erf(x) - 1) / 2 + exp(-x^2) /
+/// (2 x sqrt(pi)), x = 1 / (a tan).
+double white_beckmann_albedo_at_normal(double a) {
+  constexpr int kNodes = 200000;
+  constexpr double kPiD = 3.141592653589793;
+  const double h = 0.5 * kPiD / kNodes;
+  double sum = 0.0;
+  for (int i = 0; i < kNodes; ++i) {
+    const double theta = (i + 0.5) * h;
+    const double t = std::tan(0.5 * theta), c = std::cos(0.5 * theta);
+    const double d = std::exp(-t * t / (a * a)) / (kPiD * a * a * std::pow(c, 4.0));
+    const double x = 1.0 / (a * std::tan(theta));
+    const double lambda =
+        0.5 * (std::erf(x) - 1.0) + std::exp(-x * x) / (2.0 * x * std::sqrt(kPiD));
+    sum += d / (1.0 + lambda) / 4.0 * std::sin(theta);
+  }
+  return kTwoPi * sum * h;
+}
+
+TEST(MicrofacetFurnaceTest, WhiteBeckmannConductorLosesTheSingleScatteringDeficit) {
+  // As for GGX: the sphere's albedo quadrature agrees with the 1-D integral, and the render with
+  // both. Beckmann's short tails lose less than GGX at the same alpha: at normal incidence 0.03%
+  // at alpha 0.3 (too little for a render to see), 25% at 0.7, 54% at 1.
+  for (const float alpha : {0.7f, 1.f}) {
+    SCOPED_TRACE("alpha " + std::to_string(alpha));
+    const double expected = white_beckmann_albedo_at_normal(alpha);
+    EXPECT_GT(expected, white_albedo_at_normal(alpha));
+    Material m;
+    m.kind = beckmann(white_conductor(alpha));
+    const SphereIntegrals in = integrate_sphere(Bsdf(m), wo_at(0.0), alpha / 10.0);
+    EXPECT_NEAR(in.albedo[1], expected, kQuadratureTolerance);
+    const Scene scene = furnace_sphere(beckmann(white_conductor(alpha)));
+    RenderSettings settings = scene.render;
+    settings.spp = 4096;
+    settings.seed = 7;
+    const testing::Estimate e = testing::image_estimate(scene, settings);
     EXPECT_NEAR(e.mean, expected, kZ * e.standard_error + 1e-4) << "se " << e.standard_error;
     EXPECT_LT(e.standard_error, 0.01 * (1.0 - expected)) << "too few samples to see the loss";
     EXPECT_EQ(e.nonfinite, 0u);

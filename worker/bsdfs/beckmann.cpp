@@ -31,25 +31,35 @@ double beckmann_visible_slope(double cos_theta, double sin_theta, double u) {
   //   K(x) = cos erfc(-x) / 2 + sin exp(-x^2) / (2 sqrt(pi)),
   // which rises to its total at x = cos / sin, where the facets turn their backs on the viewer.
   // erfc(-x) keeps the left tail's digits that 1 + erf(x) would cancel.
-  const auto k = [&](double x) {
-    return 0.5 * (cos_theta * std::erfc(-x) + sin_theta * std::exp(-x * x) / kSqrtPi);
-  };
+  u = std::clamp(u, 0.0, 1.0);
   double lo = -kSlopeBound;
   double hi = sin_theta > cos_theta / kSlopeBound ? cos_theta / sin_theta : kSlopeBound;
-  const double target = std::clamp(u, 0.0, 1.0) * k(hi);
+  const double target =
+      u * 0.5 * (cos_theta * std::erfc(-hi) + sin_theta * std::exp(-hi * hi) / kSqrtPi);
+  // The start blends the two limits: a normal law at normal incidence (x = erfinv(2u - 1)) and
+  // K proportional to exp(-x^2) at grazing incidence (x = -sqrt(-ln u)); it halves the
+  // iterations towards grazing incidence.
+  const double grazing = sin_theta > 0.0 ? -std::sqrt(-std::log(std::max(u, 1e-300))) : 0.0;
+  double x =
+      std::clamp(cos_theta * approximate_erfinv(2.0 * u - 1.0) + sin_theta * grazing, lo, hi);
   // Newton's method, falling back to bisection whenever a step leaves the bracket: K is
-  // increasing, so the bracket always holds the root and the iteration cannot diverge.
-  double x = std::clamp(approximate_erfinv(2.0 * u - 1.0), lo, hi);
+  // increasing, so the bracket always holds the root and the iteration cannot diverge. A Newton
+  // step below 1e-7 leaves an error of the order of its square.
   for (int i = 0; i < 100; ++i) {
-    const double f = k(x) - target;
+    const double e = std::exp(-x * x);
+    const double f = 0.5 * (cos_theta * std::erfc(-x) + sin_theta * e / kSqrtPi) - target;
     if (f == 0.0) break;
     (f > 0.0 ? hi : lo) = x;
-    const double slope = (cos_theta - sin_theta * x) * std::exp(-x * x) / kSqrtPi;
-    double next = slope > 0.0 ? x - f / slope : 0.5 * (lo + hi);
-    if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
-    const double step = std::fabs(next - x);
-    x = next;
-    if (step < 1e-11 || hi - lo < 1e-11) break;
+    const double density = (cos_theta - sin_theta * x) * e / kSqrtPi;
+    const double next = density > 0.0 ? x - f / density : lo;
+    if (next > lo && next < hi) {
+      const bool converged = std::fabs(next - x) < 1e-7 * std::max(1.0, std::fabs(x));
+      x = next;
+      if (converged) break;
+    } else {
+      x = 0.5 * (lo + hi);
+      if (hi - lo < 1e-12) break;
+    }
   }
   return x;
 }
