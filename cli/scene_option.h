@@ -29,6 +29,10 @@ struct SceneArgs {
       for (size_t i = 0; ok && i < eq; ++i)
         ok = std::isalnum(static_cast<unsigned char>(d[i])) != 0 || d[i] == '_';
       if (!ok) throw std::invalid_argument("-D " + d + ": expected NAME=VALUE, NAME of letters, digits and _");
+      // A value travels to the farm inside an XML attribute: nothing there may change it.
+      for (size_t i = eq + 1; ok && i < d.size(); ++i)
+        ok = d[i] != '$' && static_cast<unsigned char>(d[i]) >= 0x20;
+      if (!ok) throw std::invalid_argument("-D " + d + ": a value may not hold '$' or control characters");
       out[d.substr(0, eq)] = d.substr(eq + 1);
     }
     return out;

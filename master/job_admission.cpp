@@ -179,6 +179,8 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
       throw JobRejected(fmt::format("the film override needs a width and a height, got {}x{}",
                                     o.width(), o.height()));
     }
+    if (scene.camera.full_width != 0)
+      throw JobRejected("the scene's film is a crop of a larger image and cannot be resized");
     spec.film = {o.width(), o.height()};
   }
   if (spec.film.width == 0 || spec.film.height == 0) throw JobRejected("the scene's film is empty");

@@ -188,8 +188,10 @@ std::string canonical_bytes(const Bundle& bundle) {
 
 std::string bundle_hash(const Bundle& bundle) { return sha256_hex(canonical_bytes(bundle)); }
 
-PackedScene pack_scene(const fs::path& scene_file, const fs::path& scene_root) {
-  const Scene scene = load_scene(scene_file, {}, SceneImages::kCheckOnly, {}, scene_root);
+namespace {
+
+/// Packs `scene_file` with the files its loaded `scene` references.
+PackedScene pack_loaded(const fs::path& scene_file, const Scene& scene) {
   const fs::path scene_abs = fs::absolute(scene_file).lexically_normal();
   const fs::path scene_dir = scene_abs.parent_path();
 
@@ -218,6 +220,13 @@ PackedScene pack_scene(const fs::path& scene_file, const fs::path& scene_root) {
   packed.bundle = make_bundle(std::move(files));
   packed.hash = bundle_hash(packed.bundle);
   return packed;
+}
+
+}  // namespace
+
+PackedScene pack_scene(const fs::path& scene_file, const fs::path& scene_root) {
+  return pack_loaded(scene_file,
+                     load_scene(scene_file, {}, SceneImages::kCheckOnly, {}, scene_root));
 }
 
 PackedScene pack_gltf_scene(const fs::path& gltf_file, const std::string& camera) {
@@ -258,9 +267,12 @@ PackedScene pack_gltf_scene(const fs::path& gltf_file, const std::string& camera
 
 PackedScene pack_mitsuba_scene(const fs::path& xml_file, const fs::path& scene_root,
                                const std::map<std::string, std::string>& parameters) {
-  (void)load_mitsuba_scene(xml_file, {}, SceneImages::kCheckOnly, scene_root, parameters);
-  PackedScene packed = pack_scene(xml_file, scene_root);
+  // The parameters may name files (an include, a mesh): the bundle holds what they name.
+  PackedScene packed = pack_loaded(
+      xml_file, load_mitsuba_scene(xml_file, {}, SceneImages::kCheckOnly, scene_root, parameters));
   if (parameters.empty()) return packed;
+  if (fs::path(packed.scene_path).filename().string().find('$') != std::string::npos)
+    throw BundleError(xml_file.string() + ": -D needs a scene file name without '$'");
   auto escape = [](const std::string& text) {
     std::string out;
     for (const char c : text) {

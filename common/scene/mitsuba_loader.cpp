@@ -36,14 +36,15 @@ void collect_ids(const XmlElement& e, std::map<std::string, const XmlElement*>& 
 
 /// Mitsuba's depth counts path segments (1: emitters seen directly, 2: direct light); rayfarm's
 /// counts scattering vertices (0 and 1 for those): one less. -1 is unlimited.
-void read_integrator(Context& ctx, const XmlElement& e, RenderSettings& r) {
+void read_integrator(Context& ctx, const XmlElement& e, RenderSettings& r, int nesting = 0) {
   Props p(e, ctx);
   const std::string type = type_of(e);
   if (type == "moment") {
+    if (nesting > 0) e.fail("a moment integrator inside another is not supported");
     const auto inner = p.plugins("integrator");
     if (inner.size() != 1) e.fail("a moment integrator wraps one integrator");
     p.finish();
-    read_integrator(ctx, *inner[0], r);
+    read_integrator(ctx, *inner[0], r, nesting + 1);
     return;
   }
   r.integrator = IntegratorType::kMis;

@@ -232,6 +232,7 @@ void convert(Context& ctx, const XmlElement& bsdf, UvKind uv, Material& m, int d
     p.finish();
     if (opacity.texture == nullptr && !(opacity.value.x >= 0.f && opacity.value.x <= 1.f))
       bsdf.fail("opacity must lie in [0, 1]");
+    if (m.alpha_blend) bsdf.fail("a mask inside a mask is not supported");
     m.alpha = textured_float(ctx, opacity, uv);
     m.alpha_blend = true;
     convert(ctx, inner, uv, m, depth + 1);
@@ -245,12 +246,16 @@ void convert(Context& ctx, const XmlElement& bsdf, UvKind uv, Material& m, int d
     const XmlElement& inner = nested();
     p.finish();
     if (type_of(*tex) == "rawconstant") {
-      // A constant normal map: its normal (0.5, 0.5, 1) is the surface's own.
+      // A constant height is flat; a constant normal (0.5, 0.5, z) is the surface's own.
       Props c(*tex, ctx);
-      const auto v = c.point("value");
+      if (type == "normalmap") {
+        const auto v = c.point("value");
+        if (!v || v->x != 0.5 || v->y != 0.5 || !(v->z > 0.5))
+          tex->fail("a constant normal map other than (0.5, 0.5, z) is not supported");
+      } else {
+        (void)c.find("value");
+      }
       c.finish();
-      if (!v || v->x != 0.5 || v->y != 0.5 || !(v->z > 0.5))
-        tex->fail("a constant normal map other than (0.5, 0.5, z) is not supported");
     } else if (type == "bumpmap") {
       m.bump_map = BumpMap{static_cast<uint32_t>(texture_of(ctx, *tex, uv, false)), scale};
     } else {

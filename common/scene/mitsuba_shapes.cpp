@@ -186,7 +186,7 @@ void read_shape(Context& ctx, const XmlElement& shape, std::vector<TriangleMesh>
     const XmlElement* file = p.find("filename");
     if (file == nullptr) shape.fail("a mesh needs a filename");
     const fs::path rel = resolve_mitsuba_file(ctx.files, *file, value_of(*file));
-    MeshFile mf = type == "ply" ? load_ply(ctx.files.scene_dir, rel) : load_obj(ctx.files.scene_dir, rel);
+    MeshFile mf = type == "ply" ? load_ply(ctx.files.scene_dir, rel) : load_obj(ctx.files.scene_dir, rel, false);
     for (const fs::path& f : mf.files) {
       if (std::find(ctx.files.read.begin(), ctx.files.read.end(), f) == ctx.files.read.end())
         ctx.files.read.push_back(f);

@@ -3,6 +3,7 @@
 #include <charconv>
 #include <cmath>
 
+#include "common/limits.h"
 #include "common/scene/mitsuba_reader.h"
 #include "common/scene/spectra.h"
 #include "common/util/text.h"
@@ -62,7 +63,10 @@ std::vector<double> parse_numbers(const XmlElement& at, const std::string& text)
       at.fail("\"" + printable(text, 80) + "\" is not a list of numbers (at \"" +
               printable(std::string(start, std::min<size_t>(12, end - start))) + "\")");
     }
-    if (!std::isfinite(v)) at.fail("\"" + printable(text, 80) + "\" holds a non-finite number");
+    // Beyond 1e17 (rayfarm's largest coordinate) a number is no scene's, and as a float it may
+    // overflow to infinity on the way.
+    if (!(std::fabs(v) <= kMaxCoordinate))
+      at.fail("\"" + printable(text, 80) + "\" holds a number beyond 1e17 (or not finite)");
     out.push_back(v);
     p = next;
   }

@@ -20,6 +20,9 @@ namespace {
 constexpr int kMaxIncludeDepth = 16;
 constexpr size_t kMaxXmlFiles = 256;
 constexpr size_t kMaxXmlElements = size_t{1} << 20;
+constexpr int kMaxXmlNesting = 64;                             // elements within elements
+constexpr uint64_t kMaxXmlBytes = uint64_t{256} << 20;         // all files read, together
+constexpr uint64_t kMaxSubstitutedBytes = uint64_t{64} << 20;  // all substituted values
 
 /// One file being read: its text, its lines, where it lives.
 struct Source {
@@ -47,7 +50,9 @@ bool is_identifier_char(char c) {
 class Expander {
  public:
   Expander(XmlFiles& files, XmlParameters parameters)
-      : files_(files), parameters_(std::move(parameters)) {}
+      : files_(files), parameters_(std::move(parameters)) {
+    for (const auto& entry : parameters_) longest_name_ = std::max(longest_name_, entry.first.size());
+  }
 
   /// Reads `file` (absolute), returning its root <scene> element with children expanded.
   XmlElement read_scene(const fs::path& file, const std::string& display, int depth) {
@@ -59,6 +64,11 @@ class Expander {
                        " XML files");
     }
     const std::string text = read_text_file(file, kMaxSceneFileBytes, display);
+    bytes_read_ += text.size();
+    if (bytes_read_ > kMaxXmlBytes) {
+      throw SceneError(display + ": the scene's XML files hold more than " +
+                       std::to_string(kMaxXmlBytes >> 20) + " MiB together");
+    }
     for (size_t i = 0; i < text.size(); ++i) {
       if (text[i] == '\n') source.newlines.push_back(i);
     }
@@ -74,7 +84,7 @@ class Expander {
     if (root.tag != "scene") root.fail("the file's root element must be <scene>");
     check_version(root);
     stack_.push_back(file);
-    expand_children(top, root, source, depth);
+    expand_children(top, root, source, depth, 1);
     stack_.pop_back();
     return root;
   }
@@ -119,7 +129,7 @@ class Expander {
       size_t end = i + 1;
       while (end < value.size() && is_identifier_char(value[end])) ++end;
       bool replaced = false;
-      for (size_t len = end - i - 1; len > 0 && !replaced; --len) {
+      for (size_t len = std::min(end - i - 1, longest_name_); len > 0 && !replaced; --len) {
         if (auto it = parameters_.find(value.substr(i + 1, len)); it != parameters_.end()) {
           out += it->second;
           i += 1 + len;
@@ -135,14 +145,22 @@ class Expander {
       }
       if (out.size() > (size_t{1} << 20)) at.fail("substitution makes a value over 1 MiB");
     }
+    substituted_ += out.size();
+    if (substituted_ > kMaxSubstitutedBytes) {
+      at.fail("substituted values hold more than " + std::to_string(kMaxSubstitutedBytes >> 20) +
+              " MiB together");
+    }
     return out;
   }
 
   void expand_children(const pugi::xml_node& node, XmlElement& into, const Source& source,
-                       int depth) {
+                       int depth, int nesting) {
     for (const pugi::xml_node& child : node.children()) {
       if (child.type() != pugi::node_element) continue;
       XmlElement e = element_of(child, source);
+      if (nesting + depth > kMaxXmlNesting) {
+        e.fail("elements nest more than " + std::to_string(kMaxXmlNesting) + " deep");
+      }
       if (e.tag == "include") {
         include(e, into, depth);
       } else if (e.tag == "default") {
@@ -150,10 +168,11 @@ class Expander {
         const std::string* value = e.find("value");
         if (name == nullptr || value == nullptr) e.fail("<default> needs name and value");
         parameters_.emplace(*name, *value);  // a value given from outside stays
+        longest_name_ = std::max(longest_name_, name->size());
       } else if (e.tag == "path") {
         add_search_path(e, source);
       } else {
-        expand_children(child, e, source, depth);
+        expand_children(child, e, source, depth, nesting + 1);
         into.children.push_back(std::move(e));
       }
     }
@@ -195,6 +214,9 @@ class Expander {
   std::vector<fs::path> stack_;
   size_t elements_ = 0;
   size_t files_read_ = 0;
+  size_t longest_name_ = 0;   // of the parameters: no longer text after a '$' can match one
+  uint64_t bytes_read_ = 0;   // of every XML file
+  uint64_t substituted_ = 0;  // bytes of every value that held a '$' 
 };
 
 }  // namespace

@@ -291,13 +291,19 @@ Material to_material(const MtlMaterial& mtl, const std::string& name, const Wher
 
 }  // namespace
 
-MeshFile load_obj(const fs::path& scene_dir, const fs::path& relative) {
+MeshFile load_obj(const fs::path& scene_dir, const fs::path& relative, bool materials) {
   const std::string display = (scene_dir / relative).string();
   MeshFile result;
   result.files.push_back(relative);
   ObjRead obj =
       ObjReader().read(read_text_file(scene_dir / relative, kMaxObjFileBytes, display), display);
   result.warnings = std::move(obj.warnings);
+  if (!materials) {
+    obj.mtllibs.clear();
+    obj.usemtls.clear();
+    obj.faces_without_usemtl = !obj.mesh.materials.empty();
+    for (uint32_t& m : obj.mesh.materials) m = kNoMaterial;
+  }
   const MtlLibrary library = load_mtllibs(scene_dir, relative, obj.mtllibs);
   result.files.insert(result.files.end(), library.files.begin(), library.files.end());
   result.warnings.insert(result.warnings.end(), library.warnings.begin(), library.warnings.end());

@@ -11,6 +11,9 @@ namespace rayfarm {
 
 /// Reads `relative` (relative to `scene_dir`, already resolved) and the MTL files it names.
 /// Throws SceneError "FILE:LINE: ..." for any problem in the files.
-MeshFile load_obj(const std::filesystem::path& scene_dir, const std::filesystem::path& relative);
+/// `materials` false: mtllib and usemtl lines are ignored (Mitsuba's reading); every face gets
+/// the material "<file>:default".
+MeshFile load_obj(const std::filesystem::path& scene_dir, const std::filesystem::path& relative,
+                  bool materials = true);
 
 }  // namespace rayfarm

@@ -223,6 +223,21 @@ TEST_F(MitsubaLoader, BadInputNamesTheFileTheLineAndTheElement) {
   expect_error(scene("<path value=\"..\"/>"), {"outside"});
   expect_error(scene("<medium type=\"homogeneous\"/>"), {"<medium", "not supported"});
   expect_error(scene("<emitter type=\"area\"/>"), {"belongs inside a <shape>"});
+  // Bounds on what a hostile file can make the reader do.
+  std::string deep;
+  for (int i = 0; i < 70; ++i) deep += "<a>";
+  for (int i = 0; i < 70; ++i) deep += "</a>";
+  expect_error(scene(deep), {"nest more than 64 deep"});
+  expect_error(scene(R"(<integrator type="moment" id="m"><ref id="m"/></integrator>)"),
+               {"inside another"});
+  expect_error(scene("<shape type=\"sphere\"><float name=\"radius\" value=\"1e300\"/></shape>"),
+               {"beyond 1e17"});
+  expect_error(scene("<default name=\"a\" value=\"$a$a\"/><shape type=\"sphere\">"
+                     "<float name=\"radius\" value=\"$aaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaa\"/></shape>"),
+               {"$a"});
+  expect_error(scene("<shape type=\"sphere\"><bsdf type=\"mask\"><bsdf type=\"mask\">"
+                     "<bsdf type=\"diffuse\"/></bsdf></bsdf></shape>"),
+               {"a mask inside a mask"});
   // Inside the root, what lies above the scene's folder is readable.
   dir_.write("quad.obj", kQuad);
   const fs::path up = dir_.write(
@@ -230,6 +245,23 @@ TEST_F(MitsubaLoader, BadInputNamesTheFileTheLineAndTheElement) {
   const Scene s = load_mitsuba_scene(up, {}, SceneImages::kCheckOnly, dir_.path());
   ASSERT_EQ(s.referenced.size(), 1u);
   EXPECT_EQ(s.referenced[0], fs::path("../quad.obj"));
+}
+
+TEST_F(MitsubaLoader, AParameterMayNameTheFilesTheBundleCarries) {
+  dir_.write("a.obj", kQuad);
+  dir_.write("b.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  const fs::path file = dir_.write(
+      "s.xml", scene("<shape type=\"obj\"><string name=\"filename\" value=\"$mesh.obj\"/></shape>"));
+  const PackedScene packed = pack_mitsuba_scene(file, {}, {{"mesh", "b"}});
+  bool has_b = false, has_a = false;
+  for (const BundleFile& f : packed.bundle.files) has_b |= f.path == "b.obj", has_a |= f.path == "a.obj";
+  EXPECT_TRUE(has_b);
+  EXPECT_FALSE(has_a);
+  testing::TempDir cache;
+  const fs::path unpacked = unpack_bundle(packed.bundle, cache.path(), packed.hash);
+  const Scene s = load_mitsuba_scene(unpacked / packed.scene_path, {}, SceneImages::kCheckOnly, unpacked);
+  ASSERT_EQ(s.meshes.size(), 1u);
+  EXPECT_EQ(s.meshes[0].triangle_count(), 1u);
 }
 
 TEST_F(MitsubaLoader, ABundleCarriesTheFilesAboveTheSceneAndTheParameters) {

@@ -170,7 +170,7 @@ bool EnvironmentLight::sample(const Vec3& /*ref*/, float p_select, float u1, flo
   const float sin_theta = std::sin(v * kPi);
   if (!(sin_theta > 0.f)) return false;
   out.wi = direction(u, v);
-  out.radiance = radiance_[index];
+  out.radiance = bilinear_ ? eval(out.wi) : radiance_[index];  // what eval() says of wi
   out.pdf = p_select * density / (2.f * kPi * kPi * sin_theta);
   out.delta = false;
   out.infinite = true;
