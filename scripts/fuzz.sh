@@ -7,7 +7,7 @@
 # and prints executions, time and coverage. Exits non-zero when a target finds a crash, a leak or
 # undefined behaviour (the input is left in build-fuzz/findings/).
 #
-#   scripts/fuzz.sh [SECONDS] [TARGET...]   TARGET: scene obj ply gltf wire bundle image (default all)
+#   scripts/fuzz.sh [SECONDS] [TARGET...]   TARGET: scene obj ply gltf mitsuba wire bundle image (default all)
 #   JOBS=2 scripts/fuzz.sh 300 wire         build parallelism (default 2)
 # Needs clang-14 and libclang-rt-14-dev (apt-get install clang-14 libclang-rt-14-dev).
 set -euo pipefail
@@ -15,7 +15,7 @@ cd "$(dirname "$0")/.."
 seconds=${1:-60}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(scene obj ply gltf wire bundle image)
+[ ${#targets[@]} -gt 0 ] || targets=(scene obj ply gltf mitsuba wire bundle image)
 build=build-fuzz
 cxx=${CXX_FUZZ:-clang++-14}
 

@@ -144,11 +144,12 @@ class SceneData {
   /// Derivatives and tangents at a resolved hit.
   TangentFrame tangent_frame(const RayHit& hit, const SurfaceHit& s) const;
   /// Whether the candidate hit (geom, prim, barycentrics u v, point p) is there: false where its
-  /// material's opacity falls below its cutoff.
+  /// material's opacity falls below its cutoff (or, partial coverage, with probability 1 - alpha).
   bool covered(uint32_t geom, uint32_t prim, float u, float v, const Vec3& p) const;
   /// covered() for triangle `prim` of mesh `geom` of group `group`, hit through any instance:
   /// the opacity is looked up at the object's own texture coordinates.
-  bool covered_in_group(uint32_t group, uint32_t geom, uint32_t prim, float u, float v) const;
+  bool covered_in_group(uint32_t group, uint32_t geom, uint32_t prim, float u, float v,
+                        const Vec3& p) const;
   /// What the cut-out filter of one group's geometries receives: Embree reports a hit through an
   /// instance with the geometry's id within its group, so the group comes with the filter.
   struct GroupFilter {
@@ -197,8 +198,8 @@ class SceneData {
   // spheres, and the meshes of groups).
   void build_surface(std::vector<Bvh::Mesh>& meshes, const Bvh::HitFilter*& sphere_filter,
                      std::vector<std::vector<Bvh::Mesh>>& groups);
-  // Whether the opacity of `material` at `uv` reaches its cutoff.
-  bool opaque_at(uint32_t material, const Vec2& uv) const;
+  /// Whether the hit at `p` on primitive `prim` is there (cut-outs and partial coverage).
+  bool opaque_at(uint32_t material, const Vec2& uv, const Vec3& p, uint32_t prim) const;
   Vec2 sphere_uv(const Sphere& sphere, const Vec3& n) const;
   void build_instances();
   void add_triangles(const TriangleMesh& mesh, std::vector<TriangleInfo>& out);

@@ -1,6 +1,8 @@
 // What surfaces need beyond their BSDF: tangent frames (normal and bump maps, anisotropic BSDFs)
 // and opacity cut-outs, both decided per material so that a scene without them pays nothing.
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <variant>
 
 #include "worker/scene_data.h"
@@ -27,9 +29,9 @@ bool keep_covered(const void* context, uint32_t geom, uint32_t prim, float u, fl
 }
 
 bool keep_covered_in_group(const void* context, uint32_t geom, uint32_t prim, float u, float v,
-                           const Vec3&) {
+                           const Vec3& p) {
   const auto* g = static_cast<const SceneData::GroupFilter*>(context);
-  return g->data->covered_in_group(g->group, geom, prim, u, v);
+  return g->data->covered_in_group(g->group, geom, prim, u, v, p);
 }
 
 /// The texture coordinates of barycentrics (u, v) on triangle `prim` of `mesh`: the
@@ -93,17 +95,39 @@ void SceneData::build_surface(std::vector<Bvh::Mesh>& meshes, const Bvh::HitFilt
   }
 }
 
-bool SceneData::opaque_at(uint32_t material, const Vec2& uv) const {
+namespace {
+
+uint64_t mix64(uint64_t h) {  // a 64-bit finaliser: every input bit moves every output bit
+  h ^= h >> 33;
+  h *= 0xff51afd7ed558ccdULL;
+  h ^= h >> 33;
+  h *= 0xc4ceb9fe1a85ec53ULL;
+  return h ^ (h >> 33);
+}
+
+/// A number in [0, 1) that only the hit decides: its point and its triangle.
+float coverage_number(const Vec3& p, uint32_t prim) {
+  uint64_t h = mix64(std::bit_cast<uint32_t>(p.x) ^ (uint64_t{prim} << 32));
+  h = mix64(h ^ std::bit_cast<uint32_t>(p.y));
+  h = mix64(h ^ (uint64_t{std::bit_cast<uint32_t>(p.z)} << 17));
+  return static_cast<float>(h >> 40) * 0x1p-24f;
+}
+
+}  // namespace
+
+bool SceneData::opaque_at(uint32_t material, const Vec2& uv, const Vec3& p, uint32_t prim) const {
   const Material& m = scene_.materials[material];
   if (!m.has_alpha()) return true;
-  return !(TextureLookup(&textures_, uv).number(m.alpha) < m.alpha_cutoff);
+  const float alpha = TextureLookup(&textures_, uv).number(m.alpha);
+  if (m.alpha_blend) return coverage_number(p, prim) < alpha;
+  return !(alpha < m.alpha_cutoff);
 }
 
 bool SceneData::covered_in_group(uint32_t group, uint32_t geom, uint32_t prim, float u,
-                                 float v) const {
+                                 float v, const Vec3& p) const {
   const size_t mesh = group_first_mesh_[group] + geom;
   const uint32_t material = group_triangles_[group_mesh_offset_[mesh] + prim].material;
-  return opaque_at(material, triangle_uv(scene_.groups[group].meshes[geom], prim, u, v));
+  return opaque_at(material, triangle_uv(scene_.groups[group].meshes[geom], prim, u, v), p, prim);
 }
 
 bool SceneData::covered(uint32_t geom, uint32_t prim, float u, float v, const Vec3& p) const {
@@ -117,7 +141,7 @@ bool SceneData::covered(uint32_t geom, uint32_t prim, float u, float v, const Ve
     material = triangles_[mesh_offset_[geom] + prim].material;
     uv = triangle_uv(scene_.meshes[geom], prim, u, v);
   }
-  return opaque_at(material, uv);
+  return opaque_at(material, uv, p, prim);
 }
 
 TangentFrame SceneData::tangent_frame(const RayHit& hit, const SurfaceHit& s) const {

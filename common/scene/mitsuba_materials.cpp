@@ -219,18 +219,14 @@ void convert(Context& ctx, const XmlElement& bsdf, UvKind uv, Material& m, int d
     return;
   }
   if (type == "mask") {
+    // Mitsuba's mask lets a ray through with probability 1 - opacity: partial coverage.
     const Colour opacity = p.scalar("opacity", 0.5f);
     const XmlElement& inner = nested();
     p.finish();
-    if (opacity.texture == nullptr && opacity.value.x < 1.f)
-      bsdf.fail("a constant opacity below 1 (partly transparent everywhere) is not supported");
-    if (opacity.texture != nullptr) {
-      m.alpha = textured_float(ctx, opacity, uv);
-      m.alpha_cutoff = 0.5f;
-      ctx.warn_once("mask", bsdf,
-                    "mask: a surface point is there where the opacity is 0.5 or more (Mitsuba "
-                    "blends partial opacity)");
-    }
+    if (opacity.texture == nullptr && !(opacity.value.x >= 0.f && opacity.value.x <= 1.f))
+      bsdf.fail("opacity must lie in [0, 1]");
+    m.alpha = textured_float(ctx, opacity, uv);
+    m.alpha_blend = true;
     convert(ctx, inner, uv, m, depth + 1);
     return;
   }

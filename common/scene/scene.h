@@ -200,10 +200,16 @@ struct Material {
   /// Coverage: a hit where alpha < alpha_cutoff is not there (rays pass straight through).
   TexturedFloat alpha = 1.f;
   float alpha_cutoff = 0.5f;
+  /// Partial coverage instead of a cut-out: a hit is there with probability alpha, decided from
+  /// a hash of the hit point (the same ray decides the same way; different rays independently),
+  /// so that the image converges to alpha times the surface plus 1 - alpha times what is behind.
+  bool alpha_blend = false;
 
   bool is_emissive() const { return !is_black(emission.value); }
   /// Whether some hits on it are cut out; a constant alpha of 1 never is.
-  bool has_alpha() const { return alpha.is_textured() || alpha.value < alpha_cutoff; }
+  bool has_alpha() const {
+    return alpha.is_textured() || alpha.value < (alpha_blend ? 1.f : alpha_cutoff);
+  }
   /// Whether shading it perturbs the normal.
   bool has_surface_map() const { return normal_map.has_value() || bump_map.has_value(); }
   /// Whether anything of it reads texture coordinates.

@@ -281,6 +281,54 @@ TEST_F(CliTest, AGlbRendersThroughTheNamedCameraLocallyAndOnTheFarmAlike) {
   EXPECT_TRUE(bit_identical(dir() / "farm.exr", far));
 }
 
+TEST_F(CliTest, AMitsubaSceneReadsItsRootAndParametersLocallyAndOnTheFarmAlike) {
+  // A Mitsuba scene in scenes/box/ that reads its mesh from ../../common through <path>, and takes
+  // its sample count and the light's colour from $name parameters.
+  fs::create_directories(dir() / "mi" / "common");
+  std::ofstream(dir() / "mi" / "common" / "quad.obj")
+      << "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nf 1 2 3 4\n";
+  fs::create_directories(dir() / "mi" / "scenes" / "box");
+  const fs::path scene = dir() / "mi" / "scenes" / "box" / "scene.xml";
+  std::ofstream(scene) << R"(<scene version="3.0.0">
+  <path value="../../common"/>
+  <default name="spp" value="4"/>
+  <default name="red" value="1"/>
+  <sensor type="perspective">
+    <float name="fov" value="40"/>
+    <transform name="to_world"><lookat origin="0, 0, 4" target="0, 0, 0" up="0, 1, 0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="24"/><integer name="height" value="16"/>
+      <rfilter type="box"/></film>
+    <sampler type="independent"><integer name="sample_count" value="$spp"/></sampler>
+  </sensor>
+  <shape type="obj">
+    <string name="filename" value="quad.obj"/>
+    <emitter type="area"><rgb name="radiance" value="$red, 0.5, 0.25"/></emitter>
+  </shape>
+  <shape type="sphere"><point name="center" x="0" y="0" z="1"/><float name="radius" value="0.3"/></shape>
+</scene>
+)";
+  // The root must be given: ../../common lies outside the scene's folder.
+  const RunResult outside = cli({"render", scene.string(), "-o", (dir() / "x.exr").string()}, false);
+  EXPECT_EQ(outside.code, 1);
+  EXPECT_NE(outside.err.find("scene.xml:2: <path>"), std::string::npos) << outside.err;
+  EXPECT_NE(outside.err.find("--scene-root"), std::string::npos) << outside.err;
+
+  const std::vector<std::string> settings{"--scene-root", (dir() / "mi").string(), "-D", "red=2"};
+  const fs::path local = local_render(scene, settings);
+  EXPECT_EQ(read_exr(local).width, 24u);
+  const fs::path plain = local_render(scene, {"--scene-root", (dir() / "mi").string()});
+  EXPECT_FALSE(bit_identical(local, plain));  // -D red=2 changed the light
+
+  start_master();
+  start_worker();
+  std::vector<std::string> args{"submit", scene.string(), "--wait", "-o",
+                                (dir() / "farm.exr").string()};
+  args.insert(args.end(), settings.begin(), settings.end());
+  const RunResult r = cli(args);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(bit_identical(dir() / "farm.exr", local));
+}
+
 TEST_F(CliTest, ClampIsOffByDefaultRecordedWhenOnAndTheSameOnTheFarm) {
   const fs::path scene = small_scene("cornell-box", 32);
   const std::vector<std::string> plain{"--spp", "16", "--seed", "4"};

@@ -1,0 +1,256 @@
+// The Mitsuba 3 XML reader (docs/mitsuba.md): what each plugin becomes in rayfarm's scene, the
+// XML layer (includes, defaults, $name), and every kind of bad input naming its file and line.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+#include <variant>
+
+#include "common/bundle/bundle.h"
+#include "common/scene/mitsuba_loader.h"
+#include "common/scene/spectra.h"
+#include "tests/support/temp_dir.h"
+
+namespace rayfarm {
+namespace {
+
+namespace fs = std::filesystem;
+constexpr double kPi = 3.14159265358979323846;
+
+const char* kSensor = R"(
+  <sensor type="perspective">
+    <float name="fov" value="40"/>
+    <transform name="to_world"><lookat origin="0, 0, 5" target="0, 0, 0" up="0, 1, 0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="30"/><integer name="height" value="20"/>
+      <rfilter type="box"/></film>
+    <sampler type="independent"><integer name="sample_count" value="16"/></sampler>
+  </sensor>)";
+
+/// A scene file holding kSensor and `body`.
+std::string scene(const std::string& body, const std::string& version = "3.0.0") {
+  return "<scene version=\"" + version + "\">" + kSensor + body + "\n</scene>\n";
+}
+
+const char* kQuad = "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+                    "f 1/1 2/2 3/3 4/4\n";
+
+class MitsubaLoader : public ::testing::Test {
+ protected:
+  Scene load(const std::string& body, const XmlParameters& parameters = {}) {
+    dir_.write("quad.obj", kQuad);
+    return load_mitsuba_scene(dir_.write("s.xml", scene(body)), {}, SceneImages::kCheckOnly, {},
+                              parameters);
+  }
+  /// Expects loading `xml` (the whole file) to fail with a message holding each of `parts`.
+  void expect_error(const std::string& xml, std::initializer_list<const char*> parts,
+                    const fs::path& root = {}) {
+    dir_.write("quad.obj", kQuad);
+    const fs::path file = dir_.write("sub/s.xml", xml);
+    try {
+      (void)load_mitsuba_scene(file, {}, SceneImages::kCheckOnly, root);
+      ADD_FAILURE() << "loaded:\n" << xml;
+    } catch (const SceneError& e) {
+      for (const char* part : parts)
+        EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what();
+    }
+  }
+  testing::TempDir dir_;
+};
+
+TEST_F(MitsubaLoader, SensorFilmAndSamplerBecomeTheCameraFilmAndSampleCount) {
+  const Scene s = load("");
+  EXPECT_EQ(s.film.width, 30u);
+  EXPECT_EQ(s.film.height, 20u);
+  EXPECT_EQ(s.render.spp, 16u);
+  EXPECT_EQ(s.camera.eye.z, 5.f);
+  EXPECT_EQ(s.camera.look_at.z, 4.f);
+  // fov is horizontal (fov_axis x): the vertical one follows from the 3:2 aspect ratio.
+  const double fy = 2.0 * std::atan(std::tan(20.0 * kPi / 180.0) / 1.5) * 180.0 / kPi;
+  EXPECT_NEAR(s.camera.fov_y_deg, fy, 1e-4);
+  EXPECT_EQ(s.render.max_depth, kMaxDepth);  // no integrator: Mitsuba's unlimited path tracer
+}
+
+TEST_F(MitsubaLoader, DepthCountsSegmentsInMitsubaAndScatteringVerticesHere) {
+  auto depth = [&](const std::string& integrator) {
+    return load(integrator + "<shape type=\"sphere\"/>").render.max_depth;
+  };
+  EXPECT_EQ(depth(R"(<integrator type="path"><integer name="max_depth" value="2"/></integrator>)"), 1u);
+  EXPECT_EQ(depth(R"(<integrator type="path"><integer name="max_depth" value="8"/></integrator>)"), 7u);
+  EXPECT_EQ(depth(R"(<integrator type="moment"><integrator type="path">
+      <integer name="max_depth" value="1"/></integrator></integrator>)"), 0u);
+  EXPECT_EQ(depth(R"(<integrator type="direct"/>)"), 1u);
+  expect_error(scene(R"(<integrator type="path"><integer name="max_depth" value="0"/></integrator>)"),
+               {"s.xml:", "max_depth 0 renders nothing"});
+  expect_error(scene(R"(<integrator type="bdpt"/>)"), {"<integrator type=\"bdpt\">", "not supported"});
+}
+
+TEST_F(MitsubaLoader, BsdfsBecomeMaterialsWithMitsubasDefaultsAndSides) {
+  const Scene s = load(R"(
+    <bsdf type="diffuse" id="d"><rgb name="reflectance" value="0.2, 0.4, 0.6"/></bsdf>
+    <shape type="sphere"><ref id="d"/></shape>
+    <shape type="sphere"><bsdf type="twosided"><ref id="d"/></bsdf></shape>
+    <shape type="sphere"><bsdf type="roughconductor"><string name="material" value="Au"/>
+      <float name="alpha_u" value="0.2"/><float name="alpha_v" value="0.05"/></bsdf></shape>
+    <shape type="sphere"><bsdf type="dielectric"><string name="int_ior" value="diamond"/></bsdf></shape>
+    <shape type="sphere"><bsdf type="roughplastic"><string name="distribution" value="ggx"/>
+      <boolean name="nonlinear" value="true"/></bsdf></shape>
+    <shape type="sphere"/>)");
+  ASSERT_EQ(s.spheres.size(), 6u);
+  auto mat = [&](int i) -> const Material& { return s.materials[s.spheres[i].material]; };
+  EXPECT_TRUE(mat(0).one_sided);  // Mitsuba's BSDFs are black from behind
+  EXPECT_FALSE(mat(1).one_sided);
+  EXPECT_EQ(std::get<DiffuseMaterial>(mat(1).kind).albedo.value, Vec3(0.2f, 0.4f, 0.6f));
+  const auto& au = std::get<RoughConductorMaterial>(mat(2).kind);
+  EXPECT_EQ(au.distribution, MicrofacetType::kBeckmann);  // Mitsuba's default
+  EXPECT_EQ(au.alpha_u.value, 0.2f);
+  EXPECT_EQ(au.alpha_v.value, 0.05f);
+  EXPECT_EQ(au.eta, named_conductor("Au")->eta);
+  const auto& glass = std::get<DielectricMaterial>(mat(3).kind);
+  EXPECT_NEAR(glass.ior, 2.419 / 1.000277, 1e-5);  // over Mitsuba's default exterior, air
+  EXPECT_FALSE(mat(3).one_sided);
+  const auto& plastic = std::get<PlasticMaterial>(mat(4).kind);
+  EXPECT_EQ(plastic.distribution, MicrofacetType::kGgx);
+  EXPECT_TRUE(plastic.nonlinear);
+  EXPECT_EQ(plastic.alpha.value, 0.1f);
+  EXPECT_NEAR(plastic.ior, 1.49 / 1.000277, 1e-5);
+  EXPECT_EQ(std::get<DiffuseMaterial>(mat(5).kind).albedo.value, Vec3(0.5f));  // the default
+}
+
+TEST_F(MitsubaLoader, SpectraAreConvertedAsMitsubasRgbModeDoes) {
+  const Scene s = load(R"(<shape type="sphere"><bsdf type="diffuse">
+    <spectrum name="reflectance" value="400:0.78, 500:0.78, 600:0.78, 700:0.78"/></bsdf></shape>)");
+  const Vec3 expected = spectrum_to_rgb({400, 500, 600, 700}, {0.78, 0.78, 0.78, 0.78},
+                                        SpectrumRole::reflectance);
+  EXPECT_EQ(std::get<DiffuseMaterial>(s.materials[s.spheres[0].material].kind).albedo.value,
+            expected);
+  EXPECT_LT(expected.x, 0.78f);  // nothing below 400 nm or above 700 nm
+}
+
+TEST_F(MitsubaLoader, ShapesMasksAndMapsBecomeGeometryAndSurfaceProperties) {
+  const Scene s = load(R"(
+    <shape type="obj"><string name="filename" value="quad.obj"/>
+      <transform name="to_world"><scale value="2"/><translate x="1"/></transform></shape>
+    <shape type="rectangle"><boolean name="flip_normals" value="true"/></shape>
+    <shape type="cube"/>
+    <shape type="disk"/>
+    <shape type="obj"><string name="filename" value="quad.obj"/>
+      <boolean name="face_normals" value="true"/>
+      <bsdf type="mask"><float name="opacity" value="0.25"/><bsdf type="diffuse"/></bsdf></shape>)");
+  ASSERT_EQ(s.meshes.size(), 5u);
+  EXPECT_EQ(s.meshes[0].positions[1].x, 3.f);  // (1, -1, 0) scaled by 2, then moved by 1
+  EXPECT_FALSE(s.meshes[0].normals.empty());  // Mitsuba smooths a mesh without normals
+  EXPECT_EQ(s.meshes[0].normals[0], Vec3(0.f, 0.f, 1.f));
+  EXPECT_EQ(s.meshes[1].normals[0], Vec3(0.f, 0.f, -1.f));
+  EXPECT_EQ(s.meshes[2].triangle_count(), 12u);
+  double area = 0.0;
+  for (size_t t = 0; t < s.meshes[3].triangle_count(); ++t) {
+    const uint32_t* i = &s.meshes[3].indices[3 * t];
+    area += 0.5 * length(cross(s.meshes[3].positions[i[1]] - s.meshes[3].positions[i[0]],
+                               s.meshes[3].positions[i[2]] - s.meshes[3].positions[i[0]]));
+  }
+  EXPECT_NEAR(area, kPi, 1e-4 * kPi);  // the unit disk
+  EXPECT_TRUE(s.meshes[4].normals.empty());
+  const Material& masked = s.materials[s.meshes[4].materials[0]];
+  EXPECT_TRUE(masked.alpha_blend);  // partly there: Mitsuba's mask is a probability
+  EXPECT_EQ(masked.alpha.value, 0.25f);
+  EXPECT_TRUE(masked.has_alpha());
+}
+
+TEST_F(MitsubaLoader, AreaEmittersAndLightsKeepMitsubasUnitsAndWhite) {
+  const Scene s = load(R"(
+    <shape type="rectangle"><emitter type="area"><rgb name="radiance" value="2, 3, 4"/></emitter></shape>
+    <emitter type="point"><point name="position" x="1" y="2" z="3"/><rgb name="intensity" value="5"/></emitter>
+    <emitter type="spot"><transform name="to_world"><lookat origin="0,4,0" target="0,0,0" up="0,0,1"/></transform>
+      <float name="cutoff_angle" value="30"/></emitter>
+    <emitter type="directional"><vector name="direction" value="0, -1, 0"/></emitter>
+    <emitter type="constant"><float name="radiance" value="2"/></emitter>)");
+  const Material& lamp = s.materials[s.meshes[0].materials[0]];
+  EXPECT_EQ(lamp.emission.value, Vec3(2.f, 3.f, 4.f));
+  EXPECT_FALSE(lamp.two_sided);
+  ASSERT_EQ(s.point_lights.size(), 1u);
+  EXPECT_EQ(s.point_lights[0].position, Vec3(1.f, 2.f, 3.f));
+  EXPECT_EQ(s.point_lights[0].intensity, Vec3(5.f));
+  ASSERT_EQ(s.spot_lights.size(), 1u);
+  EXPECT_EQ(s.spot_lights[0].direction, Vec3(0.f, -1.f, 0.f));
+  EXPECT_EQ(s.spot_lights[0].beam_width_deg, 22.5f);  // 3/4 of the cutoff
+  ASSERT_EQ(s.directional_lights.size(), 1u);
+  // Defaults and plain numbers are Mitsuba's white, D65 as its RGB variants see it.
+  EXPECT_NEAR(s.directional_lights[0].irradiance.x, 1.00108f, 1e-5f);
+  ASSERT_TRUE(s.environment.has_value());
+  EXPECT_NEAR(s.environment->scale.x, 2.00216f, 1e-5f);
+}
+
+TEST_F(MitsubaLoader, IncludesDefaultsAndParametersAreResolvedInOrder) {
+  dir_.write("parts/ball.xml",
+             R"(<scene version="3.0.0"><default name="r" value="0.5"/>
+                <shape type="sphere"><float name="radius" value="$r"/></shape></scene>)");
+  const Scene a = load(R"(<include filename="parts/ball.xml"/>)");
+  ASSERT_EQ(a.spheres.size(), 1u);
+  EXPECT_EQ(a.spheres[0].radius, 0.5f);
+  const Scene b = load(R"(<include filename="parts/ball.xml"/>)", {{"r", "2"}});
+  EXPECT_EQ(b.spheres[0].radius, 2.f);  // a value from outside beats the <default>
+  const Scene c = load(R"(<default name="r" value="3"/><default name="rr" value="4"/>
+      <shape type="sphere"><float name="radius" value="$rr"/></shape>)");
+  EXPECT_EQ(c.spheres[0].radius, 4.f);  // the longest name wins
+  EXPECT_TRUE(c.referenced.empty());  // the scene file itself is not listed
+  ASSERT_EQ(a.referenced.size(), 1u);
+  EXPECT_EQ(a.referenced[0], fs::path("parts/ball.xml"));  // an include travels with the scene
+}
+
+TEST_F(MitsubaLoader, BadInputNamesTheFileTheLineAndTheElement) {
+  expect_error("<scene version=\"3.0.0\"><shape type=\"sphere\"></scene>", {"s.xml:1:", "malformed XML"});
+  expect_error("<scene><shape type=\"sphere\"/></scene>", {"no version attribute"});
+  expect_error(scene("", "0.6.0"), {"version \"0.6.0\"", "2.x and 3.x"});
+  expect_error(scene("\n<shape type=\"teapot\"/>"), {"s.xml:9: <shape type=\"teapot\">", "not supported"});
+  expect_error(scene("\n<shape type=\"sphere\"><string name=\"radius\" value=\"1\"/></shape>"),
+               {"s.xml:9: <string name=\"radius\">", "expected a <float>"});
+  expect_error(scene("\n<shape type=\"sphere\"><float name=\"radius\" value=\"$big\"/></shape>"),
+               {"s.xml:9:", "$big has no value", "-D big=VALUE"});
+  expect_error(scene("\n<shape type=\"sphere\"><float name=\"radius\" value=\"1x\"/></shape>"),
+               {"s.xml:9:", "not a list of numbers"});
+  expect_error(scene("\n<shape type=\"sphere\"><float name=\"shininess\" value=\"1\"/></shape>"),
+               {"\"shininess\"", "not supported"});
+  expect_error(scene("\n<shape type=\"sphere\"><bsdf type=\"principled\"/></shape>"),
+               {"<bsdf type=\"principled\">", "not supported"});
+  expect_error(scene("\n<shape type=\"sphere\"><ref id=\"nothing\"/></shape>"),
+               {"no element has the id \"nothing\""});
+  expect_error(scene("<include filename=\"s.xml\"/>"), {"cycle"});
+  expect_error(scene("<include filename=\"missing.xml\"/>"), {"no file missing.xml"});
+  expect_error(scene("<shape type=\"obj\"><string name=\"filename\" value=\"/etc/passwd\"/></shape>"),
+               {"absolute path"});
+  expect_error(scene("<shape type=\"obj\"><string name=\"filename\" value=\"../quad.obj\"/></shape>"),
+               {"lies outside", "--scene-root"});
+  expect_error(scene("<path value=\"..\"/>"), {"outside"});
+  expect_error(scene("<medium type=\"homogeneous\"/>"), {"<medium", "not supported"});
+  expect_error(scene("<emitter type=\"area\"/>"), {"belongs inside a <shape>"});
+  // Inside the root, what lies above the scene's folder is readable.
+  dir_.write("quad.obj", kQuad);
+  const fs::path up = dir_.write(
+      "sub/up.xml", scene("<shape type=\"obj\"><string name=\"filename\" value=\"../quad.obj\"/></shape>"));
+  const Scene s = load_mitsuba_scene(up, {}, SceneImages::kCheckOnly, dir_.path());
+  ASSERT_EQ(s.referenced.size(), 1u);
+  EXPECT_EQ(s.referenced[0], fs::path("../quad.obj"));
+}
+
+TEST_F(MitsubaLoader, ABundleCarriesTheFilesAboveTheSceneAndTheParameters) {
+  dir_.write("common/quad.obj", kQuad);
+  const fs::path file = dir_.write(
+      "scenes/a/s.xml", scene("<path value=\"../../common\"/><default name=\"n\" value=\"16\"/>"
+                              "<shape type=\"obj\"><string name=\"filename\" value=\"quad.obj\"/>"
+                              "<float name=\"unused\" value=\"$n\"/></shape>"));
+  EXPECT_THROW(pack_mitsuba_scene(file, dir_.path(), {}), SceneError);  // "unused" is unread
+  dir_.write("scenes/a/s.xml",
+             scene("<path value=\"../../common\"/><default name=\"n\" value=\"1\"/>"
+                   "<shape type=\"obj\"><string name=\"filename\" value=\"quad.obj\"/>"
+                   "<transform name=\"to_world\"><scale value=\"$n\"/></transform></shape>"));
+  const PackedScene packed = pack_mitsuba_scene(file, dir_.path(), {{"n", "3"}});
+  testing::TempDir cache;
+  const fs::path unpacked = unpack_bundle(packed.bundle, cache.path(), packed.hash);
+  const Scene s = load_mitsuba_scene(unpacked / packed.scene_path, {}, SceneImages::kCheckOnly,
+                                     unpacked);
+  ASSERT_EQ(s.meshes.size(), 1u);
+  EXPECT_EQ(s.meshes[0].positions[1].x, 3.f);  // -D n=3 travelled with the bundle
+}
+
+}  // namespace
+}  // namespace rayfarm
