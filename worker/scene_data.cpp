@@ -8,6 +8,7 @@
 
 #include "common/math/wide.h"
 #include "common/scene/instances.h"
+#include "worker/bsdfs/microfacet.h"
 
 namespace rayfarm {
 namespace {
@@ -46,6 +47,7 @@ float sphere_point_error(const Vec3& center, float radius) {
 SceneData::SceneData(const Scene& scene) : scene_(scene) {
   flattened_ = flatten_instances(scene_, true);
   build_textures();
+  build_coat_tables();
   std::vector<Bvh::Mesh> meshes;
   for (const TriangleMesh& mesh : scene_.meshes) {
     mesh_offset_.push_back(triangles_.size());
@@ -143,6 +145,27 @@ void SceneData::build_textures() {
   }
   // The decoded files now live in the texture set; the scene's copies are not needed.
   for (TextureDesc& t : scene_.textures) t.image.reset();
+}
+
+void SceneData::build_coat_tables() {
+  for (Material& m : scene_.materials) {
+    auto* p = std::get_if<PlasticMaterial>(&m.kind);
+    if (p == nullptr) continue;
+    const bool textured = p->alpha.is_textured();
+    // Below kSmoothAlpha the coating is smooth, and its model needs no table.
+    if (!textured && !(p->alpha.value >= kSmoothAlpha)) continue;
+    const float alpha = textured ? 0.f : p->alpha.value;
+    for (const auto& t : coat_tables_) {
+      if (t->ior() == p->ior && t->type() == p->distribution && t->textured() == textured &&
+          t->alpha() == alpha)
+        p->coat_table = t.get();
+    }
+    if (p->coat_table == nullptr) {
+      coat_tables_.push_back(
+          std::make_unique<RoughCoatTable>(p->ior, p->distribution, alpha, textured));
+      p->coat_table = coat_tables_.back().get();
+    }
+  }
 }
 
 void SceneData::set_light_index(uint32_t geom, uint32_t prim, int32_t light) {

@@ -13,6 +13,7 @@
 
 #include "common/math/vec2.h"
 #include "common/scene/scene.h"
+#include "worker/bsdfs/rough_coat.h"
 #include "worker/embree/bvh.h"
 #include "worker/textures/texture_set.h"
 
@@ -191,6 +192,9 @@ class SceneData {
   SurfaceHit resolve_sphere(const Ray& ray, const RayHit& hit) const;
   SurfaceHit resolve_instanced(const RayHit& hit) const;
   void build_textures();
+  // The tables of the rough plastics' coatings, one per distinct (ior, distribution, alpha),
+  // their addresses written into the materials.
+  void build_coat_tables();
   // Surface needs per material, and the cut-out filters of the BVH's geometries (world meshes,
   // spheres, and the meshes of groups).
   void build_surface(std::vector<Bvh::Mesh>& meshes, const Bvh::HitFilter*& sphere_filter,
@@ -216,6 +220,7 @@ class SceneData {
   std::vector<Bvh::HitFilter> group_filters_;
   std::unique_ptr<Bvh> bvh_;
   TextureSet textures_;
+  std::vector<std::unique_ptr<RoughCoatTable>> coat_tables_;
   uint64_t degenerate_ = 0;
   // Groups: their triangles in object space, stored once; group_first_mesh_ indexes
   // group_mesh_offset_ (one entry per mesh of every group, in order).

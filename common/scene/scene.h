@@ -126,6 +126,8 @@ struct ThinDielectricMaterial {
   static constexpr auto textured() { return std::make_tuple(&ThinDielectricMaterial::tint); }
 };
 
+class RoughCoatTable;  // worker/bsdfs/rough_coat.h
+
 /// A diffuse base under a smooth (alpha 0) or rough (GGX or Beckmann) dielectric coating.
 struct PlasticMaterial {
   static constexpr const char* kName = "plastic";
@@ -134,6 +136,9 @@ struct PlasticMaterial {
   TexturedFloat alpha = 0.f;  ///< roughness of the coating; 0 = smooth
   bool nonlinear = false;  ///< internal reflections darken and saturate the base's colour
   MicrofacetType distribution = MicrofacetType::kGgx;
+  /// What a rough coating lets through to the base, tabulated by the worker when it prepares
+  /// the scene (worker/bsdfs/rough_coat.h); null until then, and for a smooth coating.
+  const RoughCoatTable* coat_table = nullptr;
   static constexpr auto textured() {
     return std::make_tuple(&PlasticMaterial::diffuse_reflectance, &PlasticMaterial::alpha);
   }

@@ -1,37 +1,12 @@
 #include "worker/bsdfs/plastic.h"
 
-#include <array>
 #include <cmath>
 
 #include "worker/bsdfs/dielectric.h"
+#include "worker/bsdfs/gauss_legendre.h"
 
 namespace rayfarm {
 namespace {
-
-/// Nodes and weights of the n-point Gauss-Legendre rule on [0, 1] (Newton on P_n).
-template <int N>
-struct GaussLegendre {
-  std::array<double, N> x{}, w{};
-  GaussLegendre() {
-    for (int i = 0; i < N; ++i) {
-      double z = std::cos(3.141592653589793 * (i + 0.75) / (N + 0.5)), dp = 1.0;
-      for (int it = 0; it < 100; ++it) {
-        double p0 = 1.0, p1 = z;
-        for (int k = 2; k <= N; ++k) {
-          const double p2 = ((2.0 * k - 1.0) * z * p1 - (k - 1.0) * p0) / k;
-          p0 = p1;
-          p1 = p2;
-        }
-        dp = N * (z * p1 - p0) / (z * z - 1.0);
-        const double dz = p1 / dp;
-        z -= dz;
-        if (std::fabs(dz) < 1e-15) break;
-      }
-      x[i] = 0.5 * (1.0 - z);
-      w[i] = 1.0 / ((1.0 - z * z) * dp * dp);  // 2 / ((1 - z^2) P'^2), halved for [0, 1]
-    }
-  }
-};
 
 /// 2 * integral over [0, 1] of F(c, eta) c dc: smooth in c when eta >= 1 (no total internal
 /// reflection), where 32 Gauss-Legendre nodes are exact to float precision.
@@ -58,19 +33,30 @@ PlasticBsdf::PlasticBsdf(const PlasticMaterial& m)
     : ior_(m.ior),
       facets_(m.distribution, m.alpha, m.alpha),
       base_weight_(luminance(m.diffuse_reflectance)) {
-  // Constructed at every path vertex: the one integral is remembered per thread for the last
-  // index asked, which in most scenes is the only one.
-  thread_local float last_ior = -1.f, last_fdr = 0.f;
-  if (m.ior != last_ior) {
-    last_fdr = internal_diffuse_reflectance(m.ior);
-    last_ior = m.ior;
+  float internal = 0.f;
+  if (facets_.is_smooth()) {
+    // Constructed at every path vertex: the one integral is remembered per thread for the last
+    // index asked, which in most scenes is the only one.
+    thread_local float last_ior = -1.f, last_fdr = 0.f;
+    if (m.ior != last_ior) {
+      last_fdr = internal_diffuse_reflectance(m.ior);
+      last_ior = m.ior;
+    }
+    internal = last_fdr;
+  } else {
+    const RoughCoatTable& table =
+        m.coat_table ? *m.coat_table : unprepared_rough_coat(m.ior, m.distribution, m.alpha);
+    coat_ = table.at(m.alpha);
+    internal = coat_.internal;
   }
   const Vec3& rho = m.diffuse_reflectance;
-  const Vec3 denom = m.nonlinear ? Vec3(1.f) - rho * last_fdr : Vec3(1.f - last_fdr);
+  const Vec3 denom = m.nonlinear ? Vec3(1.f) - rho * internal : Vec3(1.f - internal);
   const float scale = kInvPi / (m.ior * m.ior);
   diffuse_ = rho * scale / denom;
   for (int c = 0; c < 3; ++c) {
-    if (!(denom[c] > 0.f)) diffuse_ = Vec3(0.f);  // ior 0+ reflects everything back inside
+    // ior 0+ reflects everything back inside, and its 1 / ior^2 overflows: no light reaches
+    // the base then (T is 0), so the base adds nothing.
+    if (!(denom[c] > 0.f) || !std::isfinite(diffuse_[c])) diffuse_ = Vec3(0.f);
   }
 }
 
@@ -79,22 +65,27 @@ float PlasticBsdf::fresnel(float cos_i) const {
   return fresnel_dielectric(cos_i, ior_, cos_t);
 }
 
-float PlasticBsdf::coat_probability(float fresnel_o) const {
-  const float coat = fresnel_o, base = (1.f - fresnel_o) * base_weight_;
+float PlasticBsdf::coat_probability(float reflected_o, float transmitted_o) const {
+  const float coat = reflected_o, base = transmitted_o * base_weight_;
   return coat + base > 0.f ? coat / (coat + base) : 1.f;
 }
 
 Vec3 PlasticBsdf::eval_upper(const Vec3& wo, const Vec3& wi) const {
-  Vec3 f = diffuse_ * ((1.f - fresnel(wi.z)) * (1.f - fresnel(wo.z)) * wi.z);
+  Vec3 f = diffuse_ * (transmittance(wi.z) * transmittance(wo.z) * wi.z);
   if (!facets_.is_smooth()) {
     const Vec3 wm = normalize(wo + wi);
-    f += Vec3(facets_.d(wm) * facets_.g(wo, wi) * fresnel(dot(wo, wm)) / (4.f * wo.z));
+    // Masking and shadowing uncorrelated, G1(wo) G1(wi): the lobe whose albedo is the R that
+    // the coat's tables integrate over the visible normals (rough_coat.h), so that T + R <= 1.
+    const float g = facets_.g1(wo) * facets_.g1(wi);
+    f += Vec3(facets_.d(wm) * g * fresnel(dot(wo, wm)) / (4.f * wo.z));
   }
   return f;
 }
 
 float PlasticBsdf::pdf_upper(const Vec3& wo, const Vec3& wi) const {
-  const float p_coat = coat_probability(fresnel(wo.z));
+  float r_o = 0.f, t_o = 0.f;
+  shares(wo.z, r_o, t_o);
+  const float p_coat = coat_probability(r_o, t_o);
   float pdf = (1.f - p_coat) * wi.z * kInvPi;
   if (!facets_.is_smooth()) {
     const Vec3 wm = normalize(wo + wi);
@@ -121,13 +112,14 @@ bool PlasticBsdf::sample(const Vec3& wo_in, float u_lobe, float u1, float u2,
   if (wo_in.z == 0.f) return false;
   const bool flip = wo_in.z < 0.f;
   const Vec3 wo = to_upper(wo_in, flip);
-  const float f_o = fresnel(wo.z);
-  const float p_coat = coat_probability(f_o);
+  float r_o = 0.f, t_o = 0.f;
+  shares(wo.z, r_o, t_o);
+  const float p_coat = coat_probability(r_o, t_o);
   Vec3 wi;
   if (u_lobe < p_coat) {
     if (facets_.is_smooth()) {
       out.wi = to_upper(reflect_z(wo), flip);
-      out.weight = Vec3(f_o / p_coat);
+      out.weight = Vec3(r_o / p_coat);
       out.pdf = 0.f;
       out.specular = true;
       return true;

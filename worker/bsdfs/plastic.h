@@ -1,13 +1,16 @@
 #pragma once
 // A diffuse base under a dielectric coating, smooth (alpha 0: a Dirac reflection) or rough (GGX
-// or Beckmann microfacets). Light enters the coating (1 - F(wi)), scatters diffusely off the base,
-// and leaves (1 - F(wo)); what the coating reflects back inside returns to the base, which the
-// factor 1 / (1 - Fdr_int) (or, `nonlinear`, 1 / (1 - Fdr_int rho)) sums. On both sides (mirrored
-// to wo's side).
+// or Beckmann microfacets). Light enters the coating, scatters diffusely off the base, and
+// leaves; what the coating reflects back inside returns to the base, which the factor
+// 1 / (1 - Ri) (or, `nonlinear`, 1 / (1 - Ri rho)) sums. A smooth coating passes 1 - F(mu) of the
+// light at cosine mu and Ri is the Fresnel reflectance's diffuse average from inside; a rough
+// one passes T(mu), what its micro-facets refract inwards, and Ri is its own reflectance's
+// diffuse average from inside (rough_coat.h). On both sides (mirrored to wo's side).
 #include "common/scene/scene.h"
 #include "worker/bsdfs/bsdf_sample.h"
 #include "worker/bsdfs/microfacet.h"
 #include "worker/bsdfs/microfacet_distribution.h"
+#include "worker/bsdfs/rough_coat.h"
 
 namespace rayfarm {
 
@@ -27,20 +30,37 @@ class PlasticBsdf {
   Vec3 eval(const Vec3& wo, const Vec3& wi) const;
   /// Density of sample()'s non-Dirac directions.
   float pdf(const Vec3& wo, const Vec3& wi) const;
-  /// The coating's reflection (Dirac when smooth) or the base, chosen by their Fresnel-weighted
-  /// shares.
+  /// The coating's reflection (Dirac when smooth) or the base, chosen by their shares: the
+  /// coat's reflectance (F, or 1 - T when rough) against the light it lets through times the
+  /// base's luminance.
   bool sample(const Vec3& wo, float u_lobe, float u1, float u2, BsdfSample& out) const;
 
  private:
   float fresnel(float cos_i) const;
-  /// Probability that sample() picks the coating's reflection, for wo on the upper side.
-  float coat_probability(float fresnel_o) const;
+  /// Fraction of the light at cosine mu that the coating lets through to the base.
+  float transmittance(float mu) const {
+    return facets_.is_smooth() ? 1.f - fresnel(mu) : coat_.transmittance(mu);
+  }
+  /// What the coating reflects (r) and lets through (t) at cosine mu: r is F itself when smooth.
+  void shares(float mu, float& r, float& t) const {
+    if (facets_.is_smooth()) {
+      r = fresnel(mu);
+      t = 1.f - r;
+    } else {
+      t = coat_.transmittance(mu);
+      r = 1.f - t;
+    }
+  }
+  /// Probability that sample() picks the coating's reflection, for wo on the upper side, given
+  /// what the coating reflects and lets through at wo.
+  float coat_probability(float reflected_o, float transmitted_o) const;
   Vec3 eval_upper(const Vec3& wo, const Vec3& wi) const;
   float pdf_upper(const Vec3& wo, const Vec3& wi) const;
 
   float ior_;
   MicrofacetDistribution facets_;
-  Vec3 diffuse_;       // rho / (pi eta^2 (1 - Fdr_int [rho]))
+  RoughCoatTable::Coat coat_;  // rough only
+  Vec3 diffuse_;               // rho / (pi eta^2 (1 - Ri [rho]))
   float base_weight_;  // luminance of rho: the base's share before Fresnel
 };
 
