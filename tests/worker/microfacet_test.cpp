@@ -140,9 +140,9 @@ const std::vector<Case>& cases() {
     v.push_back(make_case("smooth white plastic", plastic(Vec3(1.f), 0.f), 1.0));
     for (float a : {0.1f, 0.3f, 0.8f})
       v.push_back(make_case("rough plastic alpha " + std::to_string(a), plastic(Vec3(0.5f), a), a));
-    PlasticMaterial beckmann = plastic(Vec3(0.5f), 0.3f);
-    beckmann.distribution = MicrofacetType::kBeckmann;
-    v.push_back(make_case("rough plastic beckmann alpha 0.3", beckmann, 0.3));
+    PlasticMaterial beckmann_plastic = plastic(Vec3(0.5f), 0.3f);
+    beckmann_plastic.distribution = MicrofacetType::kBeckmann;
+    v.push_back(make_case("rough plastic beckmann alpha 0.3", beckmann_plastic, 0.3));
     PlasticMaterial dark = plastic(Vec3(0.02f, 0.2f, 0.1f), 1.f);
     dark.distribution = MicrofacetType::kBeckmann;
     dark.nonlinear = true;
