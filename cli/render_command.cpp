@@ -107,8 +107,8 @@ int run_render(const RenderArgs& args) {
 
   Renderer renderer(scene, settings);
   drop_images(scene);  // the renderer holds its own texels
-  log->info("{}: {}x{}, {} spp, seed {}; {}", args.source.scene, scene.film.width, scene.film.height,
-            settings.spp, settings.seed, renderer.plan());
+  log->info("{}: {}x{}, {} spp, seed {}; {}", args.source.scene, scene.film.width,
+            scene.film.height, settings.spp, settings.seed, renderer.plan());
   if (options.stop.target_error > 0 || options.stop.time_limit_s > 0) {
     log->info("stopping rules: {} spp{}{}", settings.spp,
               options.stop.target_error > 0
@@ -163,10 +163,11 @@ int run_render(const RenderArgs& args) {
     write_png_preview(args.output, film_to_image(film, attributes));
   }
   write_error_csv(error_csv_path(args.output), rows);
-  write_error_plot(error_plot_path(args.output), rows,
-                   fmt::format("{} ({}, {})", std::filesystem::path(args.source.scene).filename().string(),
-                               integrator_name(settings.integrator),
-                               tracker.has_reference() ? "estimated and measured" : "estimated"));
+  write_error_plot(
+      error_plot_path(args.output), rows,
+      fmt::format("{} ({}, {})", std::filesystem::path(args.source.scene).filename().string(),
+                  integrator_name(settings.integrator),
+                  tracker.has_reference() ? "estimated and measured" : "estimated"));
 
   const double samples = static_cast<double>(film.pixel_samples());
   const double spp_mean = samples / (double(scene.film.width) * scene.film.height);

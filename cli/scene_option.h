@@ -28,11 +28,14 @@ struct SceneArgs {
       bool ok = eq != std::string::npos && eq > 0;
       for (size_t i = 0; ok && i < eq; ++i)
         ok = std::isalnum(static_cast<unsigned char>(d[i])) != 0 || d[i] == '_';
-      if (!ok) throw std::invalid_argument("-D " + d + ": expected NAME=VALUE, NAME of letters, digits and _");
+      if (!ok)
+        throw std::invalid_argument("-D " + d +
+                                    ": expected NAME=VALUE, NAME of letters, digits and _");
       // A value travels to the farm inside an XML attribute: nothing there may change it.
       for (size_t i = eq + 1; ok && i < d.size(); ++i)
         ok = d[i] != '$' && static_cast<unsigned char>(d[i]) >= 0x20;
-      if (!ok) throw std::invalid_argument("-D " + d + ": a value may not hold '$' or control characters");
+      if (!ok)
+        throw std::invalid_argument("-D " + d + ": a value may not hold '$' or control characters");
       out[d.substr(0, eq)] = d.substr(eq + 1);
     }
     return out;
@@ -79,8 +82,9 @@ inline void add_scene_options(CLI::App* cmd, SceneArgs& args) {
   cmd->add_option("--scene-root", args.root,
                   "Mitsuba XML scenes: the folder the scene may read files from (default: the "
                   "scene's own folder)");
-  cmd->add_option("-D,--define", args.defines,
-                  "Mitsuba XML scenes: NAME=VALUE, the value of $NAME (over the scene's <default>)");
+  cmd->add_option(
+      "-D,--define", args.defines,
+      "Mitsuba XML scenes: NAME=VALUE, the value of $NAME (over the scene's <default>)");
 }
 
 }  // namespace rayfarm::cli

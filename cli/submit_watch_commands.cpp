@@ -10,12 +10,12 @@
 
 #include <fmt/format.h>
 
-#include "cli/scene_option.h"
 #include "cli/farm_client.h"
 #include "cli/farm_commands.h"
 #include "cli/farm_output.h"
 #include "cli/film_option.h"
 #include "cli/output_path.h"
+#include "cli/scene_option.h"
 #include "cli/stop_options.h"
 #include "common/bundle/bundle.h"
 #include "common/limits.h"

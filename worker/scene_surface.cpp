@@ -124,8 +124,8 @@ bool SceneData::opaque_at(uint32_t material, const Vec2& uv, const Vec3& p, uint
   return !(alpha < m.alpha_cutoff);
 }
 
-bool SceneData::covered_in_group(uint32_t group, uint32_t geom, uint32_t prim, float u,
-                                 float v, const Vec3& p) const {
+bool SceneData::covered_in_group(uint32_t group, uint32_t geom, uint32_t prim, float u, float v,
+                                 const Vec3& p) const {
   const size_t mesh = group_first_mesh_[group] + geom;
   const uint32_t material = group_triangles_[group_mesh_offset_[mesh] + prim].material;
   return opaque_at(material, triangle_uv(scene_.groups[group].meshes[geom], prim, u, v), p, prim);

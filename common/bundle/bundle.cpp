@@ -277,11 +277,20 @@ PackedScene pack_mitsuba_scene(const fs::path& xml_file, const fs::path& scene_r
     std::string out;
     for (const char c : text) {
       switch (c) {
-        case '&': out += "&amp;"; break;
-        case '<': out += "&lt;"; break;
-        case '>': out += "&gt;"; break;
-        case '"': out += "&quot;"; break;
-        default: out += c;
+        case '&':
+          out += "&amp;";
+          break;
+        case '<':
+          out += "&lt;";
+          break;
+        case '>':
+          out += "&gt;";
+          break;
+        case '"':
+          out += "&quot;";
+          break;
+        default:
+          out += c;
       }
     }
     return out;
@@ -291,9 +300,11 @@ PackedScene pack_mitsuba_scene(const fs::path& xml_file, const fs::path& scene_r
   for (const auto& [name, value] : parameters)
     xml += "  <default name=\"" + escape(name) + "\" value=\"" + escape(value) + "\"/>\n";
   xml += "  <include filename=\"" + escape(scene.filename().generic_string()) + "\"/>\n</scene>\n";
-  std::string wrapper = (scene.parent_path() / (scene.stem().string() + ".defines.xml")).generic_string();
+  std::string wrapper =
+      (scene.parent_path() / (scene.stem().string() + ".defines.xml")).generic_string();
   std::vector<BundleFile> files = packed.bundle.files;
-  while (std::any_of(files.begin(), files.end(), [&](const BundleFile& f) { return f.path == wrapper; }))
+  while (std::any_of(files.begin(), files.end(),
+                     [&](const BundleFile& f) { return f.path == wrapper; }))
     wrapper.insert(wrapper.size() - 4, "_");
   files.push_back({wrapper, xml});
   packed.scene_path = wrapper;

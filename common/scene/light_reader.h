@@ -17,7 +17,8 @@ void read_lights(const scene_json::Node& n, const std::filesystem::path& folder,
 /// Fails at `file_node` when a texel of the environment image times `scale` has a luminance
 /// beyond the float range (the worker's light would have infinite power), and warns about
 /// samples it takes as black (negative, infinite, NaN).
-void check_environment_radiance(const scene_json::Node& file_node, const std::filesystem::path& file,
-                                const DecodedImage& image, const Vec3& scale);
+void check_environment_radiance(const scene_json::Node& file_node,
+                                const std::filesystem::path& file, const DecodedImage& image,
+                                const Vec3& scale);
 
 }  // namespace rayfarm

@@ -28,7 +28,8 @@ WideVec3 unit(const WideVec3& v) {
 void collect_ids(const XmlElement& e, std::map<std::string, const XmlElement*>& ids) {
   for (const XmlElement& c : e.children) {
     if (const std::string* id = c.find("id"); id != nullptr && c.tag != "ref") {
-      if (!ids.emplace(*id, &c).second) c.fail("the id \"" + printable(*id, 64) + "\" is given twice");
+      if (!ids.emplace(*id, &c).second)
+        c.fail("the id \"" + printable(*id, 64) + "\" is given twice");
     }
     collect_ids(c, ids);
   }
@@ -58,13 +59,15 @@ void read_integrator(Context& ctx, const XmlElement& e, RenderSettings& r, int n
   }
   const int64_t depth = p.integer("max_depth", -1, -1, INT32_MAX);
   (void)p.integer("rr_depth", 5, 1, INT32_MAX);  // roulette changes the noise, not the image
-  if (p.boolean("hide_emitters", false)) p.find("hide_emitters")->fail("hide_emitters is not supported");
+  if (p.boolean("hide_emitters", false))
+    p.find("hide_emitters")->fail("hide_emitters is not supported");
   p.finish();
   if (depth == 0) e.fail("max_depth 0 renders nothing");
   if (depth == -1 || depth - 1 > int64_t{kMaxDepth}) {
-    ctx.warn_once("depth", e, "paths are cut at " + std::to_string(kMaxDepth) +
-                                  " scattering vertices, rayfarm's most (Mitsuba's max_depth " +
-                                  std::to_string(kMaxDepth + 1) + ")");
+    ctx.warn_once("depth", e,
+                  "paths are cut at " + std::to_string(kMaxDepth) +
+                      " scattering vertices, rayfarm's most (Mitsuba's max_depth " +
+                      std::to_string(kMaxDepth + 1) + ")");
     r.max_depth = kMaxDepth;
   } else {
     r.max_depth = static_cast<uint32_t>(depth - 1);
@@ -86,11 +89,13 @@ double x_fov(Props& p, double aspect) {
     std::string f = given != nullptr ? value_of(*given) : "50mm";
     if (f.size() > 2 && f.compare(f.size() - 2, 2, "mm") == 0) f.resize(f.size() - 2);
     const std::vector<double> mm = parse_numbers(given != nullptr ? *given : p.element(), f);
-    if (mm.size() != 1 || !(mm[0] > 0.0)) p.element().fail("focal_length must be a positive length in mm");
+    if (mm.size() != 1 || !(mm[0] > 0.0))
+      p.element().fail("focal_length must be a positive length in mm");
     fov = 2.0 * degrees(std::atan(std::sqrt(36.0 * 36.0 + 24.0 * 24.0) / (2.0 * mm[0])));
     axis = "diagonal";
   }
-  if (!(fov > 0.0 && fov < 180.0)) p.element().fail("the field of view must lie in (0, 180) degrees");
+  if (!(fov > 0.0 && fov < 180.0))
+    p.element().fail("the field of view must lie in (0, 180) degrees");
   if (axis == "x") return fov;
   if (axis == "y") return degrees(2.0 * std::atan(std::tan(0.5 * radians(fov)) * aspect));
   if (axis == "diagonal") {
@@ -102,17 +107,22 @@ double x_fov(Props& p, double aspect) {
 
 void read_film(Context& ctx, const XmlElement& e, Camera& camera) {
   Props p(e, ctx);
-  if (type_of(e) != "hdrfilm") e.fail("the film \"" + printable(type_of(e), 32) + "\" is not supported (hdrfilm is)");
-  const int64_t w = p.integer("width", 768, 1, kMaxFilmSide), h = p.integer("height", 576, 1, kMaxFilmSide);
-  const int64_t cx = p.integer("crop_offset_x", 0, 0, w - 1), cy = p.integer("crop_offset_y", 0, 0, h - 1);
-  const int64_t cw = p.integer("crop_width", w - cx, 1, w - cx), ch = p.integer("crop_height", h - cy, 1, h - cy);
+  if (type_of(e) != "hdrfilm")
+    e.fail("the film \"" + printable(type_of(e), 32) + "\" is not supported (hdrfilm is)");
+  const int64_t w = p.integer("width", 768, 1, kMaxFilmSide),
+                h = p.integer("height", 576, 1, kMaxFilmSide);
+  const int64_t cx = p.integer("crop_offset_x", 0, 0, w - 1),
+                cy = p.integer("crop_offset_y", 0, 0, h - 1);
+  const int64_t cw = p.integer("crop_width", w - cx, 1, w - cx),
+                ch = p.integer("crop_height", h - cy, 1, h - cy);
   if (cw * ch > kMaxFilmPixels) e.fail("the film has more pixels than the limit of 2^26");
   const auto filters = p.plugins("rfilter");
   const std::string filter = filters.empty() ? "gaussian" : type_of(*filters[0]);
   if (filter != "box") {
-    ctx.warn_once("rfilter", filters.empty() ? e : *filters[0],
-                  "the reconstruction filter \"" + printable(filter, 32) +
-                      "\" is not supported: rayfarm's box filter is used (each pixel's own samples)");
+    ctx.warn_once(
+        "rfilter", filters.empty() ? e : *filters[0],
+        "the reconstruction filter \"" + printable(filter, 32) +
+            "\" is not supported: rayfarm's box filter is used (each pixel's own samples)");
   }
   p.finish({"pixel_format", "component_format", "file_format", "banner", "high_quality_edges",
             "sample_border", "compensate"});
@@ -129,7 +139,8 @@ void read_sensor(Context& ctx, const XmlElement& e) {
   Props p(e, ctx);
   const std::string type = type_of(e);
   if (type != "perspective" && type != "thinlens" && type != "orthographic")
-    e.fail("the sensor \"" + printable(type, 32) + "\" is not supported (perspective, thinlens and orthographic are)");
+    e.fail("the sensor \"" + printable(type, 32) +
+           "\" is not supported (perspective, thinlens and orthographic are)");
   Camera& c = ctx.scene.camera;
   const auto films = p.plugins("film");
   if (films.size() > 1) e.fail("a sensor has one film");
@@ -143,7 +154,8 @@ void read_sensor(Context& ctx, const XmlElement& e) {
     ctx.scene.render.spp = static_cast<uint32_t>(s.integer("sample_count", 4, 1, kMaxSpp));
     s.finish({"seed", "jitter"});
     if (type_of(*samplers[0]) != "independent") {
-      ctx.warn_once("sampler", *samplers[0], "rayfarm's own sampler is used (the image converges to the same)");
+      ctx.warn_once("sampler", *samplers[0],
+                    "rayfarm's own sampler is used (the image converges to the same)");
     }
   }
   const Transform t = p.transform("to_world");
@@ -158,7 +170,8 @@ void read_sensor(Context& ctx, const XmlElement& e) {
   c.look_at = to_vec({eye.x + forward.x, eye.y + forward.y, eye.z + forward.z});
   if (type == "orthographic") {
     const double sx = length(x), sy = length(y);
-    if (std::fabs(sx - sy) > 1e-6 * sx) e.fail("an orthographic sensor's to_world must scale x and y alike");
+    if (std::fabs(sx - sy) > 1e-6 * sx)
+      e.fail("an orthographic sensor's to_world must scale x and y alike");
     c.projection = Camera::Projection::kOrthographic;
     c.view_height = static_cast<float>(2.0 * sy / aspect);
     p.finish({"near_clip", "far_clip"});
@@ -166,7 +179,8 @@ void read_sensor(Context& ctx, const XmlElement& e) {
   }
   if (t.uniform_scale() == 0.0 || std::fabs(t.uniform_scale() - 1.0) > 1e-5)
     e.fail("scale factors in a camera's to_world are not allowed");
-  c.fov_y_deg = static_cast<float>(degrees(2.0 * std::atan(std::tan(0.5 * radians(x_fov(p, aspect))) / aspect)));
+  c.fov_y_deg = static_cast<float>(
+      degrees(2.0 * std::atan(std::tan(0.5 * radians(x_fov(p, aspect))) / aspect)));
   for (const char* k : {"principal_point_offset_x", "principal_point_offset_y"}) {
     if (p.number(k, 0.0) != 0.0) p.find(k)->fail("an off-centre principal point is not supported");
   }
@@ -202,7 +216,8 @@ void read_emitter(Context& ctx, const XmlElement& e) {
     l.beam_width_deg = static_cast<float>(p.number("beam_width", l.cutoff_deg * 0.75));
     if (p.find("texture") != nullptr) e.fail("a textured spot light is not supported");
     p.finish();
-    if (!(l.cutoff_deg > 0.f && l.cutoff_deg <= 90.f)) e.fail("cutoff_angle must lie in (0, 90] degrees");
+    if (!(l.cutoff_deg > 0.f && l.cutoff_deg <= 90.f))
+      e.fail("cutoff_angle must lie in (0, 90] degrees");
     if (!(l.beam_width_deg >= 0.f && l.beam_width_deg <= l.cutoff_deg))
       e.fail("beam_width must lie in [0, cutoff_angle]");
     scene.spot_lights.push_back(l);
@@ -232,13 +247,14 @@ void read_emitter(Context& ctx, const XmlElement& e) {
       for (int i = 0; i < 3; ++i) {
         for (int j = 0; j < 3; ++j) env.rotation[3 * i + j] = t.at(i, j);
       }
-      if (t.at(0, 3) != 0.0 || t.at(1, 3) != 0.0 || t.at(2, 3) != 0.0 || std::fabs(t.uniform_scale() - 1.0) > 1e-5 ||
-          !(t.determinant() > 0.0))
+      if (t.at(0, 3) != 0.0 || t.at(1, 3) != 0.0 || t.at(2, 3) != 0.0 ||
+          std::fabs(t.uniform_scale() - 1.0) > 1e-5 || !(t.determinant() > 0.0))
         e.fail("an envmap's to_world must be a rotation");
       scene_json::Json null;
       scene_json::Context jc{e.where(), &scene.warnings};
       scene_json::Node at(null, jc, "filename");
-      env.image = decode_scene_image(at, ctx.files.scene_dir, env.file, SceneImages::kKeep, "environment image");
+      env.image = decode_scene_image(at, ctx.files.scene_dir, env.file, SceneImages::kKeep,
+                                     "environment image");
       check_environment_radiance(at, env.file, *env.image, env.scale);
       if (ctx.images == SceneImages::kCheckOnly) env.image.reset();
     }
@@ -247,7 +263,8 @@ void read_emitter(Context& ctx, const XmlElement& e) {
   } else if (type == "area") {
     e.fail("an area emitter belongs inside a <shape>");
   } else {
-    e.fail("the emitter \"" + printable(type, 40) + "\" is not supported (docs/mitsuba.md lists the emitters rayfarm reads)");
+    e.fail("the emitter \"" + printable(type, 40) +
+           "\" is not supported (docs/mitsuba.md lists the emitters rayfarm reads)");
   }
 }
 
@@ -264,7 +281,9 @@ Scene load_mitsuba_scene(const fs::path& file, const SceneCheck& check, SceneIma
   const XmlElement* sensor = nullptr;
   const XmlElement* integrator = nullptr;
   for (const XmlElement& c : xml.root.children) {
-    const XmlElement*& slot = c.tag == "sensor" ? sensor : c.tag == "integrator" ? integrator : sensor;
+    const XmlElement*& slot = c.tag == "sensor"       ? sensor
+                              : c.tag == "integrator" ? integrator
+                                                      : sensor;
     if (c.tag != "sensor" && c.tag != "integrator") continue;
     if (slot != nullptr) c.fail("the scene has more than one <" + c.tag + ">; rayfarm renders one");
     slot = &c;
@@ -284,9 +303,11 @@ Scene load_mitsuba_scene(const fs::path& file, const SceneCheck& check, SceneIma
     } else if (c.tag == "emitter") {
       read_emitter(ctx, c);
     } else if (c.tag == "bsdf" || c.tag == "texture") {
-      if (c.find("id") == nullptr) ctx.warn_once("unused " + c.tag, c, "ignored: it has no id, so nothing uses it");
+      if (c.find("id") == nullptr)
+        ctx.warn_once("unused " + c.tag, c, "ignored: it has no id, so nothing uses it");
     } else {
-      c.fail("<" + printable(c.tag, 32) + "> is not supported here (docs/mitsuba.md lists what is)");
+      c.fail("<" + printable(c.tag, 32) +
+             "> is not supported here (docs/mitsuba.md lists what is)");
     }
   }
   for (const fs::path& f : xml.files.read) scene.referenced.push_back(f);

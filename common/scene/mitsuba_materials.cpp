@@ -18,7 +18,8 @@ namespace {
 
 constexpr float kAirIor = 1.000277f;  // Mitsuba's "air", its default exterior
 
-std::shared_ptr<const DecodedImage> decode(Context& ctx, const XmlElement& at, const fs::path& rel) {
+std::shared_ptr<const DecodedImage> decode(Context& ctx, const XmlElement& at,
+                                           const fs::path& rel) {
   if (auto it = ctx.decoded.find(rel); it != ctx.decoded.end()) return it->second;
   const fs::path full = ctx.files.scene_dir / rel;
   std::string bytes;
@@ -41,7 +42,8 @@ std::shared_ptr<const DecodedImage> decode(Context& ctx, const XmlElement& at, c
             human_bytes(kMaxSceneTextureBytes));
   }
   std::shared_ptr<const DecodedImage> out;
-  if (ctx.images == SceneImages::kKeep) out = std::make_shared<const DecodedImage>(std::move(image));
+  if (ctx.images == SceneImages::kKeep)
+    out = std::make_shared<const DecodedImage>(std::move(image));
   ctx.decoded[rel] = out;
   return out;
 }
@@ -101,7 +103,8 @@ MicrofacetType distribution_of(Props& p) {
   const std::string d = p.string("distribution", "beckmann");
   if (d == "beckmann") return MicrofacetType::kBeckmann;
   if (d == "ggx") return MicrofacetType::kGgx;
-  p.find("distribution")->fail("distribution \"" + printable(d, 32) + "\": expected beckmann or ggx");
+  p.find("distribution")
+      ->fail("distribution \"" + printable(d, 32) + "\": expected beckmann or ggx");
 }
 
 /// alpha, or alpha_u and alpha_v (default 0.1).
@@ -132,7 +135,10 @@ MaterialKind conductor(Context& ctx, Props& p, UvKind uv, bool rough) {
     m.f0 = TexturedRgb(Vec3(1.f));
   } else if (!name.empty()) {
     const auto ior = named_conductor(name);
-    if (!ior) p.find("material")->fail("unknown conductor \"" + printable(name, 40) + "\"; known: " + named_conductor_choices());
+    if (!ior)
+      p.find("material")
+          ->fail("unknown conductor \"" + printable(name, 40) +
+                 "\"; known: " + named_conductor_choices());
     m.eta = ior->eta;
     m.k = ior->k;
   } else {
@@ -144,7 +150,8 @@ MaterialKind conductor(Context& ctx, Props& p, UvKind uv, bool rough) {
     m.eta = constant("eta", 0.f);
     m.k = constant("k", 1.f);
   }
-  m.specular_reflectance = textured_rgb(ctx, p.colour("specular_reflectance", Vec3(1.f), SpectrumRole::reflectance), uv);
+  m.specular_reflectance =
+      textured_rgb(ctx, p.colour("specular_reflectance", Vec3(1.f), SpectrumRole::reflectance), uv);
   if (rough) {
     m.distribution = distribution_of(p);
     std::tie(m.alpha_u, m.alpha_v) = roughness_of(ctx, p, uv);
@@ -159,7 +166,8 @@ MaterialKind conductor(Context& ctx, Props& p, UvKind uv, bool rough) {
 MaterialKind dielectric(Context& ctx, Props& p, UvKind uv, const std::string& type) {
   const float ior = relative_ior(p, 1.5046f);  // Mitsuba's default interior: BK7
   require_white(p, "specular_reflectance");
-  const TexturedRgb tint = textured_rgb(ctx, p.colour("specular_transmittance", Vec3(1.f), SpectrumRole::reflectance), uv);
+  const TexturedRgb tint = textured_rgb(
+      ctx, p.colour("specular_transmittance", Vec3(1.f), SpectrumRole::reflectance), uv);
   if (type == "thindielectric") {
     p.finish();
     return ThinDielectricMaterial{ior, tint};
@@ -179,15 +187,18 @@ MaterialKind dielectric(Context& ctx, Props& p, UvKind uv, const std::string& ty
 
 MaterialKind plastic(Context& ctx, Props& p, UvKind uv, bool rough) {
   PlasticMaterial m;
-  m.diffuse_reflectance = textured_rgb(ctx, p.colour("diffuse_reflectance", Vec3(0.5f), SpectrumRole::reflectance), uv);
+  m.diffuse_reflectance =
+      textured_rgb(ctx, p.colour("diffuse_reflectance", Vec3(0.5f), SpectrumRole::reflectance), uv);
   require_white(p, "specular_reflectance");
   m.ior = relative_ior(p, 1.49f);  // Mitsuba's default interior: polypropylene
   m.nonlinear = p.boolean("nonlinear", false);
   if (rough) {
     m.distribution = distribution_of(p);
     const Colour alpha = p.scalar("alpha", 0.1f);
-    if (alpha.texture != nullptr) p.find("alpha")->fail("a textured roughplastic alpha is not supported");
-    if (!(alpha.value.x >= 0.f && alpha.value.x <= 1.f)) p.find("alpha")->fail("alpha must lie in [0, 1]");
+    if (alpha.texture != nullptr)
+      p.find("alpha")->fail("a textured roughplastic alpha is not supported");
+    if (!(alpha.value.x >= 0.f && alpha.value.x <= 1.f))
+      p.find("alpha")->fail("alpha must lie in [0, 1]");
     m.alpha = TexturedFloat(alpha.value.x);
   }
   p.finish({"sample_visible"});
@@ -212,7 +223,8 @@ void convert(Context& ctx, const XmlElement& bsdf, UvKind uv, Material& m, int d
   const std::string type = type_of(bsdf);
   auto nested = [&]() -> const XmlElement& {
     const auto inner = p.plugins("bsdf");
-    if (inner.size() != 1) bsdf.fail("expects exactly one nested <bsdf>, got " + std::to_string(inner.size()));
+    if (inner.size() != 1)
+      bsdf.fail("expects exactly one nested <bsdf>, got " + std::to_string(inner.size()));
     return *inner[0];
   };
   if (type == "twosided") {
@@ -266,7 +278,8 @@ void convert(Context& ctx, const XmlElement& bsdf, UvKind uv, Material& m, int d
   }
   if (type == "diffuse") {
     DiffuseMaterial d;
-    d.albedo = textured_rgb(ctx, p.colour("reflectance", Vec3(0.5f), SpectrumRole::reflectance), uv);
+    d.albedo =
+        textured_rgb(ctx, p.colour("reflectance", Vec3(0.5f), SpectrumRole::reflectance), uv);
     p.finish();
     m.kind = d;
   } else if (type == "conductor" || type == "roughconductor") {
@@ -300,22 +313,27 @@ int32_t texture_of(Context& ctx, const XmlElement& tex, UvKind uv, bool as_colou
     desc.image = decode(ctx, tex, desc.file);
     desc.space = p.boolean("raw", false) ? ColourSpace::linear : ColourSpace::from_file;
     const std::string filter = p.string("filter_type", "bilinear");
-    if (filter == "nearest") desc.options.filter = TextureFilter::nearest;
-    else if (filter != "bilinear") p.find("filter_type")->fail("expected bilinear or nearest");
+    if (filter == "nearest")
+      desc.options.filter = TextureFilter::nearest;
+    else if (filter != "bilinear")
+      p.find("filter_type")->fail("expected bilinear or nearest");
     const TextureWrap wrap = wrap_of(tex, p.string("wrap_mode", "repeat"));
     desc.options.wrap_u = desc.options.wrap_v = wrap;
     p.finish({"format", "accel"});
   } else if (type == "checkerboard") {
     desc.kind = TextureDesc::Kind::kCheckerboard;
-    const Colour c0 = p.colour("color0", Vec3(0.4f), SpectrumRole::reflectance), c1 = p.colour("color1", Vec3(0.2f), SpectrumRole::reflectance);
-    if (c0.texture != nullptr || c1.texture != nullptr) tex.fail("textured checkerboard colours are not supported");
+    const Colour c0 = p.colour("color0", Vec3(0.4f), SpectrumRole::reflectance),
+                 c1 = p.colour("color1", Vec3(0.2f), SpectrumRole::reflectance);
+    if (c0.texture != nullptr || c1.texture != nullptr)
+      tex.fail("textured checkerboard colours are not supported");
     // Mitsuba's colour lookups give color0 where both UVs are in the same half of their unit,
     // its scalar lookups where they are not; rayfarm's checkerboard is the scalar one.
     desc.color0 = as_colour ? c1.value : c0.value;
     desc.color1 = as_colour ? c0.value : c1.value;
     p.finish();
   } else {
-    tex.fail("the texture \"" + printable(type, 40) + "\" is not supported (bitmap and checkerboard are)");
+    tex.fail("the texture \"" + printable(type, 40) +
+             "\" is not supported (bitmap and checkerboard are)");
   }
   const auto index = static_cast<int32_t>(ctx.scene.textures.size());
   ctx.scene.textures.push_back(std::move(desc));
@@ -342,7 +360,7 @@ uint32_t material_of(Context& ctx, const XmlElement* bsdf, UvKind uv) {
   const auto key = std::make_pair(bsdf, uv);
   if (auto it = ctx.materials.find(key); it != ctx.materials.end()) return it->second;
   Material m;
-  m.one_sided = true;  // Mitsuba's BSDFs are black from behind unless twosided
+  m.one_sided = true;      // Mitsuba's BSDFs are black from behind unless twosided
   m.shading_sided = true;  // behind the shading normal's horizon, that is
   if (bsdf == nullptr) {
     m.name = "default diffuse";

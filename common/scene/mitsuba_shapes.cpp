@@ -37,7 +37,8 @@ void smooth_normals(TriangleMesh& mesh) {
   std::vector<WideVec3> sum(mesh.positions.size(), WideVec3{0, 0, 0});
   for (size_t t = 0; t < mesh.triangle_count(); ++t) {
     const uint32_t* idx = &mesh.indices[3 * t];
-    const WideVec3 n = edge_cross(mesh.positions[idx[0]], mesh.positions[idx[1]], mesh.positions[idx[2]]);
+    const WideVec3 n =
+        edge_cross(mesh.positions[idx[0]], mesh.positions[idx[1]], mesh.positions[idx[2]]);
     const double len = length(n);
     if (!(len > 0.0)) continue;
     for (int j = 0; j < 3; ++j) {
@@ -54,8 +55,9 @@ void smooth_normals(TriangleMesh& mesh) {
   mesh.normals.resize(mesh.positions.size());
   for (size_t i = 0; i < sum.size(); ++i) {
     const double len = length(sum[i]);
-    mesh.normals[i] = len > 0.0 ? Vec3(float(sum[i].x / len), float(sum[i].y / len), float(sum[i].z / len))
-                                : Vec3(0.f);
+    mesh.normals[i] =
+        len > 0.0 ? Vec3(float(sum[i].x / len), float(sum[i].y / len), float(sum[i].z / len))
+                  : Vec3(0.f);
   }
 }
 
@@ -104,7 +106,8 @@ TriangleMesh disk() {
 }
 
 void flip(TriangleMesh& m) {
-  for (size_t t = 0; t < m.triangle_count(); ++t) std::swap(m.indices[3 * t + 1], m.indices[3 * t + 2]);
+  for (size_t t = 0; t < m.triangle_count(); ++t)
+    std::swap(m.indices[3 * t + 1], m.indices[3 * t + 2]);
   for (Vec3& n : m.normals) n = -1.f * n;
 }
 
@@ -186,7 +189,8 @@ void read_shape(Context& ctx, const XmlElement& shape, std::vector<TriangleMesh>
     const XmlElement* file = p.find("filename");
     if (file == nullptr) shape.fail("a mesh needs a filename");
     const fs::path rel = resolve_mitsuba_file(ctx.files, *file, value_of(*file));
-    MeshFile mf = type == "ply" ? load_ply(ctx.files.scene_dir, rel) : load_obj(ctx.files.scene_dir, rel, false);
+    MeshFile mf = type == "ply" ? load_ply(ctx.files.scene_dir, rel)
+                                : load_obj(ctx.files.scene_dir, rel, false);
     for (const fs::path& f : mf.files) {
       if (std::find(ctx.files.read.begin(), ctx.files.read.end(), f) == ctx.files.read.end())
         ctx.files.read.push_back(f);
@@ -195,8 +199,10 @@ void read_shape(Context& ctx, const XmlElement& shape, std::vector<TriangleMesh>
     mesh = std::move(mf.mesh);
     mesh.origin = rel.generic_string();
     if (p.boolean("flip_tex_coords", true)) uv = UvKind::kMeshFile;
-    if (p.boolean("face_normals", false)) mesh.normals.clear();
-    else if (mesh.normals.empty()) smooth_normals(mesh);
+    if (p.boolean("face_normals", false))
+      mesh.normals.clear();
+    else if (mesh.normals.empty())
+      smooth_normals(mesh);
   } else if (type == "rectangle") {
     mesh = rectangle();
   } else if (type == "cube") {

@@ -135,7 +135,8 @@ Transform operation(const XmlElement& op) {
   }
   if (op.tag == "matrix") {
     const std::vector<double> m = parse_numbers(op, value_of(op));
-    if (m.size() == 9) return Transform({m[0], m[1], m[2], 0, m[3], m[4], m[5], 0, m[6], m[7], m[8], 0});
+    if (m.size() == 9)
+      return Transform({m[0], m[1], m[2], 0, m[3], m[4], m[5], 0, m[6], m[7], m[8], 0});
     if (m.size() != 16) op.fail("a matrix has 9 or 16 numbers, got " + std::to_string(m.size()));
     if (m[12] != 0.0 || m[13] != 0.0 || m[14] != 0.0 || m[15] != 1.0)
       op.fail("a projective matrix (last row not 0 0 0 1) is not supported");
@@ -153,7 +154,8 @@ const XmlElement* Props::find(std::string_view name) {
   for (size_t i = 0; i < e_.children.size(); ++i) {
     const std::string* n = e_.children[i].find("name");
     if (n == nullptr || *n != name) continue;
-    if (found != nullptr) e_.children[i].fail("the parameter \"" + std::string(name) + "\" is given twice");
+    if (found != nullptr)
+      e_.children[i].fail("the parameter \"" + std::string(name) + "\" is given twice");
     found = &e_.children[i];
     read_[i] = true;
   }
@@ -182,9 +184,11 @@ int64_t Props::integer(std::string_view name, int64_t fallback, int64_t lo, int6
   const std::string& v = value_of(*e);
   int64_t out = 0;
   const auto [next, ec] = std::from_chars(v.data(), v.data() + v.size(), out);
-  if (ec != std::errc() || next != v.data() + v.size()) e->fail("\"" + printable(v, 40) + "\" is not an integer");
+  if (ec != std::errc() || next != v.data() + v.size())
+    e->fail("\"" + printable(v, 40) + "\" is not an integer");
   if (out < lo || out > hi) {
-    e->fail(std::to_string(out) + " lies outside [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+    e->fail(std::to_string(out) + " lies outside [" + std::to_string(lo) + ", " +
+            std::to_string(hi) + "]");
   }
   return out;
 }
@@ -238,13 +242,17 @@ Colour Props::colour(std::string_view name, const Vec3& fallback, SpectrumRole r
   }
   if (e->tag == "rgb") {
     const std::vector<double> v = parse_numbers(*e, value_of(*e));
-    if (v.size() == 1) c.value = Vec3(float(v[0]));
-    else if (v.size() == 3) c.value = Vec3(float(v[0]), float(v[1]), float(v[2]));
-    else e->fail("an RGB has 1 or 3 numbers, got " + std::to_string(v.size()));
+    if (v.size() == 1)
+      c.value = Vec3(float(v[0]));
+    else if (v.size() == 3)
+      c.value = Vec3(float(v[0]), float(v[1]), float(v[2]));
+    else
+      e->fail("an RGB has 1 or 3 numbers, got " + std::to_string(v.size()));
   } else if (e->tag == "float" || e->tag == "integer") {
     c.value = float(one_number(*e)) * white;
   } else if (e->tag == "spectrum") {
-    if (e->find("filename") != nullptr) e->fail("spectra from files are not supported; give wavelength:value pairs");
+    if (e->find("filename") != nullptr)
+      e->fail("spectra from files are not supported; give wavelength:value pairs");
     const std::string& text = value_of(*e);
     if (text.find(':') == std::string::npos) {
       const std::vector<double> v = parse_numbers(*e, text);
@@ -309,7 +317,8 @@ void Props::finish(std::initializer_list<std::string_view> ignored) {
     if (read_[i]) continue;
     const XmlElement& c = e_.children[i];
     const std::string* name = c.find("name");
-    const std::string label = name != nullptr ? "\"" + printable(*name, 64) + "\"" : "<" + printable(c.tag, 32) + ">";
+    const std::string label =
+        name != nullptr ? "\"" + printable(*name, 64) + "\"" : "<" + printable(c.tag, 32) + ">";
     bool harmless = false;
     for (std::string_view k : ignored) harmless = harmless || (name != nullptr && *name == k);
     if (harmless) {

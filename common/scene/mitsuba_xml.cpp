@@ -51,7 +51,8 @@ class Expander {
  public:
   Expander(XmlFiles& files, XmlParameters parameters)
       : files_(files), parameters_(std::move(parameters)) {
-    for (const auto& entry : parameters_) longest_name_ = std::max(longest_name_, entry.first.size());
+    for (const auto& entry : parameters_)
+      longest_name_ = std::max(longest_name_, entry.first.size());
   }
 
   /// Reads `file` (absolute), returning its root <scene> element with children expanded.
@@ -216,7 +217,7 @@ class Expander {
   size_t files_read_ = 0;
   size_t longest_name_ = 0;   // of the parameters: no longer text after a '$' can match one
   uint64_t bytes_read_ = 0;   // of every XML file
-  uint64_t substituted_ = 0;  // bytes of every value that held a '$' 
+  uint64_t substituted_ = 0;  // bytes of every value that held a '$'
 };
 
 }  // namespace
@@ -231,7 +232,8 @@ const std::string* XmlElement::find(std::string_view name) const {
 std::string XmlElement::where() const {
   std::string s = file + ":" + std::to_string(line) + ": <" + printable(tag, 64);
   for (const char* key : {"type", "name", "id"}) {
-    if (const std::string* v = find(key)) s += std::string(" ") + key + "=\"" + printable(*v, 64) + "\"";
+    if (const std::string* v = find(key))
+      s += std::string(" ") + key + "=\"" + printable(*v, 64) + "\"";
   }
   return s + ">";
 }

@@ -28,8 +28,8 @@ struct XmlElement {
 
 /// Paths the scene may read: its folder and any folder under `root`.
 struct XmlFiles {
-  std::filesystem::path root;         ///< absolute, normal: nothing outside it is read
-  std::filesystem::path scene_dir;    ///< absolute, normal: the scene file's folder
+  std::filesystem::path root;                 ///< absolute, normal: nothing outside it is read
+  std::filesystem::path scene_dir;            ///< absolute, normal: the scene file's folder
   std::vector<std::filesystem::path> search;  ///< absolute, newest first, then scene_dir
   std::vector<std::filesystem::path> read;    ///< every file read, relative to scene_dir
 };

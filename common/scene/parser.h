@@ -12,7 +12,6 @@
 
 namespace rayfarm {
 
-
 /// Loads, resolves (OBJ meshes, quads, triangles) and validates a scene file, decoding every
 /// texture image (kept, or dropped once checked: `images`). A ".gltf" or ".glb" file is read as
 /// glTF 2.0 (docs/gltf.md), through the camera `gltf` names; a JSON scene names its glTF file

@@ -220,7 +220,8 @@ TEST(MaterialReader, CoverageIsACutoffOrAProbability) {
   EXPECT_TRUE(m.has_alpha());
   EXPECT_EQ(m.alpha.value, 0.3f);
   const Scene cut = load_scene(dir.write(
-      "cut.json", scene_with_material(R"({"type": "diffuse", "opacity": 0.7, "coverage": "cutoff"})")));
+      "cut.json",
+      scene_with_material(R"({"type": "diffuse", "opacity": 0.7, "coverage": "cutoff"})")));
   EXPECT_FALSE(cut.materials.at(0).alpha_blend);
   EXPECT_FALSE(cut.materials.at(0).has_alpha());  // 0.7 is above the cutoff: wholly there
   expect_material_error(R"({"type": "diffuse", "opacity": 0.5, "coverage": "dither"})",

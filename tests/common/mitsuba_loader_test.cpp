@@ -31,8 +31,9 @@ std::string scene(const std::string& body, const std::string& version = "3.0.0")
   return "<scene version=\"" + version + "\">" + kSensor + body + "\n</scene>\n";
 }
 
-const char* kQuad = "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
-                    "f 1/1 2/2 3/3 4/4\n";
+const char* kQuad =
+    "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+    "f 1/1 2/2 3/3 4/4\n";
 
 class MitsubaLoader : public ::testing::Test {
  protected:
@@ -74,14 +75,19 @@ TEST_F(MitsubaLoader, DepthCountsSegmentsInMitsubaAndScatteringVerticesHere) {
   auto depth = [&](const std::string& integrator) {
     return load(integrator + "<shape type=\"sphere\"/>").render.max_depth;
   };
-  EXPECT_EQ(depth(R"(<integrator type="path"><integer name="max_depth" value="2"/></integrator>)"), 1u);
-  EXPECT_EQ(depth(R"(<integrator type="path"><integer name="max_depth" value="8"/></integrator>)"), 7u);
+  EXPECT_EQ(depth(R"(<integrator type="path"><integer name="max_depth" value="2"/></integrator>)"),
+            1u);
+  EXPECT_EQ(depth(R"(<integrator type="path"><integer name="max_depth" value="8"/></integrator>)"),
+            7u);
   EXPECT_EQ(depth(R"(<integrator type="moment"><integrator type="path">
-      <integer name="max_depth" value="1"/></integrator></integrator>)"), 0u);
+      <integer name="max_depth" value="1"/></integrator></integrator>)"),
+            0u);
   EXPECT_EQ(depth(R"(<integrator type="direct"/>)"), 1u);
-  expect_error(scene(R"(<integrator type="path"><integer name="max_depth" value="0"/></integrator>)"),
-               {"s.xml:", "max_depth 0 renders nothing"});
-  expect_error(scene(R"(<integrator type="bdpt"/>)"), {"<integrator type=\"bdpt\">", "not supported"});
+  expect_error(
+      scene(R"(<integrator type="path"><integer name="max_depth" value="0"/></integrator>)"),
+      {"s.xml:", "max_depth 0 renders nothing"});
+  expect_error(scene(R"(<integrator type="bdpt"/>)"),
+               {"<integrator type=\"bdpt\">", "not supported"});
 }
 
 TEST_F(MitsubaLoader, BsdfsBecomeMaterialsWithMitsubasDefaultsAndSides) {
@@ -119,8 +125,8 @@ TEST_F(MitsubaLoader, BsdfsBecomeMaterialsWithMitsubasDefaultsAndSides) {
 TEST_F(MitsubaLoader, SpectraAreConvertedAsMitsubasRgbModeDoes) {
   const Scene s = load(R"(<shape type="sphere"><bsdf type="diffuse">
     <spectrum name="reflectance" value="400:0.78, 500:0.78, 600:0.78, 700:0.78"/></bsdf></shape>)");
-  const Vec3 expected = spectrum_to_rgb({400, 500, 600, 700}, {0.78, 0.78, 0.78, 0.78},
-                                        SpectrumRole::reflectance);
+  const Vec3 expected =
+      spectrum_to_rgb({400, 500, 600, 700}, {0.78, 0.78, 0.78, 0.78}, SpectrumRole::reflectance);
   EXPECT_EQ(std::get<DiffuseMaterial>(s.materials[s.spheres[0].material].kind).albedo.value,
             expected);
   EXPECT_LT(expected.x, 0.78f);  // nothing below 400 nm or above 700 nm
@@ -138,7 +144,7 @@ TEST_F(MitsubaLoader, ShapesMasksAndMapsBecomeGeometryAndSurfaceProperties) {
       <bsdf type="mask"><float name="opacity" value="0.25"/><bsdf type="diffuse"/></bsdf></shape>)");
   ASSERT_EQ(s.meshes.size(), 5u);
   EXPECT_EQ(s.meshes[0].positions[1].x, 3.f);  // (1, -1, 0) scaled by 2, then moved by 1
-  EXPECT_FALSE(s.meshes[0].normals.empty());  // Mitsuba smooths a mesh without normals
+  EXPECT_FALSE(s.meshes[0].normals.empty());   // Mitsuba smooths a mesh without normals
   EXPECT_EQ(s.meshes[0].normals[0], Vec3(0.f, 0.f, 1.f));
   EXPECT_EQ(s.meshes[1].normals[0], Vec3(0.f, 0.f, -1.f));
   EXPECT_EQ(s.meshes[2].triangle_count(), 12u);
@@ -192,16 +198,18 @@ TEST_F(MitsubaLoader, IncludesDefaultsAndParametersAreResolvedInOrder) {
   const Scene c = load(R"(<default name="r" value="3"/><default name="rr" value="4"/>
       <shape type="sphere"><float name="radius" value="$rr"/></shape>)");
   EXPECT_EQ(c.spheres[0].radius, 4.f);  // the longest name wins
-  EXPECT_TRUE(c.referenced.empty());  // the scene file itself is not listed
+  EXPECT_TRUE(c.referenced.empty());    // the scene file itself is not listed
   ASSERT_EQ(a.referenced.size(), 1u);
   EXPECT_EQ(a.referenced[0], fs::path("parts/ball.xml"));  // an include travels with the scene
 }
 
 TEST_F(MitsubaLoader, BadInputNamesTheFileTheLineAndTheElement) {
-  expect_error("<scene version=\"3.0.0\"><shape type=\"sphere\"></scene>", {"s.xml:1:", "malformed XML"});
+  expect_error("<scene version=\"3.0.0\"><shape type=\"sphere\"></scene>",
+               {"s.xml:1:", "malformed XML"});
   expect_error("<scene><shape type=\"sphere\"/></scene>", {"no version attribute"});
   expect_error(scene("", "0.6.0"), {"version \"0.6.0\"", "2.x and 3.x"});
-  expect_error(scene("\n<shape type=\"teapot\"/>"), {"s.xml:9: <shape type=\"teapot\">", "not supported"});
+  expect_error(scene("\n<shape type=\"teapot\"/>"),
+               {"s.xml:9: <shape type=\"teapot\">", "not supported"});
   expect_error(scene("\n<shape type=\"sphere\"><string name=\"radius\" value=\"1\"/></shape>"),
                {"s.xml:9: <string name=\"radius\">", "expected a <float>"});
   expect_error(scene("\n<shape type=\"sphere\"><float name=\"radius\" value=\"$big\"/></shape>"),
@@ -216,10 +224,12 @@ TEST_F(MitsubaLoader, BadInputNamesTheFileTheLineAndTheElement) {
                {"no element has the id \"nothing\""});
   expect_error(scene("<include filename=\"s.xml\"/>"), {"cycle"});
   expect_error(scene("<include filename=\"missing.xml\"/>"), {"no file missing.xml"});
-  expect_error(scene("<shape type=\"obj\"><string name=\"filename\" value=\"/etc/passwd\"/></shape>"),
-               {"absolute path"});
-  expect_error(scene("<shape type=\"obj\"><string name=\"filename\" value=\"../quad.obj\"/></shape>"),
-               {"lies outside", "--scene-root"});
+  expect_error(
+      scene("<shape type=\"obj\"><string name=\"filename\" value=\"/etc/passwd\"/></shape>"),
+      {"absolute path"});
+  expect_error(
+      scene("<shape type=\"obj\"><string name=\"filename\" value=\"../quad.obj\"/></shape>"),
+      {"lies outside", "--scene-root"});
   expect_error(scene("<path value=\"..\"/>"), {"outside"});
   expect_error(scene("<medium type=\"homogeneous\"/>"), {"<medium", "not supported"});
   expect_error(scene("<emitter type=\"area\"/>"), {"belongs inside a <shape>"});
@@ -232,16 +242,18 @@ TEST_F(MitsubaLoader, BadInputNamesTheFileTheLineAndTheElement) {
                {"inside another"});
   expect_error(scene("<shape type=\"sphere\"><float name=\"radius\" value=\"1e300\"/></shape>"),
                {"beyond 1e17"});
-  expect_error(scene("<default name=\"a\" value=\"$a$a\"/><shape type=\"sphere\">"
-                     "<float name=\"radius\" value=\"$aaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaa\"/></shape>"),
-               {"$a"});
+  expect_error(
+      scene("<default name=\"a\" value=\"$a$a\"/><shape type=\"sphere\">"
+            "<float name=\"radius\" value=\"$aaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaa\"/></shape>"),
+      {"$a"});
   expect_error(scene("<shape type=\"sphere\"><bsdf type=\"mask\"><bsdf type=\"mask\">"
                      "<bsdf type=\"diffuse\"/></bsdf></bsdf></shape>"),
                {"a mask inside a mask"});
   // Inside the root, what lies above the scene's folder is readable.
   dir_.write("quad.obj", kQuad);
   const fs::path up = dir_.write(
-      "sub/up.xml", scene("<shape type=\"obj\"><string name=\"filename\" value=\"../quad.obj\"/></shape>"));
+      "sub/up.xml",
+      scene("<shape type=\"obj\"><string name=\"filename\" value=\"../quad.obj\"/></shape>"));
   const Scene s = load_mitsuba_scene(up, {}, SceneImages::kCheckOnly, dir_.path());
   ASSERT_EQ(s.referenced.size(), 1u);
   EXPECT_EQ(s.referenced[0], fs::path("../quad.obj"));
@@ -251,15 +263,18 @@ TEST_F(MitsubaLoader, AParameterMayNameTheFilesTheBundleCarries) {
   dir_.write("a.obj", kQuad);
   dir_.write("b.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
   const fs::path file = dir_.write(
-      "s.xml", scene("<shape type=\"obj\"><string name=\"filename\" value=\"$mesh.obj\"/></shape>"));
+      "s.xml",
+      scene("<shape type=\"obj\"><string name=\"filename\" value=\"$mesh.obj\"/></shape>"));
   const PackedScene packed = pack_mitsuba_scene(file, {}, {{"mesh", "b"}});
   bool has_b = false, has_a = false;
-  for (const BundleFile& f : packed.bundle.files) has_b |= f.path == "b.obj", has_a |= f.path == "a.obj";
+  for (const BundleFile& f : packed.bundle.files)
+    has_b |= f.path == "b.obj", has_a |= f.path == "a.obj";
   EXPECT_TRUE(has_b);
   EXPECT_FALSE(has_a);
   testing::TempDir cache;
   const fs::path unpacked = unpack_bundle(packed.bundle, cache.path(), packed.hash);
-  const Scene s = load_mitsuba_scene(unpacked / packed.scene_path, {}, SceneImages::kCheckOnly, unpacked);
+  const Scene s =
+      load_mitsuba_scene(unpacked / packed.scene_path, {}, SceneImages::kCheckOnly, unpacked);
   ASSERT_EQ(s.meshes.size(), 1u);
   EXPECT_EQ(s.meshes[0].triangle_count(), 1u);
 }
@@ -278,8 +293,8 @@ TEST_F(MitsubaLoader, ABundleCarriesTheFilesAboveTheSceneAndTheParameters) {
   const PackedScene packed = pack_mitsuba_scene(file, dir_.path(), {{"n", "3"}});
   testing::TempDir cache;
   const fs::path unpacked = unpack_bundle(packed.bundle, cache.path(), packed.hash);
-  const Scene s = load_mitsuba_scene(unpacked / packed.scene_path, {}, SceneImages::kCheckOnly,
-                                     unpacked);
+  const Scene s =
+      load_mitsuba_scene(unpacked / packed.scene_path, {}, SceneImages::kCheckOnly, unpacked);
   ASSERT_EQ(s.meshes.size(), 1u);
   EXPECT_EQ(s.meshes[0].positions[1].x, 3.f);  // -D n=3 travelled with the bundle
 }

@@ -308,7 +308,8 @@ TEST_F(CliTest, AMitsubaSceneReadsItsRootAndParametersLocallyAndOnTheFarmAlike) 
 </scene>
 )";
   // The root must be given: ../../common lies outside the scene's folder.
-  const RunResult outside = cli({"render", scene.string(), "-o", (dir() / "x.exr").string()}, false);
+  const RunResult outside =
+      cli({"render", scene.string(), "-o", (dir() / "x.exr").string()}, false);
   EXPECT_EQ(outside.code, 1);
   EXPECT_NE(outside.err.find("scene.xml:2: <path>"), std::string::npos) << outside.err;
   EXPECT_NE(outside.err.find("--scene-root"), std::string::npos) << outside.err;

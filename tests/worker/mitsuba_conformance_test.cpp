@@ -4,10 +4,10 @@
 //   - per pixel and channel, z = (ours - reference) / se_ours, where se_ours^2 is the variance of
 //     our pixel mean from the film's exact per-pixel sums, floored by Mitsuba's per-sample variance
 //     over our sample count (our estimate reads 0 at an edge none of our samples crossed) and by
-//     1e-4 / spp as Mitsuba floors its per-sample variance. Two-sided, at a family-wise significance of 0.01 corrected for the
-//     number of values (Sidak), as Mitsuba's test_renders.py does. The reference's own noise is
-//     left out: its per-sample variance divided by its sample count (thousands) is small beside
-//     ours divided by our few hundred samples.
+//     1e-4 / spp as Mitsuba floors its per-sample variance. Two-sided, at a family-wise
+//     significance of 0.01 corrected for the number of values (Sidak), as Mitsuba's test_renders.py
+//     does. The reference's own noise is left out: its per-sample variance divided by its sample
+//     count (thousands) is small beside ours divided by our few hundred samples.
 //   - per 8x8 block and channel, and per channel over the blocks (chi-square), the block z test of
 //     tests/support/reference_compare.h with the reference's variance taken as zero: a small bias
 //     spread over many pixels shows there before any pixel fails.
@@ -103,8 +103,8 @@ TEST_P(MitsubaConformance, MatchesMitsubasReference) {
       const double se = std::sqrt(var[i]);
       const double z = (mean[i] - ref.rgb[i]) / se;
       max_z = std::max(max_z, std::fabs(z));
-      const double z_m = std::fabs(mean[i] - ref.rgb[i]) /
-                         std::sqrt(std::max(double(ref_var.rgb[i]), 1e-4) / n);
+      const double z_m =
+          std::fabs(mean[i] - ref.rgb[i]) / std::sqrt(std::max(double(ref_var.rgb[i]), 1e-4) / n);
       max_z_mitsuba = std::max(max_z_mitsuba, z_m);
       fails_mitsuba += z_m >= z_limit;
     }
@@ -116,7 +116,8 @@ TEST_P(MitsubaConformance, MatchesMitsubasReference) {
     Image ours = ref, diff = ref;  // the reference's size and header
     for (size_t i = 0; i < values; ++i) {
       ours.rgb[i] = static_cast<float>(mean[i]);
-      diff.rgb[i] = static_cast<float>(std::fabs(mean[i] - ref.rgb[i]) / std::sqrt(var[i]) / z_limit);
+      diff.rgb[i] =
+          static_cast<float>(std::fabs(mean[i] - ref.rgb[i]) / std::sqrt(var[i]) / z_limit);
     }
     const std::string base = std::string(dump) + "/" + c.name;
     write_exr(base + "-ours.exr", ours);
@@ -128,7 +129,8 @@ TEST_P(MitsubaConformance, MatchesMitsubasReference) {
     std::cout << c.name << ": a known difference (" << c.known << "); image means:";
     for (int ch = 0; ch < 3; ++ch) {
       double ours = 0.0, theirs = 0.0;
-      for (size_t p = 0; p < size_t{w} * h; ++p) ours += mean[p * 3 + ch], theirs += ref_mean[p * 3 + ch];
+      for (size_t p = 0; p < size_t{w} * h; ++p)
+        ours += mean[p * 3 + ch], theirs += ref_mean[p * 3 + ch];
       std::cout << " " << ours / theirs;
       EXPECT_NEAR(ours / theirs, 1.0, 0.03) << c.name << ", channel " << ch;
     }
@@ -141,9 +143,9 @@ TEST_P(MitsubaConformance, MatchesMitsubasReference) {
   }
   for (size_t i = 0; i < values && c.pixels_printed == nullptr; ++i) {
     const double z = (mean[i] - ref_mean[i]) / std::sqrt(var[i]);
-    EXPECT_LT(std::fabs(z), z_limit) << c.name << ": pixel (" << i / 3 % w << ", " << i / 3 / w
-                                     << ") channel " << i % 3 << ": ours " << mean[i]
-                                     << " reference " << ref_mean[i] << " se " << std::sqrt(var[i]);
+    EXPECT_LT(std::fabs(z), z_limit)
+        << c.name << ": pixel (" << i / 3 % w << ", " << i / 3 / w << ") channel " << i % 3
+        << ": ours " << mean[i] << " reference " << ref_mean[i] << " se " << std::sqrt(var[i]);
   }
   testing::expect_agreement(testing::reduce_to_blocks(mean, var, w, h),
                             testing::reduce_to_blocks(ref_mean, zero, w, h), c.name);

@@ -65,7 +65,7 @@ class EnvironmentLight {
   double total_weight_ = 0.0;        // sum of weight_
   std::array<float, 9> to_world_{};  // row-major rotation, world from map
   double power_ = 0.0;
-  bool bilinear_ = false;            // EnvironmentMap::bilinear
+  bool bilinear_ = false;  // EnvironmentMap::bilinear
 };
 
 }  // namespace rayfarm
