@@ -222,6 +222,23 @@ PackedScene pack_loaded(const fs::path& scene_file, const Scene& scene) {
   return packed;
 }
 
+/// Adds `text` to the bundle as the file `stem` + `suffix` (with '_'s before the suffix while
+/// that name is taken) and makes it the bundle's scene: a small scene file that names the real
+/// one and says what the command line said.
+void add_wrapper(PackedScene& packed, const std::string& stem, const std::string& suffix,
+                 const std::string& text) {
+  std::string wrapper = stem + suffix;
+  std::vector<BundleFile> files = packed.bundle.files;
+  while (std::any_of(files.begin(), files.end(),
+                     [&](const BundleFile& f) { return f.path == wrapper; })) {
+    wrapper.insert(wrapper.size() - suffix.size(), "_");
+  }
+  files.push_back({wrapper, text});
+  packed.scene_path = wrapper;
+  packed.bundle = make_bundle(std::move(files));
+  packed.hash = bundle_hash(packed.bundle);
+}
+
 }  // namespace
 
 PackedScene pack_scene(const fs::path& scene_file, const fs::path& scene_root) {
@@ -251,17 +268,8 @@ PackedScene pack_gltf_scene(const fs::path& gltf_file, const std::string& camera
   const fs::path gltf(packed.scene_path);
   const std::string json = "{\"gltf\": {\"file\": \"" + gltf.filename().generic_string() +
                            "\", \"camera\": \"" + name + "\"}}\n";
-  std::string wrapper =
-      (gltf.parent_path() / (gltf.filename().string() + ".camera.json")).generic_string();
-  std::vector<BundleFile> files = packed.bundle.files;
-  while (std::any_of(files.begin(), files.end(),
-                     [&](const BundleFile& f) { return f.path == wrapper; })) {
-    wrapper.insert(wrapper.size() - 5, "_");
-  }
-  files.push_back({wrapper, json});
-  packed.scene_path = wrapper;
-  packed.bundle = make_bundle(std::move(files));
-  packed.hash = bundle_hash(packed.bundle);
+  add_wrapper(packed, (gltf.parent_path() / gltf.filename()).generic_string(), ".camera.json",
+              json);
   return packed;
 }
 
@@ -300,16 +308,7 @@ PackedScene pack_mitsuba_scene(const fs::path& xml_file, const fs::path& scene_r
   for (const auto& [name, value] : parameters)
     xml += "  <default name=\"" + escape(name) + "\" value=\"" + escape(value) + "\"/>\n";
   xml += "  <include filename=\"" + escape(scene.filename().generic_string()) + "\"/>\n</scene>\n";
-  std::string wrapper =
-      (scene.parent_path() / (scene.stem().string() + ".defines.xml")).generic_string();
-  std::vector<BundleFile> files = packed.bundle.files;
-  while (std::any_of(files.begin(), files.end(),
-                     [&](const BundleFile& f) { return f.path == wrapper; }))
-    wrapper.insert(wrapper.size() - 4, "_");
-  files.push_back({wrapper, xml});
-  packed.scene_path = wrapper;
-  packed.bundle = make_bundle(std::move(files));
-  packed.hash = bundle_hash(packed.bundle);
+  add_wrapper(packed, (scene.parent_path() / scene.stem()).generic_string(), ".defines.xml", xml);
   return packed;
 }
 
