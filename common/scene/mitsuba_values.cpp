@@ -45,6 +45,18 @@ std::string type_of(const XmlElement& e) {
   return t == nullptr ? std::string() : *t;
 }
 
+namespace {
+
+/// `text` in quotes, made printable and cut at 80 characters, for messages.
+std::string quoted(const std::string& text) {
+  std::string out(1, '"');
+  out += printable(text, 80);
+  out += '"';
+  return out;
+}
+
+}  // namespace
+
 std::vector<double> parse_numbers(const XmlElement& at, const std::string& text) {
   std::vector<double> out;
   const char* p = text.data();
@@ -60,13 +72,13 @@ std::vector<double> parse_numbers(const XmlElement& at, const std::string& text)
     const auto [next, ec] = std::from_chars(p, end, v);
     if (ec != std::errc() || (next < end && !(*next == ',' || *next == ' ' || *next == '\t' ||
                                               *next == '\n' || *next == '\r'))) {
-      at.fail("\"" + printable(text, 80) + "\" is not a list of numbers (at \"" +
-              printable(std::string(start, std::min<size_t>(12, end - start))) + "\")");
+      const std::string here(start, std::min<size_t>(12, static_cast<size_t>(end - start)));
+      at.fail(quoted(text) + " is not a list of numbers (at " + quoted(here) + ")");
     }
     // Beyond 1e17 (rayfarm's largest coordinate) a number is no scene's, and as a float it may
     // overflow to infinity on the way.
     if (!(std::fabs(v) <= kMaxCoordinate))
-      at.fail("\"" + printable(text, 80) + "\" holds a number beyond 1e17 (or not finite)");
+      at.fail(quoted(text) + " holds a number beyond 1e17 (or not finite)");
     out.push_back(v);
     p = next;
   }

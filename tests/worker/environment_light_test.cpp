@@ -292,6 +292,36 @@ void expect_quad_radiance(const EnvironmentMap& env, double expected) {
   }
 }
 
+// A map read bilinearly (Mitsuba's envmap): texel centres at u = (i + 1/2) / width, rows from
+// pole to pole; every sample carries the radiance eval() gives its direction, and every
+// direction with light can be drawn (its density is positive).
+TEST(EnvironmentLightTest, BilinearMapsInterpolateBetweenTexelCentresAndSampleWhatTheyShow) {
+  EnvironmentMap map = image_map();
+  map.bilinear = true;
+  const Lights l(environment_scene(map));
+  const EnvironmentLight& env = *l.set.environment();
+  const DecodedImage& img = *map.image;
+  // At a texel's centre column and an exact row, the texel itself.
+  const Vec3 centre = env.eval(env.direction(5.5f / kW, 2.f / (kH - 1)));
+  EXPECT_LT(length(centre - texel(img, 5, 2)), 1e-4f * length(texel(img, 5, 2)));
+  // Halfway between two columns, their mean; columns wrap around at u = 0.
+  const Vec3 mid = env.eval(env.direction(1.f / kW, 3.f / (kH - 1)));
+  const Vec3 want = (texel(img, 0, 3) + texel(img, 1, 3)) * 0.5f;
+  EXPECT_LT(length(mid - want), 1e-4f * length(want));
+  const Vec3 seam = env.eval(env.direction(0.f, 3.f / (kH - 1)));
+  const Vec3 want_seam = (texel(img, kW - 1, 3) + texel(img, 0, 3)) * 0.5f;
+  EXPECT_LT(length(seam - want_seam), 1e-4f * length(want_seam));
+  Pcg32 rng(11, 3);
+  for (int i = 0; i < 20000; ++i) {
+    LightSample ls;
+    if (!env.sample(Vec3(0.f), 1.f, rng.next_float(), rng.next_float(), ls)) continue;
+    ASSERT_EQ(ls.radiance, env.eval(ls.wi)) << i;
+    const float u1 = rng.next_float(), u2 = rng.next_float();
+    const Vec3 d = env.direction(u1, u2);
+    if (!is_black(env.eval(d)) && std::sin(u2 * kPiD) > 1e-3) ASSERT_GT(env.pdf_direction(d), 0.f) << i;
+  }
+}
+
 TEST(EnvironmentRenderTest, DiffuseQuadUnderConstantEnvironmentIsAlbedoTimesRadiance) {
   EnvironmentMap env;
   env.scale = Vec3(0.5f, 2.f, 1.f);
