@@ -250,12 +250,10 @@ void read_emitter(Context& ctx, const XmlElement& e) {
       if (t.at(0, 3) != 0.0 || t.at(1, 3) != 0.0 || t.at(2, 3) != 0.0 ||
           std::fabs(t.uniform_scale() - 1.0) > 1e-5 || !(t.determinant() > 0.0))
         e.fail("an envmap's to_world must be a rotation");
-      scene_json::Json null;
-      scene_json::Context jc{e.where(), &scene.warnings};
-      scene_json::Node at(null, jc, "filename");
-      env.image = decode_scene_image(at, ctx.files.scene_dir, env.file, SceneImages::kKeep,
+      const At at(e, scene, "filename");
+      env.image = decode_scene_image(at.node, ctx.files.scene_dir, env.file, SceneImages::kKeep,
                                      "environment image");
-      check_environment_radiance(at, env.file, *env.image, env.scale);
+      check_environment_radiance(at.node, env.file, *env.image, env.scale);
       if (ctx.images == SceneImages::kCheckOnly) env.image.reset();
     }
     p.finish();

@@ -2,13 +2,10 @@
 // Wrappers (twosided, mask, bumpmap, normalmap) become the surface properties every rayfarm
 // material may carry; what rayfarm cannot render as Mitsuba would is an error naming the element.
 #include <cmath>
-#include <span>
 
-#include "common/image/decode_image.h"
 #include "common/limits.h"
 #include "common/scene/mitsuba_reader.h"
 #include "common/scene/spectra.h"
-#include "common/util/read_file.h"
 #include "common/util/text.h"
 
 namespace rayfarm::mitsuba {
@@ -21,29 +18,16 @@ constexpr float kAirIor = 1.000277f;  // Mitsuba's "air", its default exterior
 std::shared_ptr<const DecodedImage> decode(Context& ctx, const XmlElement& at,
                                            const fs::path& rel) {
   if (auto it = ctx.decoded.find(rel); it != ctx.decoded.end()) return it->second;
-  const fs::path full = ctx.files.scene_dir / rel;
-  std::string bytes;
-  try {
-    bytes = read_whole_file(full, kMaxTextureFileBytes);
-  } catch (const FileReadError& e) {
-    at.fail("image " + printable(rel.generic_string()) + ": " + e.what());
-  }
-  DecodedImage image;
-  try {
-    const auto* data = reinterpret_cast<const uint8_t*>(bytes.data());
-    image = decode_image(std::span<const uint8_t>(data, bytes.size()), rel.generic_string());
-  } catch (const SceneError& e) {
-    at.fail(e.what());
-  }
-  ctx.decoded_bytes += image.bytes.size() + image.floats.size() * sizeof(float);
+  uint64_t bytes = 0;
+  const At place(at, ctx.scene, "filename");
+  auto out =
+      decode_scene_image(place.node, ctx.files.scene_dir, rel, ctx.images, "texture image", &bytes);
+  ctx.decoded_bytes += bytes;
   if (ctx.decoded_bytes > kMaxSceneTextureBytes) {
     at.fail(printable(rel.generic_string()) + ": the scene's images hold " +
             human_bytes(ctx.decoded_bytes) + " of samples with this one, more than the limit of " +
             human_bytes(kMaxSceneTextureBytes));
   }
-  std::shared_ptr<const DecodedImage> out;
-  if (ctx.images == SceneImages::kKeep)
-    out = std::make_shared<const DecodedImage>(std::move(image));
   ctx.decoded[rel] = out;
   return out;
 }

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "common/math/transform.h"
+#include "common/scene/json_reader.h"
 #include "common/scene/mitsuba_xml.h"
 #include "common/scene/scene.h"
 #include "common/scene/spectra.h"
@@ -43,6 +44,16 @@ struct Context {
   const XmlElement& deref(const XmlElement& e) const;
   /// A scene_json node placed at `e`, for the shared readers that report through one.
   std::string where(const XmlElement& e) const { return e.where(); }
+};
+
+/// A scene_json node that reports at an XML element, for the readers shared with the JSON format
+/// (transforms, images): their messages then name the XML file, line and element.
+struct At {
+  scene_json::Json null;
+  scene_json::Context context;
+  scene_json::Node node;
+  At(const XmlElement& e, Scene& scene, const char* what)
+      : context{e.where(), &scene.warnings}, node(null, context, what) {}
 };
 
 /// A colour parameter: a constant, or a texture element (bitmap, checkerboard).

@@ -20,15 +20,6 @@ constexpr double kPi = 3.14159265358979323846;
 /// Segments of a disk's polygon: its area is short of the disk's by (2 pi / n)^2 / 6 = 2.5e-5.
 constexpr int kDiskSegments = 512;
 
-/// A scene_json node that reports at an XML element, for the readers shared with the JSON format.
-struct At {
-  scene_json::Json null;
-  scene_json::Context context;
-  scene_json::Node node;
-  At(const XmlElement& e, Scene& scene, const char* what)
-      : context{e.where(), &scene.warnings}, node(null, context, what) {}
-};
-
 Vec3 to_vec(const WideVec3& v) { return {float(v.x), float(v.y), float(v.z)}; }
 
 /// Mitsuba gives a mesh without normals smooth ones: each vertex the angle-weighted mean of its

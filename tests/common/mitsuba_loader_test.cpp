@@ -232,6 +232,14 @@ TEST_F(MitsubaLoader, BadInputNamesTheFileTheLineAndTheElement) {
       {"lies outside", "--scene-root"});
   expect_error(scene("<path value=\"..\"/>"), {"outside"});
   expect_error(scene("<medium type=\"homogeneous\"/>"), {"<medium", "not supported"});
+  dir_.write("sub/bad.png", "not an image");
+  expect_error(scene("<shape type=\"sphere\"><bsdf type=\"diffuse\"><texture name=\"reflectance\" "
+                     "type=\"bitmap\"><string name=\"filename\" value=\"bad.png\"/></texture>"
+                     "</bsdf></shape>"),
+               {"s.xml:", "<texture type=\"bitmap\"", "bad.png"});
+  expect_error(scene("<emitter type=\"envmap\"><string name=\"filename\" value=\"bad.png\"/>"
+                     "</emitter>"),
+               {"s.xml:", "<emitter type=\"envmap\">", "bad.png"});
   expect_error(scene("<emitter type=\"area\"/>"), {"belongs inside a <shape>"});
   // Bounds on what a hostile file can make the reader do.
   std::string deep;
