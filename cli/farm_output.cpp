@@ -67,7 +67,12 @@ nlohmann::json status_json(const wire::JobStatus& st) {
       {"integrator", st.state() == wire::JOB_STATE_UNSPECIFIED
                          ? nlohmann::json(nullptr)
                          : nlohmann::json(integrator_label(st.settings().integrator()))},
-      {"max_depth", st.settings().max_depth()},
+      {"max_depth", st.settings().max_depth() == kUnlimitedDepth
+                        ? nlohmann::json("unlimited")
+                        : nlohmann::json(st.settings().max_depth())},
+      {"sampler", st.settings().sampler() == wire::SAMPLER_SOBOL ? "sobol" : "independent"},
+      {"roulette", st.settings().roulette() == wire::ROULETTE_THROUGHPUT ? "throughput" : "update"},
+      {"roulette_depth", st.settings().roulette_depth()},
       {"seed", st.settings().seed()},
       {"clamp", st.settings().clamp()},
       {"tile_size", st.tile_size()},
@@ -125,9 +130,10 @@ void print_status(const wire::JobStatus& st) {
   }
   if (st.state() == wire::JOB_STATE_UNSPECIFIED) return;  // nothing else is known
   std::cout << fmt::format(
-      "image      {}x{}, {} spp, {}, max depth {}, seed {}{}\n", st.width(), st.height(),
-      st.settings().spp(), integrator_label(st.settings().integrator()), st.settings().max_depth(),
-      st.settings().seed(),
+      "image      {}x{}, {} spp, {}, max depth {}, seed {}, {} sampler{}\n", st.width(),
+      st.height(), st.settings().spp(), integrator_label(st.settings().integrator()),
+      depth_name(st.settings().max_depth()), st.settings().seed(),
+      st.settings().sampler() == wire::SAMPLER_SOBOL ? "sobol" : "independent",
       st.settings().clamp() > 0 ? fmt::format(", clamp {:g} (biased)", st.settings().clamp()) : "");
   std::cout << fmt::format(
       "work       tiles of {} px, passes of {} spp: {}/{} units ({:.1f}%), {} leased\n",

@@ -10,6 +10,7 @@
 #include "cli/commands.h"
 #include "cli/film_option.h"
 #include "cli/output_path.h"
+#include "cli/sampling_options.h"
 #include "cli/scene_option.h"
 #include "cli/stop_options.h"
 #include "common/image/film_output.h"
@@ -27,7 +28,8 @@ namespace {
 struct RenderArgs {
   SceneArgs source;
   std::string output;
-  std::optional<uint32_t> spp, max_depth, tile, pass_spp;
+  std::optional<uint32_t> spp, tile, pass_spp;
+  SamplingArgs sampling;
   std::optional<uint64_t> seed;
   std::optional<std::string> integrator;
   float clamp = 0.f;
@@ -87,7 +89,7 @@ int run_render(const RenderArgs& args) {
 
   RenderSettings settings = scene.render;
   if (args.spp) settings.spp = *args.spp;
-  if (args.max_depth) settings.max_depth = *args.max_depth;
+  args.sampling.apply(settings);
   if (args.seed) settings.seed = *args.seed;
   if (args.integrator) settings.integrator = *parse_integrator(*args.integrator);
   settings.clamp = args.clamp;
@@ -150,7 +152,10 @@ int run_render(const RenderArgs& args) {
   std::map<std::string, std::string> attributes{
       {"rayfarm:integrator", integrator_name(settings.integrator)},
       {"rayfarm:seed", std::to_string(settings.seed)},
-      {"rayfarm:max_depth", std::to_string(settings.max_depth)},
+      {"rayfarm:max_depth", depth_name(settings.max_depth)},
+      {"rayfarm:sampler", sampler_name(settings.sampler)},
+      {"rayfarm:roulette", roulette_name(settings.roulette)},
+      {"rayfarm:roulette_depth", std::to_string(settings.roulette_depth)},
       {"rayfarm:scene", std::filesystem::path(args.source.scene).filename().string()},
       {"rayfarm:stop", stop_reason_name(final_progress.reason)},
       {"rayfarm:est_rel_mse", fmt::format("{:.6g}", last.est_rel_mse)}};
@@ -215,7 +220,7 @@ void add_render_command(CLI::App& app, int& exit_code) {
   cmd->add_option("--spp", args->spp, "Samples per pixel (default: the scene's)");
   cmd->add_option("--integrator", args->integrator, "naive, nee or mis (default: the scene's)")
       ->check(CLI::IsMember({"naive", "nee", "mis"}));
-  cmd->add_option("--max-depth", args->max_depth, "Most scattering vertices per path");
+  add_sampling_options(cmd, args->sampling);
   cmd->add_option("--seed", args->seed, "Random seed (default: the scene's)");
   add_clamp_option(cmd, args->clamp);
   cmd->add_option("--threads", args->threads, "Threads (0 = all)")->capture_default_str();

@@ -15,6 +15,7 @@
 #include "cli/farm_output.h"
 #include "cli/film_option.h"
 #include "cli/output_path.h"
+#include "cli/sampling_options.h"
 #include "cli/scene_option.h"
 #include "cli/stop_options.h"
 #include "common/bundle/bundle.h"
@@ -89,7 +90,8 @@ int watch_job(StatusPoller& poller, const std::string& job, bool json) {
 struct SubmitArgs {
   ClientArgs client;
   SceneArgs source;
-  std::optional<uint32_t> spp, max_depth, tile, pass_spp;
+  std::optional<uint32_t> spp, tile, pass_spp;
+  SamplingArgs sampling;
   std::optional<uint64_t> seed;
   std::optional<std::string> integrator;
   std::string name;
@@ -119,7 +121,12 @@ int run_submit(const SubmitArgs& args) {
                                       : (folder / scene_file.filename()).generic_string());
   wire::JobOverrides* o = request.mutable_overrides();
   if (args.spp) o->set_spp(*args.spp);
-  if (args.max_depth) o->set_max_depth(*args.max_depth);
+  if (args.sampling.max_depth) o->set_max_depth(*parse_depth(*args.sampling.max_depth));
+  if (args.sampling.sampler)
+    o->set_sampler(protocol::sampler_to_wire(*parse_sampler(*args.sampling.sampler)));
+  if (args.sampling.roulette)
+    o->set_roulette(protocol::roulette_to_wire(*parse_roulette(*args.sampling.roulette)));
+  if (args.sampling.roulette_depth) o->set_roulette_depth(*args.sampling.roulette_depth);
   if (args.seed) o->set_seed(*args.seed);
   if (args.integrator)
     o->set_integrator(protocol::integrator_to_wire(*parse_integrator(*args.integrator)));
@@ -191,7 +198,7 @@ void add_submit(CLI::App& app, int& exit_code) {
   cmd->add_option("--spp", args->spp, "Samples per pixel (default: the scene's)");
   cmd->add_option("--integrator", args->integrator, "naive, nee or mis (default: the scene's)")
       ->check(CLI::IsMember({"naive", "nee", "mis"}));
-  cmd->add_option("--max-depth", args->max_depth, "Most scattering vertices per path");
+  add_sampling_options(cmd, args->sampling);
   cmd->add_option("--seed", args->seed, "Random seed (default: the scene's)");
   cmd->add_option("--tile", args->tile,
                   "Tile size in pixels (default " + std::to_string(kDefaultTileSize) +

@@ -72,12 +72,19 @@ inline constexpr uint64_t kMaxEmissiveInstancedTriangles = uint64_t{1} << 26;
 
 /// Most samples per pixel a scene or a job may ask for.
 inline constexpr uint32_t kMaxSpp = uint32_t{1} << 24;
-/// Most scattering vertices per path a scene or a job may ask for.
-inline constexpr uint32_t kMaxDepth = 1024;
+/// Most scattering vertices per path a scene or a job may ask for as a number; beyond it, only
+/// "unlimited" (kUnlimitedDepth).
+inline constexpr uint32_t kMaxDepth = 1000000;
+/// max_depth "unlimited": no cap, Russian roulette alone ends paths.
+inline constexpr uint32_t kUnlimitedDepth = 0xffffffffu;
 /// Samples per pixel when the scene does not say.
 inline constexpr uint32_t kDefaultSpp = 64;
-/// Scattering vertices per path when the scene does not say.
-inline constexpr uint32_t kDefaultMaxDepth = 16;
+/// Scattering vertices per path when the scene does not say: no cap.
+inline constexpr uint32_t kDefaultMaxDepth = kUnlimitedDepth;
+/// Vertex from which throughput roulette may end paths when the scene does not say.
+inline constexpr uint32_t kDefaultRouletteDepth = 3;
+/// Most a roulette_depth may be.
+inline constexpr uint32_t kMaxRouletteDepth = 1000000;
 /// Tile side in pixels when the job or the command line does not choose one (docs/protocol.md).
 inline constexpr uint32_t kDefaultTileSize = 64;
 /// Largest tile side a job may choose.

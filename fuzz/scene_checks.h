@@ -20,7 +20,10 @@ inline void check_scene(const Scene& s) {
   require(finite_within(s.camera.eye, 1e17f) && finite_within(s.camera.look_at, 1e17f),
           "camera position");
   require(s.camera.fov_y_deg > 0.f && s.camera.fov_y_deg < 180.f, "fov");
-  require(s.render.spp >= 1 && s.render.max_depth <= 1024, "render settings");
+  require(s.render.spp >= 1 &&
+              (s.render.max_depth <= kMaxDepth || s.render.max_depth == kUnlimitedDepth) &&
+              s.render.roulette_depth <= kMaxRouletteDepth,
+          "render settings");
   for (const Material& m : s.materials) {
     require(is_finite(m.emission.value) && min_component(m.emission.value) >= 0.f, "emission");
     if (const auto* d = std::get_if<DiffuseMaterial>(&m.kind)) {

@@ -153,6 +153,15 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
     throw JobRejected(fmt::format("clamp must be 0 (off) or positive, got {}", o.clamp()));
   }
   spec.settings.clamp = o.clamp();
+  if (o.has_roulette_depth()) spec.settings.roulette_depth = o.roulette_depth();
+  try {
+    if (o.sampler() != wire::SAMPLER_UNSPECIFIED)
+      spec.settings.sampler = protocol::sampler_from_wire(o.sampler());
+    if (o.roulette() != wire::ROULETTE_UNSPECIFIED)
+      spec.settings.roulette = protocol::roulette_from_wire(o.roulette());
+  } catch (const protocol::ProtocolError& e) {
+    throw JobRejected(e.what());
+  }
   if (o.integrator() != wire::INTEGRATOR_UNSPECIFIED) {
     try {
       spec.settings.integrator = protocol::integrator_from_wire(o.integrator());
@@ -163,9 +172,13 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
   if (spec.settings.spp == 0 || spec.settings.spp > kMaxSpp) {
     throw JobRejected(fmt::format("spp must be in [1, {}], got {}", kMaxSpp, spec.settings.spp));
   }
-  if (spec.settings.max_depth > kMaxDepth) {
-    throw JobRejected(
-        fmt::format("max depth must be at most {}, got {}", kMaxDepth, spec.settings.max_depth));
+  if (spec.settings.max_depth > kMaxDepth && spec.settings.max_depth != kUnlimitedDepth) {
+    throw JobRejected(fmt::format("max depth must be at most {} or unlimited ({}), got {}",
+                                  kMaxDepth, kUnlimitedDepth, spec.settings.max_depth));
+  }
+  if (spec.settings.roulette_depth > kMaxRouletteDepth) {
+    throw JobRejected(fmt::format("roulette depth must be at most {}, got {}", kMaxRouletteDepth,
+                                  spec.settings.roulette_depth));
   }
   spec.tile_size = o.tile_size() == 0 ? kDefaultTileSize : o.tile_size();
   if (spec.tile_size > kMaxTileSize) {

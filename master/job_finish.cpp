@@ -132,7 +132,10 @@ void JobManager::write_image(Job& job, bool wait) {
   std::map<std::string, std::string> attributes{
       {"rayfarm:integrator", integrator_name(s.settings.integrator)},
       {"rayfarm:seed", std::to_string(s.settings.seed)},
-      {"rayfarm:max_depth", std::to_string(s.settings.max_depth)},
+      {"rayfarm:max_depth", depth_name(s.settings.max_depth)},
+      {"rayfarm:sampler", sampler_name(s.settings.sampler)},
+      {"rayfarm:roulette", roulette_name(s.settings.roulette)},
+      {"rayfarm:roulette_depth", std::to_string(s.settings.roulette_depth)},
       {"rayfarm:scene", fs::path(s.scene_path).filename().string()},
       {"rayfarm:job", s.id},
       {"rayfarm:spp_target", std::to_string(s.settings.spp)}};

@@ -61,6 +61,9 @@ json to_json(const JobRecord& r) {
               {"integrator", integrator_name(s.settings.integrator)},
               {"seed", s.settings.seed},
               {"clamp", finite_or(s.settings.clamp, 0.0)},
+              {"sampler", sampler_name(s.settings.sampler)},
+              {"roulette", roulette_name(s.settings.roulette)},
+              {"roulette_depth", s.settings.roulette_depth},
               {"width", s.film.width},
               {"height", s.film.height},
               {"tile_size", s.tile_size},
@@ -100,6 +103,15 @@ JobRecord from_json(const json& j) {
   s.settings.seed = j.at("seed").get<uint64_t>();
   s.settings.clamp = static_cast<float>(number_or(j, "clamp", 0.0));
   if (!(s.settings.clamp >= 0)) throw std::runtime_error("negative clamp");
+  // Jobs stored before the sampler and the roulette rule were settings rendered with the
+  // independent stream and the update rule: they resume with those, sample for sample.
+  const auto sampler = parse_sampler(j.value("sampler", std::string("independent")));
+  if (!sampler) throw std::runtime_error("unknown sampler");
+  s.settings.sampler = *sampler;
+  const auto roulette = parse_roulette(j.value("roulette", std::string("update")));
+  if (!roulette) throw std::runtime_error("unknown roulette");
+  s.settings.roulette = *roulette;
+  s.settings.roulette_depth = j.value("roulette_depth", 0u);
   s.film.width = j.at("width").get<uint32_t>();
   s.film.height = j.at("height").get<uint32_t>();
   s.tile_size = j.at("tile_size").get<uint32_t>();

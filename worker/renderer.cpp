@@ -74,11 +74,11 @@ struct Renderer::Impl {
                     Fixed* sum, Fixed* sum_sq, uint64_t& nonfinite, PathStats& paths) const {
     const uint64_t pixel = uint64_t{y} * data.scene().film.width + x;
     for (uint32_t s = samples.begin; s < samples.end; ++s) {
-      Pcg32 rng = sample_stream(settings.seed, pixel, s);
-      const float jx = rng.next_float(), jy = rng.next_float();
-      const float lu = rng.next_float(), lv = rng.next_float();
-      const Ray ray = camera.generate(static_cast<float>(x) + jx, static_cast<float>(y) + jy, lu, lv);
-      const Vec3 l = path.li(ray, rng, paths);
+      PathSampler sampler(settings.sampler, settings.seed, pixel, s);
+      const std::array<float, 4> u = sampler.camera();
+      const Ray ray =
+          camera.generate(static_cast<float>(x) + u[0], static_cast<float>(y) + u[1], u[2], u[3]);
+      const Vec3 l = path.li(ray, sampler, paths);
       // A sample that is NaN, infinite or beyond the accumulator's range never reaches the film.
       if (!is_finite(l) || max_component(abs(l)) > kMaxSampleValue) {
         ++nonfinite;
@@ -287,7 +287,11 @@ std::string Renderer::plan() const {
       out += " (" + std::to_string(data.flattened_instances()) +
              " more of emissive groups placed as world meshes)";
   }
-  out += "; max_depth " + std::to_string(p.max_depth);
+  out +=
+      "; max_depth " + depth_name(p.max_depth) + ", " + roulette_name(p.roulette) + " roulette" +
+      (p.roulette == RouletteType::kThroughput ? " from vertex " + std::to_string(p.roulette_depth)
+                                               : std::string()) +
+      ", " + sampler_name(impl_->settings.sampler) + " sampler";
   return out;
 }
 

@@ -30,6 +30,26 @@ IntegratorType integrator_from_wire(wire::Integrator value) {
   throw ProtocolError("unknown integrator " + std::to_string(static_cast<int>(value)));
 }
 
+wire::Sampler sampler_to_wire(SamplerType type) {
+  return type == SamplerType::kSobol ? wire::SAMPLER_SOBOL : wire::SAMPLER_INDEPENDENT;
+}
+
+SamplerType sampler_from_wire(wire::Sampler value) {
+  if (value == wire::SAMPLER_SOBOL) return SamplerType::kSobol;
+  if (value == wire::SAMPLER_INDEPENDENT) return SamplerType::kIndependent;
+  throw ProtocolError("unknown sampler " + std::to_string(static_cast<int>(value)));
+}
+
+wire::Roulette roulette_to_wire(RouletteType type) {
+  return type == RouletteType::kThroughput ? wire::ROULETTE_THROUGHPUT : wire::ROULETTE_UPDATE;
+}
+
+RouletteType roulette_from_wire(wire::Roulette value) {
+  if (value == wire::ROULETTE_THROUGHPUT) return RouletteType::kThroughput;
+  if (value == wire::ROULETTE_UPDATE) return RouletteType::kUpdate;
+  throw ProtocolError("unknown roulette " + std::to_string(static_cast<int>(value)));
+}
+
 wire::RenderSettings settings_to_wire(const RenderSettings& settings) {
   wire::RenderSettings out;
   out.set_spp(settings.spp);
@@ -37,6 +57,9 @@ wire::RenderSettings settings_to_wire(const RenderSettings& settings) {
   out.set_integrator(integrator_to_wire(settings.integrator));
   out.set_seed(settings.seed);
   out.set_clamp(settings.clamp);
+  out.set_sampler(sampler_to_wire(settings.sampler));
+  out.set_roulette(roulette_to_wire(settings.roulette));
+  out.set_roulette_depth(settings.roulette_depth);
   return out;
 }
 
@@ -51,6 +74,17 @@ RenderSettings settings_from_wire(const wire::RenderSettings& settings) {
     throw ProtocolError("render settings with a clamp that is negative or not finite");
   }
   out.clamp = settings.clamp();
+  if (settings.max_depth() > kMaxDepth && settings.max_depth() != kUnlimitedDepth) {
+    throw ProtocolError("render settings with max_depth " + std::to_string(settings.max_depth()) +
+                        " (at most " + std::to_string(kMaxDepth) + ", or unlimited)");
+  }
+  out.sampler = sampler_from_wire(settings.sampler());
+  out.roulette = roulette_from_wire(settings.roulette());
+  if (settings.roulette_depth() > kMaxRouletteDepth) {
+    throw ProtocolError("render settings with roulette_depth " +
+                        std::to_string(settings.roulette_depth()));
+  }
+  out.roulette_depth = settings.roulette_depth();
   return out;
 }
 

@@ -27,6 +27,12 @@ inline constexpr size_t kFixedWireBytes = 16;
 wire::Integrator integrator_to_wire(IntegratorType type);
 /// Throws ProtocolError on INTEGRATOR_UNSPECIFIED or an unknown value.
 IntegratorType integrator_from_wire(wire::Integrator value);
+wire::Sampler sampler_to_wire(SamplerType type);
+/// Throws ProtocolError on SAMPLER_UNSPECIFIED or an unknown value.
+SamplerType sampler_from_wire(wire::Sampler value);
+wire::Roulette roulette_to_wire(RouletteType type);
+/// Throws ProtocolError on ROULETTE_UNSPECIFIED or an unknown value.
+RouletteType roulette_from_wire(wire::Roulette value);
 
 wire::RenderSettings settings_to_wire(const RenderSettings& settings);
 /// Throws ProtocolError on an unknown integrator or zero spp.

@@ -10,7 +10,9 @@ namespace rayfarm::protocol {
 // would ignore, rendering the wrong image.
 // 3: Error (and a refused SubmitReply) carries a code, which peers act on instead of the message
 // text; a version-2 peer would act on text that a version-3 master no longer promises.
-inline constexpr uint32_t kProtocolVersion = 3;
+// 4: RenderSettings carries the sampler and the roulette rule, which a version-3 worker would
+// ignore, rendering other samples than the job's (the image would no longer be the local one).
+inline constexpr uint32_t kProtocolVersion = 4;
 
 /// Software version of this build, sent in Hello and Welcome for the logs.
 inline constexpr const char* kBuildVersion = "rayfarm 0.2.0";

@@ -2,6 +2,7 @@
 // checks the film and the render settings before any mesh is read), then the emitters and shapes.
 #include "common/scene/mitsuba_loader.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "common/limits.h"
@@ -58,20 +59,16 @@ void read_integrator(Context& ctx, const XmlElement& e, RenderSettings& r, int n
     e.fail("the integrator \"" + printable(type, 40) + "\" is not supported (path and direct are)");
   }
   const int64_t depth = p.integer("max_depth", -1, -1, INT32_MAX);
-  (void)p.integer("rr_depth", 5, 1, INT32_MAX);  // roulette changes the noise, not the image
+  // Mitsuba's roulette acts on the throughput from its rr_depth-th vertex on (counted from 1).
+  const int64_t rr_depth = p.integer("rr_depth", 5, 1, INT32_MAX);
   if (p.boolean("hide_emitters", false))
     p.find("hide_emitters")->fail("hide_emitters is not supported");
   p.finish();
   if (depth == 0) e.fail("max_depth 0 renders nothing");
-  if (depth == -1 || depth - 1 > int64_t{kMaxDepth}) {
-    ctx.warn_once("depth", e,
-                  "paths are cut at " + std::to_string(kMaxDepth) +
-                      " scattering vertices, rayfarm's most (Mitsuba's max_depth " +
-                      std::to_string(kMaxDepth + 1) + ")");
-    r.max_depth = kMaxDepth;
-  } else {
-    r.max_depth = static_cast<uint32_t>(depth - 1);
-  }
+  r.max_depth = depth == -1 || depth - 1 > int64_t{kMaxDepth} ? kUnlimitedDepth
+                                                              : static_cast<uint32_t>(depth - 1);
+  r.roulette = RouletteType::kThroughput;
+  r.roulette_depth = static_cast<uint32_t>(std::min<int64_t>(rr_depth - 1, kMaxRouletteDepth));
 }
 
 /// The horizontal field of view Mitsuba derives from fov / fov_axis or focal_length.
@@ -287,7 +284,7 @@ Scene load_mitsuba_scene(const fs::path& file, const SceneCheck& check, SceneIma
     slot = &c;
   }
   if (sensor == nullptr) xml.root.fail("the scene has no <sensor>");
-  scene.render.max_depth = kMaxDepth;  // Mitsuba's path integrator is unlimited by default
+  scene.render.max_depth = kUnlimitedDepth;  // Mitsuba's path integrator is unlimited by default
   if (integrator != nullptr) read_integrator(ctx, *integrator, scene.render);
   read_sensor(ctx, *sensor);
   if (check) {

@@ -17,6 +17,7 @@
 #include "common/scene/mitsuba_loader.h"
 #include "common/scene/obj_loader.h"
 #include "common/scene/ply_loader.h"
+#include "common/scene/render_reader.h"
 #include "common/scene/texture_reader.h"
 #include "common/scene/transform_reader.h"
 #include "common/util/text.h"
@@ -54,7 +55,7 @@ class SceneReader {
     const auto film = root.find("film");
     const auto gltf = root.find("gltf");
     if (film || !gltf) read_film(root.require("film"));
-    if (auto n = root.find("render")) read_render(*n);
+    if (auto n = root.find("render")) read_render_settings(*n, scene_.render);
     if (film && check_) {
       if (auto refusal = check_(scene_.film, scene_.render)) throw SceneRefused(*refusal);
     }
@@ -395,23 +396,6 @@ class SceneReader {
       if (known == file) return;
     }
     scene_.referenced.push_back(file);
-  }
-
-  // ---- render settings ----
-
-  void read_render(const Node& n) {
-    n.allow_keys({"spp", "max_depth", "integrator", "seed"});
-    RenderSettings& r = scene_.render;
-    if (auto spp = n.find("spp")) r.spp = static_cast<uint32_t>(read_integer(*spp, 1, kMaxSpp));
-    if (auto d = n.find("max_depth"))
-      r.max_depth = static_cast<uint32_t>(read_integer(*d, 0, kMaxDepth));
-    if (auto i = n.find("integrator")) {
-      const auto type = parse_integrator(read_string(*i));
-      if (!type)
-        i->fail("unknown integrator " + as_written(i->json()) + "; expected naive, nee or mis");
-      r.integrator = *type;
-    }
-    if (auto seed = n.find("seed")) r.seed = read_unsigned(*seed);
   }
 
   Scene& scene_;

@@ -309,19 +309,50 @@ const char* integrator_name(IntegratorType type);
 /// Parses an integrator name; nullopt when unknown.
 std::optional<IntegratorType> parse_integrator(const std::string& name);
 
+/// Where a sample's random numbers come from (worker/samplers/path_sampler.h).
+enum class SamplerType : uint8_t {
+  kIndependent,  ///< one hashed random stream per sample
+  kSobol,        ///< Owen-scrambled Sobol' points per group of dimensions, then the stream
+};
+/// "independent" or "sobol".
+const char* sampler_name(SamplerType type);
+std::optional<SamplerType> parse_sampler(const std::string& name);
+
+/// How Russian roulette ends paths (docs/scene-format.md, "Render settings").
+enum class RouletteType : uint8_t {
+  /// At every vertex, survival min(1, largest component of the BSDF's throughput update).
+  kUpdate,
+  /// From vertex roulette_depth on, survival min(1, largest component of the path's throughput
+  /// times eta^2 for each refraction it went through).
+  kThroughput,
+};
+/// "update" or "throughput".
+const char* roulette_name(RouletteType type);
+std::optional<RouletteType> parse_roulette(const std::string& name);
+
 /// How to render: the scene's defaults, overridden by the command line or the job.
 struct RenderSettings {
   uint32_t spp = kDefaultSpp;  ///< samples per pixel
   /// Most scattering vertices per path: the surface hits at which light is sampled and a BSDF
   /// direction drawn, the camera ray's hit being the first. Emission found by the last scattered
-  /// ray still counts. 1 = direct lighting only; 0 = emitters seen by the camera only.
+  /// ray still counts. 1 = direct lighting only; 0 = emitters seen by the camera only;
+  /// kUnlimitedDepth = no cap (Russian roulette alone ends paths).
   uint32_t max_depth = kDefaultMaxDepth;
   IntegratorType integrator = IntegratorType::kMis;
   uint64_t seed = 0;              ///< selects the random streams; same seed, same image
   /// When positive, a sample whose largest component exceeds it is scaled down to it: fewer
   /// fireflies, at the cost of a bias (the image no longer converges to the true one). 0 = off.
   float clamp = 0.f;
+  SamplerType sampler = SamplerType::kSobol;
+  RouletteType roulette = RouletteType::kThroughput;
+  /// kThroughput: the vertex (0 = the camera ray's hit) from which roulette may end a path.
+  uint32_t roulette_depth = kDefaultRouletteDepth;
 };
+
+/// max_depth as written: a number or "unlimited".
+std::string depth_name(uint32_t max_depth);
+/// Parses a max_depth ("unlimited" or 0..kMaxDepth); nullopt when neither.
+std::optional<uint32_t> parse_depth(const std::string& text);
 
 struct Scene {
   Camera camera;

@@ -12,6 +12,9 @@ struct BsdfSample {
   Vec3 weight;
   float pdf = 0.f;        ///< solid-angle density; meaningless (0) for specular samples
   bool specular = false;  ///< drawn from a Dirac lobe
+  /// eta_t / eta_i of a refraction (the weight carries the radiance's 1 / eta^2); 1 otherwise.
+  /// Throughput roulette undoes that factor so that it judges the path, not the medium.
+  float eta = 1.f;
 };
 
 /// For two-sided surfaces: w mirrored to the upper hemisphere when `flip` (wo below).

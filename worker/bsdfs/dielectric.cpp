@@ -45,6 +45,7 @@ bool DielectricBsdf::sample(const Vec3& wo, float u_lobe, float /*u1*/, float /*
   // Radiance is compressed by (eta_i / eta_t)^2 crossing the interface; eta^2 in double, so that
   // IORs up to 1e30 neither overflow nor underflow before the division.
   out.weight = tint_ * static_cast<float>(1.0 / (double(eta) * double(eta)));
+  out.eta = eta;
   return true;
 }
 

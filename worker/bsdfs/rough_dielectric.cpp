@@ -118,6 +118,7 @@ bool RoughDielectricBsdf::sample(const Vec3& wo, float u_lobe, float u1, float u
   out.weight = eval(wo, wi) / out.pdf;
   out.wi = wi;
   out.specular = false;
+  out.eta = wi.z * wo.z < 0.f ? eta : 1.f;
   return true;
 }
 

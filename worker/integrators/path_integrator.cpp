@@ -11,6 +11,8 @@ PathIntegratorFor<BsdfT>::PathIntegratorFor(const SceneData& data, const LightSe
     : data_(data), lights_(lights), background_(data.scene().background) {
   plan_.integrator = settings.integrator;
   plan_.max_depth = settings.max_depth;
+  plan_.roulette = settings.roulette;
+  plan_.roulette_depth = settings.roulette_depth;
   bool any_diffuse = false;
   for (const Material& m : data.scene().materials)
     any_diffuse |= m.textured || !BsdfT(m).is_specular();
@@ -52,10 +54,10 @@ float PathIntegratorFor<BsdfT>::environment_weight(bool specular_bounce, float b
 template <class BsdfT>
 Vec3 PathIntegratorFor<BsdfT>::sample_light(const SurfaceHit& hit, bool flat, const Vec3& wo,
                                             const Vec3& wo_local, const Frame& frame,
-                                            const BsdfT& bsdf, Pcg32& rng, uint64_t& rays) const {
-  const float u_select = rng.next_float(), u1 = rng.next_float(), u2 = rng.next_float();
+                                            const BsdfT& bsdf, const std::array<float, 3>& u,
+                                            uint64_t& rays) const {
   LightSample ls;
-  if (!lights_.sample(hit.p, u_select, u1, u2, ls)) return Vec3(0.f);
+  if (!lights_.sample(hit.p, u[0], u[1], u[2], ls)) return Vec3(0.f);
   const Vec3 wi_local = frame.to_local(ls.wi);
   if (!same_sides(hit, flat, wo, ls.wi, wo_local, wi_local)) return Vec3(0.f);
   if (!(wi_local.z > 0.f) && (data_.surface_needs(hit.material) & kShadingSided)) return Vec3(0.f);
@@ -75,17 +77,17 @@ Vec3 PathIntegratorFor<BsdfT>::sample_light(const SurfaceHit& hit, bool flat, co
 }
 
 template <class BsdfT>
-Vec3 PathIntegratorFor<BsdfT>::li(Ray ray, Pcg32& rng, PathStats& stats) const {
+Vec3 PathIntegratorFor<BsdfT>::li(Ray ray, PathSampler& sampler, PathStats& stats) const {
   // Scenes without surface features run a loop with no trace of them, and flat untextured
   // scenes one without the tests for shading normals and texture coordinates.
-  if (plan_.surface) return trace<PathMode::kSurface>(ray, rng, stats);
-  if (plan_.plain) return trace<PathMode::kPlain>(ray, rng, stats);
-  return trace<PathMode::kGeneral>(ray, rng, stats);
+  if (plan_.surface) return trace<PathMode::kSurface>(ray, sampler, stats);
+  if (plan_.plain) return trace<PathMode::kPlain>(ray, sampler, stats);
+  return trace<PathMode::kGeneral>(ray, sampler, stats);
 }
 
 template <class BsdfT>
 template <PathMode kMode>
-Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, Pcg32& rng, PathStats& stats) const {
+Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, PathSampler& sampler, PathStats& stats) const {
   uint64_t& rays = stats.rays;
   // The cap stops a path that could still gather light: count it and the weight it carried.
   const auto truncate = [&stats](const Vec3& throughput) {
@@ -96,6 +98,9 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, Pcg32& rng, PathStats& stats) cons
     }
   };
   Vec3 radiance(0.f), beta(1.f);
+  float eta_scale = 1.f;  // product of eta^2 over the refractions so far (throughput roulette)
+  const bool throughput_roulette = plan_.roulette == RouletteType::kThroughput;
+  const float update_cap = plan_.max_depth == kUnlimitedDepth ? kMaxSurvival : 1.f;
   bool specular_bounce = true;  // the camera ray: emitters it sees count fully
   float bsdf_pdf = 0.f;
   Vec3 prev_p;
@@ -147,20 +152,35 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, Pcg32& rng, PathStats& stats) cons
                            ? BsdfT(material, TextureLookup(&data_.textures(), hit.uv))
                            : BsdfT(material);
     if (plan_.sample_lights && !bsdf.is_specular()) {
-      radiance += beta * sample_light(hit, flat, wo, wo_local, frame, bsdf, rng, rays);
+      radiance +=
+          beta * sample_light(hit, flat, wo, wo_local, frame, bsdf, sampler.light(depth), rays);
     }
 
     // BSDF sampling for the next direction.
-    const float u_lobe = rng.next_float(), u1 = rng.next_float(), u2 = rng.next_float();
+    const std::array<float, 3> u = sampler.scatter(depth);
     BsdfSample bs;
-    if (!bsdf.sample(wo_local, u_lobe, u1, u2, bs)) break;
+    if (!bsdf.sample(wo_local, u[0], u[1], u[2], bs)) break;
     if (!same_sides(hit, flat, wo, frame.to_world(bs.wi), wo_local, bs.wi)) break;
     if (shading_sided && !(bs.wi.z > 0.f)) break;
 
-    // Russian roulette with survival probability min(1, max component of the update).
-    const float survive = std::min(1.f, max_component(bs.weight));
-    if (!(rng.next_float() < survive)) break;
-    beta *= bs.weight / survive;
+    if (throughput_roulette) {
+      // Russian roulette on the path's throughput, the refractions' 1 / eta^2 undone (radiance
+      // squeezed into glass is no reason to end the path), from roulette_depth on.
+      beta *= bs.weight;
+      eta_scale *= bs.eta * bs.eta;
+      if (depth >= plan_.roulette_depth) {
+        const float survive = std::min(kMaxSurvival, max_component(beta) * eta_scale);
+        if (!(sampler.roulette() < survive)) break;
+        beta /= survive;
+      } else if (!(max_component(beta) > 0.f)) {
+        break;
+      }
+    } else {
+      // Russian roulette with survival probability min(1, max component of the update).
+      const float survive = std::min(update_cap, max_component(bs.weight));
+      if (!(sampler.roulette() < survive)) break;
+      beta *= bs.weight / survive;
+    }
     specular_bounce = bs.specular;
     bsdf_pdf = bs.pdf;
     prev_p = hit.p;

@@ -1,14 +1,14 @@
 #pragma once
 // The path tracer: naive (BSDF sampling only), NEE (one light per vertex, power-sampled) and MIS
-// (light and BSDF sampling, power heuristic), each with Russian roulette on the throughput
-// update and the max_depth cap of RenderSettings.
+// (light and BSDF sampling, power heuristic), each with Russian roulette (on the path's
+// throughput or on each vertex's update) and the max_depth cap of RenderSettings, if any.
 #include <cstdint>
 #include <string>
 
 #include "common/scene/scene.h"
 #include "worker/bsdfs/bsdf.h"
 #include "worker/lights/light_set.h"
-#include "worker/samplers/rng.h"
+#include "worker/samplers/path_sampler.h"
 #include "worker/scene_data.h"
 #include "worker/surface_shading.h"
 
@@ -20,7 +20,9 @@ struct IntegratorPlan {
   bool sample_lights = false;     ///< NEE / MIS light sampling at non-specular vertices
   bool weight_emission = false;   ///< MIS weights on emitters hit by BSDF rays
   bool emitters_reachable = false;  ///< area lights or a background that BSDF rays can find
-  uint32_t max_depth = 0;
+  uint32_t max_depth = 0;           ///< kUnlimitedDepth: no cap
+  RouletteType roulette = RouletteType::kThroughput;
+  uint32_t roulette_depth = 0;
   /// Some material has a normal or bump map, an anisotropic BSDF or one side only
   /// (surface_shading.h); without one the shading frame is the normal's alone.
   bool surface = false;
@@ -64,17 +66,17 @@ class PathIntegratorFor {
   PathIntegratorFor(const SceneData& data, const LightSet& lights, const RenderSettings& settings);
 
   /// Radiance arriving along `ray` (one sample); adds what the path did to `stats`.
-  Vec3 li(Ray ray, Pcg32& rng, PathStats& stats) const;
+  Vec3 li(Ray ray, PathSampler& sampler, PathStats& stats) const;
 
   const IntegratorPlan& plan() const { return plan_; }
 
  private:
   template <PathMode kMode>
-  Vec3 trace(Ray ray, Pcg32& rng, PathStats& stats) const;
+  Vec3 trace(Ray ray, PathSampler& sampler, PathStats& stats) const;
   // Inlined into trace(): a call passes the hit, the frame and the BSDF through memory.
   [[gnu::always_inline]] inline Vec3 sample_light(const SurfaceHit& hit, bool flat, const Vec3& wo,
                                                   const Vec3& wo_local, const Frame& frame,
-                                                  const BsdfT& bsdf, Pcg32& rng,
+                                                  const BsdfT& bsdf, const std::array<float, 3>& u,
                                                   uint64_t& rays) const;
   float emission_weight(const SurfaceHit& hit, bool specular_bounce, float bsdf_pdf,
                         const Vec3& prev_p) const;
@@ -113,6 +115,13 @@ inline Vec3 leaving_side(const SurfaceHit& hit, bool flat, const Vec3& wi, float
   const bool front = flat ? wi_local_z > 0.f : dot(wi, hit.n) > 0.f;
   return front ? hit.n : -hit.n;
 }
+
+/// Most probability with which roulette lets a path go on where it must end some day: throughput
+/// roulette always, update roulette without a depth cap. A path of perfect mirrors (or a furnace
+/// of albedo 1) would otherwise never end; with it, a path survives 4096 such vertices with
+/// probability 1/e. Below it sit all albedos up to 0.9998, whose estimates keep a finite
+/// variance (that needs albedo^2 < the survival).
+inline constexpr float kMaxSurvival = 1.f - 0x1p-12f;
 
 /// Power heuristic (beta = 2) weight of a strategy with density a against one with density b.
 inline float power_heuristic(float a, float b) {

@@ -1,0 +1,72 @@
+#pragma once
+// The random numbers of one path sample, as a function of (seed, pixel, sample index) only.
+//
+// Two samplers (RenderSettings::sampler):
+//  - independent: every number from the sample's hashed PCG stream (rng.h), drawn in the order
+//    the path asks for them;
+//  - sobol: each group of numbers from its own scrambled four-dimensional Sobol' sequence
+//    (sobol.h) keyed by (seed, pixel, group), indexed by the sample number. The groups are fixed:
+//    the camera (pixel position x, y, lens u, v), and per scattering vertex up to
+//    kSobolVertices: the light (choice, point u, v) and the scattering (BSDF lobe, direction u,
+//    v, roulette). Deeper vertices, where stratification no longer shows, read the hashed
+//    stream as the independent sampler does.
+// Neither depends on the tile, the thread, the pass or the machine, so the farm's image is the
+// local one bit for bit.
+#include <array>
+#include <cstdint>
+
+#include "common/scene/scene.h"
+#include "worker/samplers/rng.h"
+#include "worker/samplers/sobol.h"
+
+namespace rayfarm {
+
+class PathSampler {
+ public:
+  /// Vertices (the camera ray's hit is vertex 0) whose numbers come from Sobol' sequences.
+  static constexpr uint32_t kSobolVertices = 64;
+
+  PathSampler(SamplerType type, uint64_t seed, uint64_t pixel, uint32_t sample)
+      : rng_(sample_stream(seed, pixel, sample)),
+        key_(mix64(seed ^ mix64(pixel ^ 0x50b01u))),
+        index_(sample),
+        sobol_(type == SamplerType::kSobol) {}
+
+  /// Pixel offset x, y in [0, 1)^2, then lens u, v.
+  std::array<float, 4> camera() {
+    if (sobol_) return sobol::sample<4>(index_, key_);
+    return {rng_.next_float(), rng_.next_float(), rng_.next_float(), rng_.next_float()};
+  }
+
+  /// Light choice and point on the light at vertex `depth`.
+  std::array<float, 3> light(uint32_t depth) {
+    if (sobol_ && depth < kSobolVertices) return sobol::sample<3>(index_, group_key(2 * depth + 1));
+    return {rng_.next_float(), rng_.next_float(), rng_.next_float()};
+  }
+
+  /// BSDF lobe, direction u, v and the roulette number at vertex `depth`. The roulette number is
+  /// drawn only when asked for (roulette()), so that the independent stream matches the path.
+  std::array<float, 3> scatter(uint32_t depth) {
+    if (sobol_ && depth < kSobolVertices) {
+      const std::array<float, 4> u = sobol::sample<4>(index_, group_key(2 * depth + 2));
+      roulette_ = u[3];
+      return {u[0], u[1], u[2]};
+    }
+    roulette_ = -1.f;
+    return {rng_.next_float(), rng_.next_float(), rng_.next_float()};
+  }
+
+  /// The roulette number of the vertex whose scatter() was the last called.
+  float roulette() { return roulette_ >= 0.f ? roulette_ : rng_.next_float(); }
+
+ private:
+  uint64_t group_key(uint32_t group) const { return mix64(key_ + group); }
+
+  Pcg32 rng_;
+  uint64_t key_;
+  uint32_t index_;
+  bool sobol_;
+  float roulette_ = -1.f;
+};
+
+}  // namespace rayfarm

@@ -1,0 +1,114 @@
+#pragma once
+// Owen-scrambled Sobol' points in four dimensions, shuffled and scrambled per key: the
+// low-discrepancy half of the path sampler (path_sampler.h).
+//
+// Only the first four Sobol' dimensions are used. Every group of up to four random numbers a
+// path needs (the camera's, each bounce's light choice and point, each bounce's BSDF lobe,
+// direction and roulette) reads those four dimensions with its own key: the sample index is
+// first shuffled by a key-dependent nested permutation and each coordinate then
+// Owen-scrambled under its own key. Within a group the points keep the Sobol' stratification
+// (any power-of-two count of consecutive samples from 0 stratifies every coordinate and the first
+// pair forms a (0, m, 2)-net); between groups the shuffles make them independent ("padding").
+#include <array>
+#include <cstdint>
+
+namespace rayfarm::sobol {
+
+/// Reverses the 32 bits of x (bit 0 becomes bit 31).
+constexpr uint32_t reverse_bits(uint32_t x) {
+  x = ((x >> 1) & 0x55555555u) | ((x & 0x55555555u) << 1);
+  x = ((x >> 2) & 0x33333333u) | ((x & 0x33333333u) << 2);
+  x = ((x >> 4) & 0x0f0f0f0fu) | ((x & 0x0f0f0f0fu) << 4);
+  x = ((x >> 8) & 0x00ff00ffu) | ((x & 0x00ff00ffu) << 8);
+  return (x >> 16) | (x << 16);
+}
+
+/// A random permutation of 32-bit words in which each output bit depends only on the input bit
+/// at its place and those below it: x * even, x + c and x * odd carry information only upwards.
+/// Applied to bit-reversed fractions it becomes a nested uniform (Owen) scramble: the first
+/// digit of a fraction is flipped at random, each later digit by a choice that depends on the
+/// digits before it. The multipliers are those published for this purpose (a hash-based
+/// Laine-Karras permutation with good avalanche between bits).
+constexpr uint32_t lk_permute(uint32_t x, uint32_t key) {
+  x ^= x * 0x3d20adeau;
+  x += key;
+  x *= (key >> 16) | 1u;
+  x ^= x * 0x05526c56u;
+  x ^= x * 0x53a22864u;
+  return x;
+}
+
+/// Nested uniform scramble of a fraction in [0, 1) written as 32 bits (bit 31 = 1/2).
+constexpr uint32_t owen_scramble(uint32_t x, uint32_t key) {
+  return reverse_bits(lk_permute(reverse_bits(x), key));
+}
+
+/// Generator matrices (as 32 direction numbers each, bit 31 = 1/2) of Sobol' dimensions 1-3
+/// (dimension 0 is the van der Corput sequence: the index's bits reversed). Each comes from a
+/// primitive polynomial x^s + a_1 x^{s-1} + ... + a_{s-1} x + 1 over GF(2) and s initial odd
+/// numbers m_1..m_s (the standard choices): m_k = 2 a_1 m_{k-1} ^ 4 a_2 m_{k-2} ^ ...
+/// ^ 2^s m_{k-s} ^ m_{k-s} for k > s, and direction number k is m_k / 2^k.
+struct Polynomial {
+  int degree;
+  uint32_t inner;  ///< a_1 .. a_{s-1} as bits, a_1 the highest
+  std::array<uint32_t, 3> m;
+};
+
+constexpr std::array<uint32_t, 32> direction_numbers(Polynomial p) {
+  std::array<uint32_t, 33> m{};  // m[1..32]
+  for (int k = 1; k <= p.degree; ++k) m[k] = p.m[k - 1];
+  for (int k = p.degree + 1; k <= 32; ++k) {
+    uint32_t v = m[k - p.degree] ^ (m[k - p.degree] << p.degree);
+    for (int i = 1; i < p.degree; ++i) {
+      if ((p.inner >> (p.degree - 1 - i)) & 1u) v ^= m[k - i] << i;
+    }
+    m[k] = v;
+  }
+  std::array<uint32_t, 32> v{};
+  for (int k = 1; k <= 32; ++k) v[k - 1] = m[k] << (32 - k);
+  return v;
+}
+
+inline constexpr std::array<std::array<uint32_t, 32>, 3> kDirections = {
+    direction_numbers({1, 0, {1, 0, 0}}),  // x + 1
+    direction_numbers({2, 1, {1, 3, 0}}),  // x^2 + x + 1
+    direction_numbers({3, 1, {1, 3, 1}}),  // x^3 + x + 1
+};
+
+/// Coordinate `dim` (0-3) of Sobol' point `index`, unscrambled, as 32 bits (bit 31 = 1/2).
+constexpr uint32_t sobol_bits(uint32_t index, int dim) {
+  if (dim == 0) return reverse_bits(index);
+  uint32_t x = 0;
+  const std::array<uint32_t, 32>& v = kDirections[dim - 1];
+  for (int bit = 0; index != 0; index >>= 1, ++bit) {
+    if (index & 1u) x ^= v[bit];
+  }
+  return x;
+}
+
+/// 32 scrambled bits to a float in [0, 1): the top 24 bits, so that rounding never gives 1.
+constexpr float to_unit_float(uint32_t bits) { return static_cast<float>(bits >> 8) * 0x1p-24f; }
+
+/// 32-bit hash of a 64-bit key and a small integer: the keys of the shuffles and scrambles.
+constexpr uint32_t hash_key(uint64_t key, uint32_t salt) {
+  uint64_t x = key ^ (uint64_t{salt} * 0x9e3779b97f4a7c15ULL);
+  x = (x ^ (x >> 32)) * 0xd6e8feb86659fd93ULL;
+  x = (x ^ (x >> 32)) * 0xd6e8feb86659fd93ULL;
+  return static_cast<uint32_t>(x ^ (x >> 32));
+}
+
+/// Point `index` of the scrambled four-dimensional sequence of `key`: the index shuffled by a
+/// nested permutation (which maps every aligned block of 2^m indices onto one such block, so the
+/// first 2^m samples stay a net), then each Sobol' coordinate Owen-scrambled.
+template <int kDims = 4>
+constexpr std::array<float, kDims> sample(uint32_t index, uint64_t key) {
+  static_assert(kDims >= 1 && kDims <= 4);
+  const uint32_t shuffled = owen_scramble(index, hash_key(key, 0x5eed));
+  std::array<float, kDims> out{};
+  for (int d = 0; d < kDims; ++d) {
+    out[d] = to_unit_float(owen_scramble(sobol_bits(shuffled, d), hash_key(key, d + 1)));
+  }
+  return out;
+}
+
+}  // namespace rayfarm::sobol
