@@ -162,7 +162,11 @@ TEST(HostileScene, HugeAndTinyNumbersAreRangeErrors) {
   expect_scene_error(R"("render": {"spp": 18446744073709551616})", {"/render/spp", "integer"});
   expect_scene_error(R"("render": {"spp": 4294967297})", {"/render/spp", "from 1 to 16777216"});
   expect_scene_error(R"("render": {"max_depth": -9223372036854775809})", {"/render/max_depth"});
-  expect_scene_error(R"("render": {"max_depth": 1025})", {"/render/max_depth", "0 to 1024"});
+  expect_scene_error(R"("render": {"max_depth": 1000001})", {"/render/max_depth", "0 to 1000000"});
+  expect_scene_error(R"("render": {"max_depth": "infinite"})", {"/render/max_depth", "unlimited"});
+  expect_scene_error(R"("render": {"roulette_depth": -1})", {"/render/roulette_depth"});
+  expect_scene_error(R"("render": {"sampler": "halton"})", {"/render/sampler", "sobol"});
+  expect_scene_error(R"("render": {"roulette": "none"})", {"/render/roulette", "throughput"});
   expect_scene_error(R"("render": {"seed": 18446744073709551616})", {"/render/seed", "unsigned"});
   expect_scene_error(R"("format": 99999999999999999999)", {"/format"});
   expect_scene_error("\"background\": [" + std::string(400, '9') + ", 0, 0]",

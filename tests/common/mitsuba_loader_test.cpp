@@ -68,7 +68,7 @@ TEST_F(MitsubaLoader, SensorFilmAndSamplerBecomeTheCameraFilmAndSampleCount) {
   // fov is horizontal (fov_axis x): the vertical one follows from the 3:2 aspect ratio.
   const double fy = 2.0 * std::atan(std::tan(20.0 * kPi / 180.0) / 1.5) * 180.0 / kPi;
   EXPECT_NEAR(s.camera.fov_y_deg, fy, 1e-4);
-  EXPECT_EQ(s.render.max_depth, kMaxDepth);  // no integrator: Mitsuba's unlimited path tracer
+  EXPECT_EQ(s.render.max_depth, kUnlimitedDepth);  // no integrator: Mitsuba's unlimited path tracer
 }
 
 TEST_F(MitsubaLoader, DepthCountsSegmentsInMitsubaAndScatteringVerticesHere) {

@@ -47,9 +47,9 @@ TEST_F(FaultTest, TheMasterStoppedOrKilledMidJobResumesFromItsCheckpoint) {
   // A target error, so that the planner's decisions must survive the restarts too: tiles stop
   // after about 18 of their 32 passes; the same tiles and passes locally give the same decisions.
   const fs::path scene = small_scene("cornell-box", 32);
-  const std::vector<std::string> settings{"--spp",          "2048", "--seed",       "4",
-                                          "--tile",         "16",   "--pass-spp",   "64",
-                                          "--target-error", "0.01", "--min-passes", "2"};
+  const std::vector<std::string> settings{"--spp",          "2048",   "--seed",       "4",
+                                          "--tile",         "16",     "--pass-spp",   "64",
+                                          "--target-error", "0.0025", "--min-passes", "2"};
   const std::string job = submit(scene, settings);  // 4 tiles x 32 passes = 128 units at most
   ASSERT_EQ(job, "j0001");
 

@@ -286,7 +286,9 @@ void expect_quad_radiance(const EnvironmentMap& env, double expected) {
     settings.spp = 4096;
     const testing::Estimate e = testing::image_estimate(s, settings);
     EXPECT_EQ(e.nonfinite, 0u);
-    EXPECT_LT(std::fabs(e.mean - expected), kZ * e.standard_error)
+    // Float rounding of the per-sample weights adds 1e-6 relative (a constant sky under NEE and
+    // naive sampling before roulette has no variance at all).
+    EXPECT_LE(std::fabs(e.mean - expected), kZ * e.standard_error + 1e-6 * expected)
         << integrator_name(type) << ": " << e.mean << " +- " << e.standard_error << ", expected "
         << expected;
   }

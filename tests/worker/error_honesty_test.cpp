@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <iostream>
 
 #include "common/image/error_estimate.h"
 #include "common/image/exr.h"
@@ -45,16 +46,25 @@ Measured measure(const Film& film, const std::vector<float>& reference,
   return m;
 }
 
-void expect_honest(double estimated, const Measured& measured, const std::string& what) {
-  SCOPED_TRACE(what);
+/// Independent samples: the estimate is within a factor of 2 of the measured error either way.
+/// Sobol' samples: the estimate, computed as if the samples were independent, stays at most a
+/// factor of 2 optimistic and at most 5 pessimistic (stratified samples cancel part of each
+/// other's error, which a per-sample variance does not see; docs/error.md gives the ratios).
+void expect_honest(double estimated, const Measured& measured, SamplerType sampler,
+                   const std::string& what) {
+  SCOPED_TRACE(what + ", " + sampler_name(sampler) + " sampler");
   ASSERT_GT(measured.rel_mse, 0.0);
   const double ratio = estimated / measured.rel_mse;
+  const double most = sampler == SamplerType::kIndependent ? 2.0 : 5.0;
+  std::cout << what << ", " << sampler_name(sampler) << ": estimated / measured " << ratio << "\n";
   EXPECT_GE(ratio, 0.5) << "estimated " << estimated << ", measured " << measured.rel_mse;
-  EXPECT_LE(ratio, 2.0) << "estimated " << estimated << ", measured " << measured.rel_mse;
+  EXPECT_LE(ratio, most) << "estimated " << estimated << ", measured " << measured.rel_mse;
   // The band [0.5, 2] x measured must be wide against the measurement's own noise.
   EXPECT_LT(4.0 * measured.standard_error, 0.5 * measured.rel_mse)
       << "too few pixels for the measured relMSE to mean anything";
 }
+
+constexpr SamplerType kSamplers[] = {SamplerType::kIndependent, SamplerType::kSobol};
 
 constexpr uint32_t kTile = 16;
 
@@ -81,11 +91,14 @@ TEST(ErrorHonesty, FurnaceEstimateMatchesTheExactError) {
   const Scene scene = testing::furnace_scene(0.5f, 1.0f, 32);
   RenderSettings settings = scene.render;
   settings.integrator = IntegratorType::kNaive;
-  for (uint32_t spp : {64u, 256u}) {
-    const Film film = render(scene, settings, spp, 1);
-    const std::vector<float> exact(film.mean_rgb().size(), 2.0f);
-    expect_honest(reported_estimate(film), measure(film, exact),
-                  "furnace, " + std::to_string(spp) + " spp");
+  for (const SamplerType sampler : kSamplers) {
+    settings.sampler = sampler;
+    for (uint32_t spp : {64u, 256u}) {
+      const Film film = render(scene, settings, spp, 1);
+      const std::vector<float> exact(film.mean_rgb().size(), 2.0f);
+      expect_honest(reported_estimate(film), measure(film, exact), sampler,
+                    "furnace, " + std::to_string(spp) + " spp");
+    }
   }
 }
 
@@ -99,10 +112,14 @@ TEST(ErrorHonesty, CornellBoxEstimateMatchesTheErrorAgainstBlenderCycles) {
       read_exr(root / "tests" / "data" / "references" / "cornell-blocks-cycles-variance.exr");
   ASSERT_EQ(reference.width, scene.film.width);
   ASSERT_EQ(reference.height, scene.film.height);
-  for (uint32_t spp : {64u, 256u}) {
-    const Film film = render(scene, scene.render, spp, 7);
-    expect_honest(reported_estimate(film), measure(film, reference.rgb, variance.rgb),
-                  "Cornell blocks, " + std::to_string(spp) + " spp");
+  for (const SamplerType sampler : kSamplers) {
+    RenderSettings settings = scene.render;
+    settings.sampler = sampler;
+    for (uint32_t spp : {64u, 256u}) {
+      const Film film = render(scene, settings, spp, 7);
+      expect_honest(reported_estimate(film), measure(film, reference.rgb, variance.rgb), sampler,
+                    "Cornell blocks, " + std::to_string(spp) + " spp");
+    }
   }
 }
 

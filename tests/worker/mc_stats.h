@@ -30,9 +30,13 @@ inline TileResult render_all(const Scene& scene, const RenderSettings& settings,
   return renderer.render({0, 0, scene.film.width, scene.film.height}, {0, settings.spp}, stats);
 }
 
-/// Mean of channel `c` over all samples of all pixels (independent samples), with its standard
-/// error from the per-sample second moment.
-inline Estimate image_estimate(const Scene& scene, const RenderSettings& settings, int c = 1) {
+/// Mean of channel `c` over all samples of all pixels, with its standard error from the
+/// per-sample second moment. That is the error of the mean for independent samples only, so the
+/// render uses the independent sampler whatever `settings` says (the Sobol' sampler's samples
+/// within a pixel are not independent; sobol_render_test.cpp and furnace_test.cpp test it with
+/// pixels as the independent replicas).
+inline Estimate image_estimate(const Scene& scene, RenderSettings settings, int c = 1) {
+  settings.sampler = SamplerType::kIndependent;
   Estimate e;
   const TileResult r = render_all(scene, settings, &e.stats);
   double sum = 0.0, sum_sq = 0.0;
@@ -48,7 +52,9 @@ inline Estimate image_estimate(const Scene& scene, const RenderSettings& setting
   return e;
 }
 
-/// Per block (block x block pixels) and channel: the mean radiance and the variance of that mean.
+/// Per block (block x block pixels) and channel: the mean radiance and the variance of that mean,
+/// from the per-sample second moments: valid for independent samples only (render_blocks()
+/// renders them so; sobol_render_test.cpp compares the Sobol' sampler with it).
 struct BlockStats {
   std::vector<double> mean, variance_of_mean;
   uint64_t nonfinite = 0;
@@ -83,13 +89,15 @@ inline BlockStats block_stats(const TileResult& r, uint32_t block) {
   return stats;
 }
 
-/// Renders `scene` with `integrator`, `spp` and `seed`, reduced to blocks.
+/// Renders `scene` with `integrator`, `spp` and `seed` and the independent sampler, reduced to
+/// blocks.
 inline BlockStats render_blocks(const Scene& scene, IntegratorType integrator, uint32_t spp,
                                 uint64_t seed, uint32_t block) {
   RenderSettings settings = scene.render;
   settings.integrator = integrator;
   settings.spp = spp;
   settings.seed = seed;
+  settings.sampler = SamplerType::kIndependent;  // block_stats() needs independent samples
   return block_stats(render_all(scene, settings), block);
 }
 

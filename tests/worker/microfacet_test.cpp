@@ -1078,7 +1078,17 @@ TEST(MicrofacetFurnaceTest, WhiteBeckmannConductorLosesTheSingleScatteringDefici
     settings.spp = 4096;
     settings.seed = 7;
     const testing::Estimate e = testing::image_estimate(scene, settings);
-    EXPECT_NEAR(e.mean, expected, kZ * e.standard_error + 1e-4) << "se " << e.standard_error;
+    // The pixels see incidences from 0 to 3.2 degrees; at alpha 1 Beckmann's albedo moves by a
+    // few 1e-4 over them (more than GGX's), so the image lies between the two ends' albedos.
+    // The change comes from the same sphere quadrature at both ends (its error cancels in the
+    // difference), added to the 1-D value at normal incidence; 1e-4 on top, as for GGX.
+    const double change =
+        integrate_sphere(Bsdf(m), wo_at(3.2), alpha / 10.0).albedo[1] - in.albedo[1];
+    const double lo = expected + std::min(0.0, change) - 1e-4;
+    const double hi = expected + std::max(0.0, change) + 1e-4;
+    EXPECT_GT(e.mean, lo - kZ * e.standard_error) << "se " << e.standard_error;
+    EXPECT_LT(e.mean, hi + kZ * e.standard_error) << "se " << e.standard_error;
+    EXPECT_LT(hi - lo, 0.1 * (1.0 - expected)) << "the band must not hide the loss";
     EXPECT_LT(e.standard_error, 0.01 * (1.0 - expected)) << "too few samples to see the loss";
     EXPECT_EQ(e.nonfinite, 0u);
   }

@@ -100,14 +100,16 @@ INSTANTIATE_TEST_SUITE_P(Albedos, StiffFurnace,
                          furnace_name);
 
 // With the cap inside the range of path lengths the image is Le (1 - rho^(D+1)) / (1 - rho),
-// and the renderer counts the paths it cut: in the furnace each survives Russian roulette with
+// and the renderer counts the paths it cut: in the furnace each survives update roulette with
 // probability rho per bounce at unchanged throughput 1, so a fraction rho^D reaches the cap,
-// each carrying throughput exactly 1.
+// each carrying throughput exactly 1. Independent samples: the count is then binomial.
 TEST(MaxDepthCap, CountsTheTruncatedPathsAndTheirThroughputAndWarns) {
   const float rho = 0.9f, le = 1.f;
   const Scene scene = testing::furnace_scene(rho, le, 32);
   for (IntegratorType integrator : {IntegratorType::kNaive, IntegratorType::kNee}) {
     RenderSettings settings;
+    settings.roulette = RouletteType::kUpdate;
+    settings.sampler = SamplerType::kIndependent;
     settings.integrator = integrator;
     settings.spp = 4;
     settings.max_depth = 8;
@@ -352,6 +354,7 @@ TEST(ExtremeScale, CornellBoxImageDoesNotDependOnScaleOrPosition) {
                                                  RenderSettings s;
                                                  s.spp = spp;
                                                  s.seed = 100;
+                                                 s.sampler = SamplerType::kIndependent;
                                                  return s;
                                                }()),
                            block);
@@ -368,6 +371,7 @@ TEST(ExtremeScale, CornellBoxImageDoesNotDependOnScaleOrPosition) {
     RenderSettings settings;
     settings.spp = spp;
     settings.seed = seed++;
+    settings.sampler = SamplerType::kIndependent;  // block_stats() needs independent samples
     RenderStats stats;
     const TileResult r =
         testing::render_all(testing::transformed_cornell(c.scale, c.offset, size), settings, &stats);

@@ -52,6 +52,7 @@ inline PixelMeans render_pixels(const Scene& scene, uint32_t spp, IntegratorType
   settings.spp = spp;
   settings.integrator = integrator;
   settings.seed = seed;
+  settings.sampler = SamplerType::kIndependent;  // standard_error() needs independent samples
   Renderer renderer(scene, settings);
   const TileResult r = renderer.render({0, 0, scene.film.width, scene.film.height}, {0, spp});
   PixelMeans out;

@@ -1,0 +1,170 @@
+// The path sampler: Sobol' points that keep their stratification under shuffling and Owen
+// scrambling, a sample's numbers that depend on (seed, pixel, sample index) alone, and the
+// independent sampler that reads the hashed stream in the order the path asks.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+#include <vector>
+
+#include "worker/samplers/path_sampler.h"
+#include "worker/samplers/sobol.h"
+
+namespace rayfarm {
+namespace {
+
+TEST(Sobol, ReverseBitsAndOwenScrambleArePermutations) {
+  EXPECT_EQ(sobol::reverse_bits(1u), 0x80000000u);
+  EXPECT_EQ(sobol::reverse_bits(0x0000ff01u), 0x80ff0000u);
+  // A nested scramble maps the 2^m fractions k / 2^m (top m bits) onto the same set: the top m
+  // bits of the output depend on the top m bits of the input only.
+  for (uint32_t key : {0u, 1u, 0xdeadbeefu}) {
+    std::set<uint32_t> tops;
+    for (uint32_t k = 0; k < 256; ++k) {
+      const uint32_t x = (k << 24) | (k * 2654435761u >> 8);  // arbitrary low bits
+      const uint32_t y = sobol::owen_scramble(x, key);
+      EXPECT_EQ(y >> 24, sobol::owen_scramble(k << 24, key) >> 24);
+      tops.insert(y >> 24);
+    }
+    EXPECT_EQ(tops.size(), 256u) << "key " << key;
+  }
+}
+
+TEST(Sobol, FirstDimensionsAreTheKnownSequence) {
+  // Dimension 0 is van der Corput; dimension 1 the standard second Sobol' dimension (direction
+  // numbers 1/2, 3/4, 5/8, in index order, not Gray-code order).
+  const float d0[] = {0.f, 0.5f, 0.25f, 0.75f, 0.125f, 0.625f, 0.375f, 0.875f};
+  const float d1[] = {0.f, 0.5f, 0.75f, 0.25f, 0.625f, 0.125f, 0.375f, 0.875f};
+  for (uint32_t i = 0; i < 8; ++i) {
+    EXPECT_EQ(sobol::to_unit_float(sobol::sobol_bits(i, 0)), d0[i]) << i;
+    EXPECT_EQ(sobol::to_unit_float(sobol::sobol_bits(i, 1)), d1[i]) << i;
+  }
+}
+
+// Whether the 2^m points of `pts` put one in each elementary interval of size 2^-a x 2^-(m-a)
+// for every a: a (0, m, 2)-net in base 2.
+bool is_net(const std::vector<std::array<float, 2>>& pts, int m) {
+  for (int a = 0; a <= m; ++a) {
+    std::vector<int> count(size_t{1} << m, 0);
+    for (const auto& p : pts) {
+      const auto ix = static_cast<uint32_t>(p[0] * float(1u << a));
+      const auto iy = static_cast<uint32_t>(p[1] * float(1u << (m - a)));
+      ++count[(size_t{ix} << (m - a)) | iy];
+    }
+    if (std::any_of(count.begin(), count.end(), [](int c) { return c != 1; })) return false;
+  }
+  return true;
+}
+
+TEST(Sobol, ScrambledPrefixesStayStratified) {
+  // For every key and every power of two 2^m up to 2^12, the first 2^m points: each coordinate
+  // has one point per interval of width 2^-m, and the first two coordinates form a (0, m, 2)-net.
+  for (uint64_t key : {uint64_t{0}, uint64_t{42}, uint64_t{0x9e3779b97f4a7c15}}) {
+    for (int m = 0; m <= 12; ++m) {
+      const uint32_t n = 1u << m;
+      std::vector<std::array<float, 2>> pair;
+      std::vector<std::vector<uint32_t>> strata(4, std::vector<uint32_t>(n, 0));
+      for (uint32_t i = 0; i < n; ++i) {
+        const std::array<float, 4> p = sobol::sample<4>(i, key);
+        for (int d = 0; d < 4; ++d) {
+          ASSERT_GE(p[d], 0.f);
+          ASSERT_LT(p[d], 1.f);
+          ++strata[d][static_cast<uint32_t>(p[d] * float(n))];
+        }
+        pair.push_back({p[0], p[1]});
+      }
+      for (int d = 0; d < 4; ++d) {
+        EXPECT_TRUE(
+            std::all_of(strata[d].begin(), strata[d].end(), [](uint32_t c) { return c == 1; }))
+            << "key " << key << ", 2^" << m << " points, dimension " << d;
+      }
+      EXPECT_TRUE(is_net(pair, m)) << "key " << key << ", 2^" << m << " points";
+    }
+  }
+}
+
+TEST(Sobol, KeysDecorrelateAndUnscrambledIsNotUsed) {
+  // Different keys give different points, and no key gives the unscrambled sequence (the origin
+  // as its first point would be a fixed pattern in every pixel).
+  std::set<float> firsts;
+  for (uint64_t key = 0; key < 64; ++key) firsts.insert(sobol::sample<1>(0, key)[0]);
+  EXPECT_GT(firsts.size(), 60u);
+  EXPECT_EQ(firsts.count(0.f), 0u);
+}
+
+TEST(Sobol, ScrambledPointsAreUniformOnAverage) {
+  // Over 4096 keys, point 5's coordinates are uniform: mean 1/2 (standard error
+  // sqrt(1/12 / 4096) = 0.0045) and the pair's product has mean 1/4 (independent coordinates;
+  // standard error about sqrt(7/144 / 4096) = 0.0034). 5 standard errors over 8 checks: a false
+  // alarm has probability below 5e-6.
+  const int keys = 4096;
+  std::array<double, 4> mean{};
+  double prod01 = 0.0, prod23 = 0.0;
+  for (int k = 0; k < keys; ++k) {
+    const std::array<float, 4> p = sobol::sample<4>(5, uint64_t(k) * 7919u + 3u);
+    for (int d = 0; d < 4; ++d) mean[d] += p[d] / keys;
+    prod01 += double(p[0]) * p[1] / keys;
+    prod23 += double(p[2]) * p[3] / keys;
+  }
+  const double se = std::sqrt(1.0 / 12.0 / keys), se_prod = std::sqrt(7.0 / 144.0 / keys);
+  for (int d = 0; d < 4; ++d) EXPECT_NEAR(mean[d], 0.5, 5 * se) << "dimension " << d;
+  EXPECT_NEAR(prod01, 0.25, 5 * se_prod);
+  EXPECT_NEAR(prod23, 0.25, 5 * se_prod);
+}
+
+TEST(PathSampler, NumbersDependOnSeedPixelAndSampleOnly) {
+  for (SamplerType type : {SamplerType::kSobol, SamplerType::kIndependent}) {
+    PathSampler a(type, 7, 1234, 99), b(type, 7, 1234, 99);
+    EXPECT_EQ(a.camera(), b.camera());
+    for (uint32_t depth : {0u, 1u, 63u, 64u, 200u}) {
+      EXPECT_EQ(a.light(depth), b.light(depth)) << sampler_name(type);
+      EXPECT_EQ(a.scatter(depth), b.scatter(depth)) << sampler_name(type);
+      EXPECT_EQ(a.roulette(), b.roulette()) << sampler_name(type);
+    }
+    EXPECT_NE(PathSampler(type, 7, 1234, 99).camera(), PathSampler(type, 8, 1234, 99).camera());
+    EXPECT_NE(PathSampler(type, 7, 1234, 99).camera(), PathSampler(type, 7, 1235, 99).camera());
+    EXPECT_NE(PathSampler(type, 7, 1234, 99).camera(), PathSampler(type, 7, 1234, 98).camera());
+  }
+}
+
+TEST(PathSampler, IndependentReadsTheSampleStreamInOrder) {
+  PathSampler s(SamplerType::kIndependent, 3, 17, 5);
+  Pcg32 rng = sample_stream(3, 17, 5);
+  for (float v : s.camera()) EXPECT_EQ(v, rng.next_float());
+  for (float v : s.light(0)) EXPECT_EQ(v, rng.next_float());
+  for (float v : s.scatter(0)) EXPECT_EQ(v, rng.next_float());
+  EXPECT_EQ(s.roulette(), rng.next_float());
+}
+
+TEST(PathSampler, SobolPixelOffsetsStratifyEachPixel) {
+  // The first 16 samples of a pixel put one camera offset in each of a 4 x 4 grid of cells.
+  for (uint64_t pixel : {0u, 1u, 4095u}) {
+    std::set<int> cells;
+    for (uint32_t s = 0; s < 16; ++s) {
+      const std::array<float, 4> u = PathSampler(SamplerType::kSobol, 1, pixel, s).camera();
+      cells.insert(int(u[0] * 4) * 4 + int(u[1] * 4));
+    }
+    EXPECT_EQ(cells.size(), 16u) << "pixel " << pixel;
+  }
+}
+
+TEST(PathSampler, DeepVerticesFallBackToTheStream) {
+  // Past kSobolVertices the numbers are the hashed stream's; the roulette number of a Sobol'
+  // vertex is its group's fourth coordinate, not a stream draw.
+  PathSampler s(SamplerType::kSobol, 3, 17, 5);
+  Pcg32 rng = sample_stream(3, 17, 5);
+  const std::array<float, 3> deep = s.scatter(PathSampler::kSobolVertices);
+  for (float v : deep) EXPECT_EQ(v, rng.next_float());
+  EXPECT_EQ(s.roulette(), rng.next_float());
+  const std::array<float, 3> shallow = s.scatter(0);
+  const float r = s.roulette();
+  EXPECT_GE(r, 0.f);
+  EXPECT_LT(r, 1.f);
+  EXPECT_NE(shallow, deep);
+  // The shallow vertex took nothing from the stream: the next deep draw is its next number.
+  EXPECT_EQ(s.light(PathSampler::kSobolVertices)[0], rng.next_float());
+}
+
+}  // namespace
+}  // namespace rayfarm
