@@ -87,14 +87,16 @@ inline double spherical_triangle_area(const WideVec3& a, const WideVec3& b, cons
 /// when rounding leaves no direction.
 inline bool sample_spherical_triangle(const WideVec3& a, const WideVec3& b, const WideVec3& c,
                                       double area, double u1, double u2, WideVec3& out) {
-  // Unit normals of the great circles through each edge; the interior angle at a vertex is the
-  // angle between the two circles that meet there.
-  const WideVec3 n_ab = unit(cross(a, b)), n_ca = unit(cross(c, a));
-  const double alpha = angle_between(n_ab, scale(n_ca, -1.0));
-  const double sin_alpha = std::sin(alpha), cos_alpha = std::cos(alpha);
+  // Unit normals of the great circles through each edge; the interior angle alpha at a lies
+  // between the two circles that meet there. Its sine from the cross product and cosine from the
+  // dot product keep their digits near 0 and pi alike, without an inverse trigonometric call.
+  const WideVec3 n_ab = unit(cross(a, b)), n_ac = unit(cross(a, c));
+  const double cos_alpha = dot(n_ab, n_ac), sin_alpha = length(cross(n_ab, n_ac));
   // The sub-triangle (a, b, c') of area u1 x area: c' on the arc from a to c.
   const double part = u1 * area;
-  const double s = std::sin(part - alpha), t = std::cos(part - alpha);
+  const double sin_part = std::sin(part), cos_part = std::cos(part);
+  const double s = sin_part * cos_alpha - cos_part * sin_alpha;  // sin(part - alpha)
+  const double t = cos_part * cos_alpha + sin_part * sin_alpha;  // cos(part - alpha)
   const double u = t - cos_alpha;
   const double v = s + sin_alpha * dot(a, b);
   const double den = (v * s + u * t) * sin_alpha;
