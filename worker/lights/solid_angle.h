@@ -81,10 +81,10 @@ inline double spherical_triangle_area(const WideVec3& a, const WideVec3& b, cons
   return 2.0 * std::atan2(triple, den);
 }
 
-/// A unit direction uniform in the spherical triangle a, b, c (unit vectors) of area `area`
-/// (Arvo 1995: the area split off by u1 fixes the third vertex of a sub-triangle, u2 the point
-/// on the arc from b to it, with the density in z = cos that keeps the result uniform). False
-/// when rounding leaves no direction.
+/// A direction (unit up to rounding) uniform in the spherical triangle a, b, c (unit vectors) of
+/// area `area` (Arvo 1995: the area split off by u1 fixes the third vertex of a sub-triangle, u2
+/// the point on the arc from b to it, with the density in z = cos that keeps the result uniform).
+/// False when rounding leaves no direction.
 inline bool sample_spherical_triangle(const WideVec3& a, const WideVec3& b, const WideVec3& c,
                                       double area, double u1, double u2, WideVec3& out) {
   // Unit normals of the great circles through each edge; the interior angle alpha at a lies
@@ -107,7 +107,8 @@ inline bool sample_spherical_triangle(const WideVec3& a, const WideVec3& b, cons
   // The point on the arc from b to c', uniform in the sub-triangle's added sliver.
   const double z = 1.0 - u2 * (1.0 - dot(c1, b));
   const WideVec3 b_perp = unit(c1 - scale(b, dot(c1, b)));
-  out = unit(add(scale(b, z), scale(b_perp, std::sqrt(std::max(0.0, 1.0 - z * z)))));
+  // Unit up to rounding: its length does not matter to the caller, which follows it to a plane.
+  out = add(scale(b, z), scale(b_perp, std::sqrt(std::max(0.0, 1.0 - z * z))));
   return std::isfinite(out.x) && std::isfinite(out.y) && std::isfinite(out.z) &&
          (out.x != 0.0 || out.y != 0.0 || out.z != 0.0);
 }
