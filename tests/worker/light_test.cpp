@@ -476,7 +476,7 @@ void sphere_receiver(Vec3& ref, Vec3& normal) {
 }
 
 TEST(LightIrradianceTest, SphereMatchesPointSourceLaw) {
-  // One-sided: the far half is dark (sample() fails there), the visible cap gives pi L (r/d)^2.
+  // One-sided: sampling in the cone that sees the sphere draws only its lit cap: pi L (r/d)^2.
   const Lights lights{sphere_only(false)};
   Vec3 ref, normal;
   sphere_receiver(ref, normal);

@@ -251,7 +251,8 @@ void check_triangle_view(const TriangleView& view, uint64_t seed) {
   const Vec3 n(0.f, 1.f, 0.f);  // the front side of (a, b, c)
   const double omega = lhuilier(view.ref, kTri[0], kTri[1], kTri[2]);
   TriangleLight::SphericalView sv;
-  ASSERT_EQ(light->spherical_view(view.ref, sv), view.spherical) << view.name << " " << omega;
+  ASSERT_EQ(light->spherical_view(view.ref, light->height_above(view.ref), sv), view.spherical)
+      << view.name << " " << omega;
   // Both in double; L'Huilier's product of tangents is the less well conditioned near 2 pi.
   if (view.spherical) {
     EXPECT_NEAR(sv.area, omega, 1e-8 * omega) << view.name;
@@ -333,6 +334,28 @@ TEST(TriangleSolidAngleTest, DensityMatchesPdfOnBothSidesOfTheSwitch) {
                                 {"just above the inside", {0.3f, 0.05f, 0.f}, true}};
   uint64_t seed = 41;
   for (const TriangleView& v : views) check_triangle_view(v, seed++);
+}
+
+TEST(TriangleSolidAngleTest, CornersInOppositeDirectionsAreSampledByArea) {
+  // A huge triangle whose diagonal passes just above the point: its two ends lie in opposite
+  // directions to within 1e-14, where the edge's great circle is left to rounding (the point's
+  // offset of 0.3 from the diagonal is below a double's resolution at 6e16). It subtends ~pi,
+  // inside the band, yet must be sampled by area.
+  const float h = 6e16f;
+  const Scene scene =
+      triangle_scene({-h, 1e3f, -h}, {h, 1e3f, -h}, {h, 1e3f, h}, false);  // faces down
+  const auto light = TriangleLight::make(scene, 0, 0);
+  ASSERT_TRUE(light);
+  const Vec3 ref(0.3f, 0.5f, -0.2f);
+  TriangleLight::SphericalView view;
+  EXPECT_GT(light->height_above(ref), 0.0);
+  EXPECT_FALSE(light->spherical_view(ref, light->height_above(ref), view));
+  // The same view of a triangle as wide as it is far keeps its corners apart: by solid angle.
+  const Scene small =
+      triangle_scene({-1e3f, 1e3f, -1e3f}, {1e3f, 1e3f, -1e3f}, {1e3f, 1e3f, 1e3f}, false);
+  const auto near = TriangleLight::make(small, 0, 0);
+  ASSERT_TRUE(near);
+  EXPECT_TRUE(near->spherical_view(ref, near->height_above(ref), view));
 }
 
 TEST(TriangleSolidAngleTest, DegenerateViewsGiveNoNaN) {

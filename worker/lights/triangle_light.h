@@ -64,9 +64,10 @@ class TriangleLight {
   bool sample_with(const Vec3& ref, float p_select, float u1, float u2, LightSample& out,
                    const RadianceAt& radiance_at) const {
     // A one-sided triangle seen from behind sends nothing, whichever point is drawn.
-    if (!two_sided_ && solid_angle::dot(wide(n_), wide(ref) - wide(v0_)) <= 0.0) return false;
+    const double height = height_above(ref);
+    if (!two_sided_ && !(height > 0.0)) return false;
     SphericalView view;
-    if (spherical_view(ref, view)) {
+    if (spherical_view(ref, height, view)) {
       float b1 = 0.f, b2 = 0.f;
       WideVec3 dir;
       if (!solid_angle::sample_spherical_triangle(view.a, view.b, view.c, view.area, u1, u2, dir) ||
@@ -86,7 +87,8 @@ class TriangleLight {
   /// Density sample() has for reaching (p, n) from `ref`.
   float pdf(float p_select, const Vec3& ref, const Vec3& p, const Vec3& n) const {
     SphericalView view;
-    if (spherical_view(ref, view)) return static_cast<float>(p_select / view.area);
+    if (spherical_view(ref, height_above(ref), view))
+      return static_cast<float>(p_select / view.area);
     return area_light_pdf(p_select, area_, ref, p, n);
   }
 
@@ -106,27 +108,35 @@ class TriangleLight {
     WideVec3 a, b, c;  // unit directions to the vertices
     double area = 0.0;
   };
-  /// True when the triangle is sampled by solid angle from `ref`, with its spherical triangle.
-  /// A function of ref and the triangle alone, so that pdf() decides as sample() did.
-  bool spherical_view(const Vec3& ref, SphericalView& view) const {
-    const WideVec3 r = wide(ref);
-    // Most points see the triangle small, which a bound proves without the spherical
+  /// Signed distance of `ref` from the triangle's plane, positive on its front side. In double:
+  /// the corners of a huge triangle would leave a float difference nothing but rounding.
+  double height_above(const Vec3& ref) const {
+    return solid_angle::dot(wide(n_), wide(ref) - wide(v0_));
+  }
+  /// True when the triangle is sampled by solid angle from `ref` (height_above(ref): `height`),
+  /// with its spherical triangle. A function of ref and the triangle alone, so that pdf()
+  /// decides as sample() did.
+  bool spherical_view(const Vec3& ref, double height, SphericalView& view) const {
+    view.area = 0.0;
+    // Most points see the triangle small, which a bound settles without the spherical
     // triangle: Omega = integral of h / d^3 dA over the triangle (h: the distance to its plane),
     // and every point of it is at least d_min = max(h, distance to the centroid - its bounding
     // radius) away, so Omega <= area h / d_min^3.
-    const double h = std::fabs(solid_angle::dot(wide(n_), r - wide(v0_)));
-    if (area_d_ < kMinSolidAngle * h * h) {  // d_min >= h: decided without a square root
-      view.area = 0.0;
-      return false;
-    }
+    const double h = std::fabs(height);
+    if (area_d_ < kMinSolidAngle * h * h) return false;  // d_min >= h: no square root
+    const WideVec3 r = wide(ref);
     const double d_min = std::max(h, length(centroid_ - r) - bound_radius_);
-    if (area_d_ * h < kMinSolidAngle * d_min * d_min * d_min) {
-      view.area = 0.0;
-      return false;
-    }
+    if (area_d_ * h < kMinSolidAngle * d_min * d_min * d_min) return false;
     view.a = solid_angle::unit(wide(v0_) - r);
     view.b = solid_angle::unit(wide(v1_) - r);
     view.c = solid_angle::unit(wide(v2_) - r);
+    // Corners seen in (nearly) the same or opposite directions leave an edge's great circle to
+    // rounding (a huge triangle's far corners on either side of the point): by area then.
+    constexpr double kParallel = 1.0 - 1e-8;
+    if (std::fabs(solid_angle::dot(view.a, view.b)) > kParallel ||
+        std::fabs(solid_angle::dot(view.b, view.c)) > kParallel ||
+        std::fabs(solid_angle::dot(view.c, view.a)) > kParallel)
+      return false;
     view.area = solid_angle::spherical_triangle_area(view.a, view.b, view.c);
     return view.area >= kMinSolidAngle && view.area <= kMaxSolidAngle;
   }
