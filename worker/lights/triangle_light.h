@@ -94,12 +94,10 @@ class TriangleLight {
 
   /// Solid angles (steradians) within which sampling is by solid angle. Below the lower bound the
   /// density by area is nearly uniform in solid angle already (its 1/r^2 and cosine vary little
-  /// over the triangle), and the spherical triangle's cost buys nothing; near a hemisphere (2 pi)
-  /// its angles approach pi and the sampling formulas lose their digits.
-  // The lower bound is where the density by area, for a receiver facing the light or at a
-  // grazing angle to it, has a relative variance of ~1e-2 (a square light: 0.007 head-on at
-  // 0.4 sr, 0.015 at 0.14 sr off to one side), below the rest of a path's noise, while drawing in
-  // the spherical triangle costs some 500 more instructions a sample.
+  /// over the triangle: for a square light the estimate's relative variance is 0.007 head-on at
+  /// 0.4 sr, 0.015 at 0.14 sr seen off to one side), below the rest of a path's noise, while the
+  /// spherical triangle costs some 800 more instructions a sample (docs/benchmarks.md). Near a
+  /// hemisphere (2 pi) its angles approach pi and the sampling formulas lose their digits.
   static constexpr double kMinSolidAngle = 0.25;
   static constexpr double kMaxSolidAngle = 2.0 * solid_angle::kPiD - 0.02;
 
