@@ -1,5 +1,7 @@
-// Error against time for each integrator on a room lit by one square ceiling light, at the
-// normal size (side 0.5) and tiny (1e-6 of its area, 1e6 times its radiance: the same power).
+// Error against time for each integrator on a room lit by one light of the same power: a square
+// ceiling light at the normal size (side 0.5), tiny (1e-6 of its area, 1e6 times its radiance),
+// large (side 1.8, most of the ceiling), or a sphere (radius 0.2) hanging below the ceiling,
+// where the light's 1/r^2 and cosine factors vary most across it.
 // The error is the RMS difference from a reference rendered with MIS at many samples, with the
 // reference's own variance subtracted (its per-pixel sums carry it). Prints one line per
 // (light, integrator, spp); the figures are in docs/stability.md.
@@ -8,6 +10,8 @@
 #include <chrono>
 #include <cmath>
 #include <iostream>
+#include <optional>
+#include <string>
 #include <vector>
 
 #include <CLI/CLI.hpp>
@@ -36,8 +40,9 @@ void quad(Scene& s, Vec3 c, Vec3 e1, Vec3 e2, uint32_t material) {
   s.meshes.push_back(mesh);
 }
 
-/// The closed room of tests/worker/stability_scenes.h (room_with_light), light side `side`.
-Scene room(float side, float le, uint32_t size) {
+/// The closed room of tests/worker/stability_scenes.h (room_with_light), light side `side`; a
+/// sphere of radius `sphere` at (0, 0.7, 0) instead of the square when sphere > 0.
+Scene room(float side, float le, uint32_t size, float sphere = 0.f) {
   Scene s;
   s.film = {size, size};
   s.camera.eye = {0.f, 0.2f, -0.95f};
@@ -52,7 +57,11 @@ Scene room(float side, float le, uint32_t size) {
   quad(s, {-1, -1, -1}, {0, 2, 0}, {2, 0, 0}, wall);
   quad(s, {-1, -1, -1}, {0, 0, 2}, {0, 2, 0}, red);
   quad(s, {1, -1, -1}, {0, 2, 0}, {0, 0, 2}, wall);
-  quad(s, {-0.5f * side, 0.999f, -0.5f * side}, {side, 0, 0}, {0, 0, side}, lamp);
+  if (sphere > 0.f) {
+    s.spheres.push_back({{0.f, 0.7f, 0.f}, sphere, lamp});
+  } else {
+    quad(s, {-0.5f * side, 0.999f, -0.5f * side}, {side, 0, 0}, {0, 0, side}, lamp);
+  }
   s.render.max_depth = 8;
   return s;
 }
@@ -79,10 +88,14 @@ Rendered render(const Scene& scene, IntegratorType integrator, uint32_t spp, uin
 int main(int argc, char** argv) {
   CLI::App app{"light_size_bench: error against time per integrator, normal and tiny light"};
   uint32_t size = 32, reference_spp = 4096, threads = 2, max_spp = 1024;
+  std::vector<std::string> lights = {"normal", "tiny"};
   app.add_option("--size", size, "Film side in pixels")->capture_default_str();
   app.add_option("--reference-spp", reference_spp, "MIS samples of the reference")->capture_default_str();
   app.add_option("--max-spp", max_spp, "Largest spp measured (powers of 4 from 4)")->capture_default_str();
   app.add_option("--threads", threads, "Threads")->capture_default_str();
+  app.add_option("--lights", lights, "Lights: normal, tiny, large, sphere")->capture_default_str();
+  std::vector<std::string> integrators = {"naive", "nee", "mis"};
+  app.add_option("--integrators", integrators, "Integrators measured")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   // The max_depth truncation warnings (about 0.5% of the throughput here) would drown the table.
   configure_logging("error");
@@ -92,9 +105,13 @@ int main(int argc, char** argv) {
     std::cout << fmt::format("{:>6} {:>6} {:>6} {:>9} {:>11} {:>9} {:>13} {:>8}\n", "light",
                              "integr", "spp", "seconds", "rmse", "rel.rmse", "rmse*sqrt(s)",
                              "dropped");
-    for (const float side : {0.5f, 5e-4f}) {
-      const float le = 8.f * (0.5f * 0.5f) / (side * side);  // same power
-      const Scene scene = room(side, le, size);
+    for (const std::string& name : lights) {
+      // The same power: radiance x area (one-sided square: its area; sphere: 4 pi r^2).
+      const float side = name == "tiny" ? 5e-4f : name == "large" ? 1.8f : 0.5f;
+      const float radius = name == "sphere" ? 0.2f : 0.f;
+      const float area = radius > 0.f ? 4.f * kPi * radius * radius : side * side;
+      const float le = 8.f * (0.5f * 0.5f) / area;
+      const Scene scene = room(side, le, size, radius);
       const Rendered ref = render(scene, IntegratorType::kMis, reference_spp, 999);
       const size_t values = ref.result.sum.size();
       std::vector<double> ref_mean(values), ref_var(values);
@@ -105,8 +122,13 @@ int main(int argc, char** argv) {
         ref_var[i] = std::max(0.0, from_fixed(ref.result.sum_sq[i]) / n - ref_mean[i] * ref_mean[i]) / (n - 1.0);
         ref_level += ref_mean[i] / double(values);
       }
-      const char* name = side > 0.1f ? "normal" : "tiny";
-      for (IntegratorType integrator : {IntegratorType::kNaive, IntegratorType::kNee, IntegratorType::kMis}) {
+      for (const std::string& integrator_text : integrators) {
+        const std::optional<IntegratorType> parsed = parse_integrator(integrator_text);
+        if (!parsed) {
+          std::cerr << "unknown integrator " << integrator_text << "\n";
+          return;
+        }
+        const IntegratorType integrator = *parsed;
         for (uint32_t spp = 4; spp <= max_spp; spp *= 4) {
           const Rendered r = render(scene, integrator, spp, 17 + spp);
           double mse = 0.0;

@@ -1,11 +1,14 @@
 #pragma once
-// An emissive sphere, sampled uniformly by area.
+// An emissive sphere. From outside it, directions are drawn uniformly in the cone that sees it
+// (the visible cap, every sample lit by a one-sided sphere, and no 1/r^2 or cosine left in the
+// estimate); from inside or on it, points uniformly by area.
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <optional>
 
 #include "worker/lights/area_light.h"
+#include "worker/lights/solid_angle.h"
 
 namespace rayfarm {
 
@@ -38,7 +41,7 @@ class SphereLight {
   uint32_t geom() const { return kSphereGeometry; }
   uint32_t prim() const { return index_; }
 
-  /// A uniform point on the sphere as seen from `ref`; p_select: the selection probability.
+  /// A point of the sphere as seen from `ref`; p_select: the selection probability.
   bool sample(const Vec3& ref, float p_select, float u1, float u2, LightSample& out) const {
     return sample_with(ref, p_select, u1, u2, out, [this](const Vec3&) { return emission_; });
   }
@@ -46,6 +49,15 @@ class SphereLight {
   template <class RadianceAt>
   bool sample_with(const Vec3& ref, float p_select, float u1, float u2, LightSample& out,
                    const RadianceAt& radiance_at) const {
+    solid_angle::SphereCone cone;
+    if (visible_cone(ref, cone)) {
+      const WideVec3 nw = solid_angle::sample_cone_normal(cone, u1, u2);
+      const Vec3 n = solid_angle::narrow(nw);
+      const Vec3 p =
+          solid_angle::narrow(solid_angle::add(wide(center_), solid_angle::scale(nw, radius_)));
+      return finish_solid_angle_sample(ref, p, n, p_error_, 1.0 / cone.solid_angle(),
+                                       radiance_at(n), two_sided_, p_select, out);
+    }
     const Vec3 n = sample_uniform_sphere(u1, u2);
     const Vec3 p = center_ + n * radius_;
     return finish_area_sample(ref, p, n, p_error_, area_, radiance_at(n), two_sided_, p_select,
@@ -53,7 +65,29 @@ class SphereLight {
   }
   /// Density sample() has for reaching (p, n) from `ref`.
   float pdf(float p_select, const Vec3& ref, const Vec3& p, const Vec3& n) const {
-    return area_light_pdf(p_select, area_, ref, p, n);
+    solid_angle::SphereCone cone;
+    if (!visible_cone(ref, cone)) return area_light_pdf(p_select, area_, ref, p, n);
+    // From outside, only the cap facing `ref` is ever drawn. A ray's first hit lies on it; a
+    // point clearly behind it (reached through the sphere) has density 0, so that MIS gives its
+    // emission to the BSDF ray alone.
+    const double dx = double(ref.x) - p.x, dy = double(ref.y) - p.y, dz = double(ref.z) - p.z;
+    const double facing = n.x * dx + n.y * dy + n.z * dz;
+    if (facing < -1e-3 * std::sqrt(dx * dx + dy * dy + dz * dz)) return 0.f;
+    return static_cast<float>(p_select / cone.solid_angle());
+  }
+
+  /// True when `ref` lies clearly outside the sphere, with the cone that sees the sphere from
+  /// there; else (inside, on, or within rounding of it) sampling is by area. A function of ref
+  /// and the sphere alone, so that pdf() decides as sample() did.
+  bool visible_cone(const Vec3& ref, solid_angle::SphereCone& cone) const {
+    const WideVec3 to_center = wide(center_) - wide(ref);
+    const double d = length(to_center), r = radius_;
+    // A point computed on the surface lies within its rounding error p_error_ of it.
+    if (!(d > r + std::max(1e-5 * r, 2.0 * double(p_error_)))) return false;
+    cone.axis = solid_angle::scale(to_center, 1.0 / d);
+    cone.sin2_max = (r / d) * (r / d);
+    cone.one_minus_cos = solid_angle::one_minus_sqrt_one_minus(cone.sin2_max);
+    return cone.one_minus_cos > 0.0 && std::isfinite(cone.one_minus_cos);
   }
 
  private:
