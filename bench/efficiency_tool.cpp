@@ -27,8 +27,8 @@
 #include <string>
 #include <vector>
 
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <CLI/CLI.hpp>
 
 #include "common/image/exr.h"
 #include "common/image/metrics.h"
@@ -51,7 +51,8 @@ double median(std::vector<double> v) {
 // ---- reference -------------------------------------------------------------------------------
 
 int make_reference(const std::string& out, const std::vector<std::string>& inputs) {
-  if (inputs.size() < 2) throw std::runtime_error("a reference needs at least 2 renders to know its variance");
+  if (inputs.size() < 2)
+    throw std::runtime_error("a reference needs at least 2 renders to know its variance");
   std::vector<Image> renders;
   for (const std::string& path : inputs) {
     renders.push_back(read_exr(path, {0, 0, true}));
@@ -76,11 +77,14 @@ int make_reference(const std::string& out, const std::vector<std::string>& input
     double spread = 0.0;
     for (const Image& r : renders) spread += (r.rgb[i] - m) * (r.rgb[i] - m);
     mean.rgb[i] = static_cast<float>(m);
-    mean.extra[std::string("variance.") + "RGB"[i % 3]][i / 3] = static_cast<float>(spread / (k * (k - 1.0)));
+    mean.extra[std::string("variance.") + "RGB"[i % 3]][i / 3] =
+        static_cast<float>(spread / (k * (k - 1.0)));
   }
-  mean.attributes["rayfarm:reference"] = fmt::format("mean of {} independent renders", renders.size());
+  mean.attributes["rayfarm:reference"] =
+      fmt::format("mean of {} independent renders", renders.size());
   write_exr(out, mean);
-  std::cout << fmt::format("wrote {}: mean of {} renders with the variance of that mean\n", out, renders.size());
+  std::cout << fmt::format("wrote {}: mean of {} renders with the variance of that mean\n", out,
+                           renders.size());
   return 0;
 }
 
@@ -97,7 +101,8 @@ Reference load_reference(const std::string& path) {
   Reference ref{read_exr(path), 0.0};
   std::vector<float> var(ref.image.rgb.size());
   const fs::path sibling = fs::path(path).replace_extension().string() + "-variance.exr";
-  if (ref.image.extra.count("variance.R") && ref.image.extra.count("variance.G") && ref.image.extra.count("variance.B")) {
+  if (ref.image.extra.count("variance.R") && ref.image.extra.count("variance.G") &&
+      ref.image.extra.count("variance.B")) {
     for (int c = 0; c < 3; ++c) {
       const std::vector<float>& v = ref.image.extra.at(std::string("variance.") + "RGB"[c]);
       for (size_t p = 0; p < v.size(); ++p) var[p * 3 + c] = v[p];
@@ -131,7 +136,8 @@ std::vector<Run> read_runs(const std::string& path) {
   std::string line;
   std::getline(in, line);
   if (line != "renderer,round,spp,seconds,cpu_seconds,image") {
-    throw std::runtime_error(path + ":1: expected the header renderer,round,spp,seconds,cpu_seconds,image");
+    throw std::runtime_error(
+        path + ":1: expected the header renderer,round,spp,seconds,cpu_seconds,image");
   }
   std::vector<Run> runs;
   for (int line_no = 2; std::getline(in, line); ++line_no) {
@@ -149,9 +155,11 @@ std::vector<Run> read_runs(const std::string& path) {
       r.cpu_seconds = f[4].empty() ? std::nan("") : std::stod(f[4]);
       r.image = (fs::path(path).parent_path() / f[5]).string();
     } catch (const std::exception&) {
-      throw std::runtime_error(fmt::format("{}:{}: expected renderer,round,spp,seconds,cpu_seconds,image", path, line_no));
+      throw std::runtime_error(fmt::format(
+          "{}:{}: expected renderer,round,spp,seconds,cpu_seconds,image", path, line_no));
     }
-    if (!(r.seconds > 0)) throw std::runtime_error(fmt::format("{}:{}: seconds must be > 0", path, line_no));
+    if (!(r.seconds > 0))
+      throw std::runtime_error(fmt::format("{}:{}: seconds must be > 0", path, line_no));
     runs.push_back(std::move(r));
   }
   if (runs.empty()) throw std::runtime_error(path + ": no runs");
@@ -208,7 +216,8 @@ int analyse(const std::string& runs_path, const std::vector<std::string>& refere
   std::vector<std::string> order;  // renderers in the order of --reference
   for (const std::string& arg : reference_args) {
     const size_t eq = arg.find('=');
-    if (eq == std::string::npos || eq == 0) throw std::runtime_error("--reference " + arg + ": expected NAME=FILE.exr");
+    if (eq == std::string::npos || eq == 0)
+      throw std::runtime_error("--reference " + arg + ": expected NAME=FILE.exr");
     const std::string name = arg.substr(0, eq);
     references[name] = load_reference(arg.substr(eq + 1));
     order.push_back(name);
@@ -216,7 +225,8 @@ int analyse(const std::string& runs_path, const std::vector<std::string>& refere
   std::vector<Run> runs = read_runs(runs_path);
   for (Run& r : runs) {
     const auto ref = references.find(r.renderer);
-    if (ref == references.end()) throw std::runtime_error(runs_path + ": no --reference for renderer " + r.renderer);
+    if (ref == references.end())
+      throw std::runtime_error(runs_path + ": no --reference for renderer " + r.renderer);
     const ImageDiff d = compare_images(read_exr(r.image, {0, 0, true}), ref->second.image);
     r.rel_mse_measured = d.rel_mse;
     // Kept positive for the logarithms; a correction over half the measurement is reported below.
@@ -224,11 +234,12 @@ int analyse(const std::string& runs_path, const std::vector<std::string>& refere
   }
   if (!out_csv.empty()) {
     std::ofstream csv(out_csv);
-    csv << "renderer,round,spp,seconds,cpu_seconds,rel_mse,rel_mse_measured,reference_noise,image\n";
+    csv << "renderer,round,spp,seconds,cpu_seconds,rel_mse,rel_mse_measured,reference_noise,"
+           "image\n";
     for (const Run& r : runs) {
-      csv << fmt::format("{},{},{},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{}\n", r.renderer, r.round, r.spp, r.seconds,
-                         r.cpu_seconds, r.rel_mse, r.rel_mse_measured, references[r.renderer].noise,
-                         fs::path(r.image).filename().string());
+      csv << fmt::format("{},{},{},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{}\n", r.renderer, r.round,
+                         r.spp, r.seconds, r.cpu_seconds, r.rel_mse, r.rel_mse_measured,
+                         references[r.renderer].noise, fs::path(r.image).filename().string());
     }
     if (!csv) throw std::runtime_error("cannot write " + out_csv);
   }
@@ -240,30 +251,33 @@ int analyse(const std::string& runs_path, const std::vector<std::string>& refere
     if (c.levels.empty()) continue;
     curves[name] = c;
     std::cout << fmt::format("\n{}: reference noise relMSE {:.3g} (subtracted)\n", name, ref.noise);
-    std::cout << "| spp | rounds | median time (s) | median CPU (s) | median relMSE | relMSE x time (s) |\n"
+    std::cout << "| spp | rounds | median time (s) | median CPU (s) | median relMSE | relMSE x "
+                 "time (s) |\n"
                  "| ---: | ---: | ---: | ---: | ---: | ---: |\n";
     bool noisy_reference = false;
     for (const Level& l : c.levels) {
-      std::cout << fmt::format("| {} | {} | {:.3g} | {:.3g} | {:.3g} | {:.3g} |\n", l.spp, l.rounds, l.seconds,
-                               l.cpu_seconds, l.rel_mse, l.product());
+      std::cout << fmt::format("| {} | {} | {:.3g} | {:.3g} | {:.3g} | {:.3g} |\n", l.spp, l.rounds,
+                               l.seconds, l.cpu_seconds, l.rel_mse, l.product());
       noisy_reference |= ref.noise > 0.5 * l.rel_mse_measured;
     }
     if (noisy_reference) {
       std::cout << "warning: the reference's own noise is over half of some measured relMSE: "
                    "give it more samples\n";
     }
-    std::cout << fmt::format("{}: relMSE x time {:.4g} s (median over the upper {} spp levels; their log-log "
-                             "slope {}), efficiency 1/(relMSE x time) = {:.4g} /s; relMSE x CPU time {:.4g} s\n",
-                             name, c.product, c.levels.size() - c.levels.size() / 2,
-                             c.upper_slope ? fmt::format("{:.2f}", *c.upper_slope) : "-", 1.0 / c.product,
-                             c.product_cpu);
+    std::cout << fmt::format(
+        "{}: relMSE x time {:.4g} s (median over the upper {} spp levels; their log-log "
+        "slope {}), efficiency 1/(relMSE x time) = {:.4g} /s; relMSE x CPU time {:.4g} s\n",
+        name, c.product, c.levels.size() - c.levels.size() / 2,
+        c.upper_slope ? fmt::format("{:.2f}", *c.upper_slope) : "-", 1.0 / c.product,
+        c.product_cpu);
   }
   if (curves.size() >= 2) {
     const std::string& first = order.front();
     for (const auto& [name, c] : curves) {
       if (name == first) continue;
-      std::cout << fmt::format("efficiency ratio {}/{}: {:.3g} (wall time); {:.3g} (CPU time)\n", first, name,
-                               c.product / curves[first].product, c.product_cpu / curves[first].product_cpu);
+      std::cout << fmt::format("efficiency ratio {}/{}: {:.3g} (wall time); {:.3g} (CPU time)\n",
+                               first, name, c.product / curves[first].product,
+                               c.product_cpu / curves[first].product_cpu);
     }
   }
 
@@ -296,12 +310,16 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   std::string out, runs_path, plot_path, title, out_csv;
   std::vector<std::string> inputs, reference_args;
-  CLI::App* ref = app.add_subcommand("reference", "Mean of independent renders, with the variance of that mean");
+  CLI::App* ref = app.add_subcommand("reference",
+                                     "Mean of independent renders, with the variance of that mean");
   ref->add_option("out", out, "Output EXR")->required();
   ref->add_option("inputs", inputs, "Renders (EXR), at least 2")->required();
-  CLI::App* an = app.add_subcommand("analyse", "relMSE of each run against its renderer's reference; medians, ratio, plot");
-  an->add_option("runs", runs_path, "CSV: renderer,round,spp,seconds,cpu_seconds,image")->required();
-  an->add_option("--reference", reference_args, "NAME=REF.exr, one per renderer; the first is the ratio's numerator")
+  CLI::App* an = app.add_subcommand(
+      "analyse", "relMSE of each run against its renderer's reference; medians, ratio, plot");
+  an->add_option("runs", runs_path, "CSV: renderer,round,spp,seconds,cpu_seconds,image")
+      ->required();
+  an->add_option("--reference", reference_args,
+                 "NAME=REF.exr, one per renderer; the first is the ratio's numerator")
       ->required();
   an->add_option("--plot", plot_path, "Plot PNG of relMSE against time");
   an->add_option("--title", title, "Plot title");
