@@ -2,6 +2,7 @@
 
     blender -b --factory-startup --python scripts/blender_reference.py -- \
         SCENE.json OUT.exr --spp N [--seeds K] [--seed S] [--threads T] [--source-name NAME]
+        [--res WxH] [--approximate] [--ladder SPP,SPP,... instead of --spp]
 
 Reads our scene JSON (docs/scene-format.md) and builds the same scene in Cycles:
 
@@ -18,6 +19,12 @@ Reads our scene JSON (docs/scene-format.md) and builds the same scene in Cycles:
 
 Anything else (spheres, point lights, phong, mirror, dielectric, a thin lens) is rejected with an
 error: a tessellated sphere or Blender's light units would not be the same scene.
+
+`--approximate` is for benchmarks that measure each renderer against its own reference
+(bench/efficiency.sh), never for references: spheres become smooth-shaded UV spheres (enough
+segments that the silhouette is within 0.05 pixel), `mirror` a sharp Glossy BSDF of the
+reflectance, `dielectric` a sharp Glass BSDF of the ior (and the tint as its colour, which Cycles
+applies to the reflection too). `--res WxH` renders at another film size.
 
 With `--no-light-sampling` emitters are found by BSDF sampling alone (each material's
 `sample_as_light` off). The committed references use it: Blender 3.4.1's mesh-light sampling
@@ -36,7 +43,14 @@ S, S+1, ..., S+K-1; OUT.exr is their mean, and OUT-variance.exr holds, per pixel
 variance of that mean estimated from the spread of the K renders (sum (x_k - mean)^2 / (K (K-1))),
 so that a test can account for the reference's own noise. OUT.json records every setting, the
 Blender version, the scene's SHA-256, per-channel image means and the render times; the same
-settings (JSON) are in both EXR headers as the string attribute `rayfarmReference`.
+settings (JSON) are in both EXR headers as the string attribute `rayfarmReference`. Its
+`render_seconds` time each whole render operator (the EXR write included);
+`render_only_seconds` and `render_cpu_seconds` run from Blender's render_pre to its render_post
+(Cycles' scene sync, BVH and sampling: neither Blender's start, nor the scene build, nor the file).
+
+With `--ladder 1,4,16` the scene is rendered once per sample count with seed S, each image written
+by Blender as OUT-<spp>spp.exr (float32 RGB), and the times of each render (as above) go to
+OUT.json and OUT.csv: benchmarks of time against error, with one Blender start for the ladder.
 """
 
 import argparse
@@ -131,24 +145,36 @@ def read_obj(path, override):
     return positions, triangles
 
 
-def load_our_scene(path):
-    """Our scene as plain data: camera, film, materials, triangles (vertex triples + material)."""
+def load_our_scene(path, approximate=False):
+    """Our scene as plain data: camera, film, materials, triangles (vertex triples + material) and,
+    with `approximate`, spheres (centre, radius, material)."""
     with open(path, encoding="utf-8") as f:
         doc = json.loads(strip_json_comments(f.read()))
     cam = doc["camera"]
     if cam.get("type", "perspective") != "perspective" or cam.get("aperture_radius", 0) != 0:
         raise SceneFormatError(f"{path}: /camera: only a pinhole perspective camera is supported")
     materials = {}
+    approximated = ("mirror", "dielectric") if approximate else ()
     for name, m in doc.get("materials", {}).items():
-        if m["type"] != "diffuse":
+        if m["type"] != "diffuse" and m["type"] not in approximated:
+            supported = "diffuse, mirror, dielectric" if approximate else "diffuse only"
             raise SceneFormatError(f"{path}: /materials/{name}: type {m['type']!r} not supported "
-                                   "(diffuse only)")
+                                   f"({supported})")
+        if m["type"] == "mirror":
+            materials[name] = {"type": "mirror", "reflectance": m.get("reflectance", [1.0, 1.0, 1.0])}
+            continue
+        if m["type"] == "dielectric":
+            materials[name] = {"type": "dielectric", "ior": float(m.get("ior", 1.5)),
+                               "tint": m.get("tint", [1.0, 1.0, 1.0])}
+            continue
         materials[name] = {
+            "type": "diffuse",
             "albedo": m.get("albedo", [0.8, 0.8, 0.8]),
             "emission": m.get("emission", [0.0, 0.0, 0.0]),
             "two_sided": bool(m.get("two_sided", False)),
         }
     triangles = []  # (v0, v1, v2, material)
+    spheres = []  # (centre, radius, material), approximate only
     for i, s in enumerate(doc.get("shapes", [])):
         t = s["type"]
         if t == "quad":
@@ -164,11 +190,13 @@ def load_our_scene(path):
             positions, tris = read_obj(obj, s.get("material"))
             for idx, mat in tris:
                 triangles.append((positions[idx[0]], positions[idx[1]], positions[idx[2]], mat))
+        elif t == "sphere" and approximate:
+            spheres.append((s["center"], float(s["radius"]), s["material"]))
         else:
             raise SceneFormatError(f"{path}: /shapes/{i}: shape type {t!r} not supported")
     if doc.get("lights"):
         raise SceneFormatError(f"{path}: /lights: point lights are not supported")
-    for *_, mat in triangles:
+    for *_, mat in triangles + spheres:
         if mat not in materials:
             raise SceneFormatError(f"{path}: unknown material {mat!r}")
     render = doc.get("render", {})
@@ -180,9 +208,28 @@ def load_our_scene(path):
         "film": doc["film"],
         "materials": materials,
         "triangles": triangles,
+        "spheres": spheres,
         "background": doc.get("background", [0.0, 0.0, 0.0]),
         "max_depth": render.get("max_depth", 16),
     }
+
+
+def make_specular(mat, m, nodes, links, out):
+    """`--approximate`: a mirror as a sharp Glossy BSDF of its reflectance, a dielectric as a sharp
+    Glass BSDF of its ior. Cycles' Glass colour scales reflection too where our tint scales only
+    transmission, and Cycles does not scale radiance by the squared ior ratio on crossing: close,
+    not the same scene (fine for a benchmark that compares each renderer with itself)."""
+    if m["type"] == "mirror":
+        bsdf = nodes.new("ShaderNodeBsdfGlossy")
+        bsdf.inputs["Color"].default_value = (*m["reflectance"], 1.0)
+    else:
+        bsdf = nodes.new("ShaderNodeBsdfGlass")
+        bsdf.inputs["Color"].default_value = (*m["tint"], 1.0)
+        bsdf.inputs["IOR"].default_value = m["ior"]
+    bsdf.distribution = "SHARP"
+    bsdf.inputs["Roughness"].default_value = 0.0
+    links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
+    return mat
 
 
 def make_material(name, m):
@@ -192,6 +239,8 @@ def make_material(name, m):
     nodes.clear()
     out = nodes.new("ShaderNodeOutputMaterial")
     out.target = "CYCLES"
+    if m["type"] != "diffuse":
+        return make_specular(mat, m, nodes, links, out)
     diffuse = nodes.new("ShaderNodeBsdfDiffuse")
     diffuse.inputs["Color"].default_value = (*m["albedo"], 1.0)
     diffuse.inputs["Roughness"].default_value = 0.0  # Lambert, not Oren-Nayar
@@ -223,6 +272,36 @@ def make_material(name, m):
     return mat
 
 
+def sphere_segments(radius, centre, ours, max_error_px=0.05):
+    """Segments around a UV sphere whose silhouette (a polygon inscribed in the circle, off by
+    r (1 - cos(pi / n))) stays within `max_error_px` pixels of the true one, seen from the camera."""
+    c = ours["camera"]
+    distance = max(math.dist(centre, c["eye"]) - radius, 1e-6 * radius)
+    pixel = 2.0 * distance * math.tan(math.radians(c["fov_y"]) / 2.0) / ours["film"]["height"]
+    cos_half = 1.0 - min(1.0, max_error_px * pixel / radius)
+    return max(64, min(1024, math.ceil(math.pi / math.acos(cos_half))))
+
+
+def add_uv_sphere(scene, name, sphere, material, ours):
+    """`--approximate`: our sphere as a smooth-shaded UV sphere with outward faces."""
+    import bmesh
+    centre, radius, _ = sphere
+    segments = sphere_segments(radius, centre, ours)
+    mesh = bpy.data.meshes.new(name)
+    bm = bmesh.new()
+    bmesh.ops.create_uvsphere(bm, u_segments=segments, v_segments=segments // 2, radius=radius)
+    bm.to_mesh(mesh)
+    bm.free()
+    for poly in mesh.polygons:
+        poly.use_smooth = True
+    mesh.materials.append(material)
+    obj = bpy.data.objects.new(name, mesh)
+    obj.location = tuple(centre)
+    scene.collection.objects.link(obj)
+    print(f"{name}: UV sphere of radius {radius} at {centre}, {segments} segments", flush=True)
+    return segments
+
+
 def build_blender_scene(ours):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
@@ -246,6 +325,12 @@ def build_blender_scene(ours):
         raise SceneFormatError(f"Blender kept {len(mesh.polygons)} of {len(ours['triangles'])} triangles")
     obj = bpy.data.objects.new("scene", mesh)
     scene.collection.objects.link(obj)
+    made = {n: mesh.materials[i] for i, n in enumerate(names)}
+    for k, sphere in enumerate(ours["spheres"]):
+        name = sphere[2]
+        if name not in made:
+            made[name] = make_material(name, ours["materials"][name])
+        add_uv_sphere(scene, f"sphere-{k}", sphere, made[name], ours)
 
     # Camera: world matrix from our look-at basis; vertical field of view.
     c = ours["camera"]
@@ -456,17 +541,47 @@ def save_pixels(rgb, width, height, path, attributes):
         raise RuntimeError(f"{path}: read back with a difference of {worst}")
 
 
-def render_seeds(scene, seeds, per_render, width, height):
+def timed_render(scene):
+    """Renders the scene's still to its filepath. Returns the seconds of the whole render operator
+    and, from Blender's render_pre to its render_post, the wall and process CPU seconds of the
+    render itself: Cycles' scene sync, BVH and sampling, without Blender's start, the scene build
+    above or the file written after."""
+    marks = {}
+
+    def pre(*_):
+        marks["pre"] = (time.monotonic(), time.process_time())
+
+    def post(*_):
+        marks["post"] = (time.monotonic(), time.process_time())
+
+    bpy.app.handlers.render_pre.append(pre)
+    bpy.app.handlers.render_post.append(post)
+    try:
+        t0 = time.monotonic()
+        bpy.ops.render.render(write_still=True)
+        total = time.monotonic() - t0
+    finally:
+        bpy.app.handlers.render_pre.remove(pre)
+        bpy.app.handlers.render_post.remove(post)
+    if "pre" not in marks or "post" not in marks:
+        raise RuntimeError("Blender did not report the start and end of the render")
+    return {"seconds": total, "render_seconds": marks["post"][0] - marks["pre"][0],
+            "render_cpu_seconds": marks["post"][1] - marks["pre"][1]}
+
+
+def render_seeds(scene, seeds, per_render, width, height, timings=None):
     """Renders `scene` once per seed; (renders, seconds each, per-pixel mean, variance of that
-    mean from the spread of the renders: sum (x_k - mean)^2 / (K (K - 1)), None for one render)."""
+    mean from the spread of the renders: sum (x_k - mean)^2 / (K (K - 1)), None for one render).
+    Each render's timed_render figures are appended to `timings` when given."""
     renders, times = [], []
     with tempfile.TemporaryDirectory() as tmp:
         for k, seed in enumerate(seeds):
             scene.cycles.seed = seed
             scene.render.filepath = os.path.join(tmp, f"render-{k}.exr")
-            t0 = time.monotonic()
-            bpy.ops.render.render(write_still=True)
-            times.append(time.monotonic() - t0)
+            timing = timed_render(scene)
+            times.append(timing["seconds"])
+            if timings is not None:
+                timings.append(timing)
             print(f"render {k + 1}/{len(seeds)}: seed {seed}, {per_render} spp, {times[-1]:.1f} s",
                   flush=True)
             renders.append(load_pixels(scene.render.filepath, width, height))
@@ -478,12 +593,55 @@ def render_seeds(scene, seeds, per_render, width, height):
     return renders, times, mean, var
 
 
+def render_ladder(scene, args, argv, ladder, stem):
+    """`--ladder`: one render per sample count, written by Blender as STEM-<spp>spp.exr (scene-linear
+    float32 RGB), and STEM.json with each render's times (timed_render)."""
+    os.makedirs(os.path.dirname(os.path.abspath(stem)) or ".", exist_ok=True)
+    renders = []
+    scene.cycles.seed = args.seed
+    for spp in ladder:
+        scene.cycles.samples = spp
+        path = f"{stem}-{spp}spp.exr"
+        scene.render.filepath = os.path.abspath(path)
+        timing = timed_render(scene)
+        if not os.path.exists(scene.render.filepath):
+            raise RuntimeError(f"Blender did not write {path}")
+        renders.append({"spp": spp, "seed": args.seed, "file": os.path.basename(path),
+                        **{k: round(v, 4) for k, v in timing.items()}})
+        print(f"ladder: {spp} spp, seed {args.seed}: {timing['render_seconds']:.3f} s "
+              f"(render_pre to render_post)", flush=True)
+    meta = {
+        "what": "Blender Cycles renders of a rayfarm scene at several sample counts "
+                "(scripts/blender_reference.py --ladder)",
+        "blender_version": bpy.app.version_string,
+        "scene": args.source_name or args.scene,
+        "scene_sha256": hashlib.sha256(open(args.scene, "rb").read()).hexdigest(),
+        "approximate": args.approximate,
+        "material_sample_as_light": not args.no_light_sampling,
+        "cycles": recorded_settings(scene),
+        "timing": "seconds: the whole render operator, file write included; render_seconds and "
+                  "render_cpu_seconds: Blender's render_pre to render_post (wall, and CPU of the "
+                  "process)",
+        "renders": renders,
+        "command": "blender -b --factory-startup --python scripts/blender_reference.py -- "
+                   + " ".join(argv),
+    }
+    with open(stem + ".json", "w", encoding="utf-8") as f:
+        json.dump(meta, f, indent=2)
+        f.write("\n")
+    with open(stem + ".csv", "w", encoding="utf-8") as f:  # the same times, for shell scripts
+        f.write("spp,seed,seconds,render_seconds,render_cpu_seconds,file\n")
+        for r in renders:
+            f.write(f"{r['spp']},{r['seed']},{r['seconds']},{r['render_seconds']},"
+                    f"{r['render_cpu_seconds']},{r['file']}\n")
+
+
 def main():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
     ap = argparse.ArgumentParser(prog="blender -b --python scripts/blender_reference.py --")
     ap.add_argument("scene")
     ap.add_argument("out")
-    ap.add_argument("--spp", type=int, required=True, help="samples per pixel in total")
+    ap.add_argument("--spp", type=int, help="samples per pixel in total")
     ap.add_argument("--seeds", type=int, default=1, help="independent renders (spp split evenly)")
     ap.add_argument("--seed", type=int, default=1, help="first Cycles seed")
     ap.add_argument("--threads", type=int, default=0, help="render threads (0 = all)")
@@ -492,15 +650,44 @@ def main():
                     help="emitters are found by BSDF sampling alone (the materials' "
                          "sample_as_light off): Cycles 3.4's mesh-light sampling is biased low "
                          "near the light's plane (tests/data/references/README.md)")
+    ap.add_argument("--approximate", action="store_true",
+                    help="for benchmarks only: spheres become smooth UV spheres, mirror a sharp "
+                         "Glossy BSDF, dielectric a sharp Glass BSDF (not the same scene)")
+    ap.add_argument("--res", default=None, metavar="WxH", help="film size instead of the scene's")
+    ap.add_argument("--ladder", default=None, metavar="SPP,SPP,...",
+                    help="one render per sample count (seed --seed), each written by Blender as "
+                         "OUT-<spp>spp.exr, their times in OUT.json and OUT.csv; no mean, no "
+                         "variance")
     args = ap.parse_args(argv)
-    if args.seeds < 1 or args.spp % args.seeds != 0:
+    ladder = None
+    if args.ladder is not None:
+        try:
+            ladder = [int(x) for x in args.ladder.split(",")]
+        except ValueError:
+            ap.error(f"--ladder {args.ladder}: expected sample counts separated by commas")
+        if not ladder or min(ladder) < 1 or args.spp is not None or args.seeds != 1:
+            ap.error("--ladder takes counts >= 1, and neither --spp nor --seeds")
+    elif args.spp is None:
+        ap.error("--spp (or --ladder) is required")
+    elif args.seeds < 1 or args.spp % args.seeds != 0:
         ap.error("--spp must be a multiple of --seeds")
 
     stem = os.path.splitext(args.out)[0]
     if os.path.abspath(stem + ".json") == os.path.abspath(args.scene):
         ap.error(f"the settings file {stem}.json would overwrite the scene: choose another OUT name")
-    ours = load_our_scene(args.scene)
+    ours = load_our_scene(args.scene, approximate=args.approximate)
+    if args.res is not None:
+        w, _, h = args.res.lower().partition("x")
+        if not (w.isdigit() and h.isdigit() and int(w) > 0 and int(h) > 0):
+            ap.error(f"--res {args.res}: expected WIDTHxHEIGHT, e.g. 128x128")
+        ours["film"] = {"width": int(w), "height": int(h)}
     scene = build_blender_scene(ours)
+    if ladder is not None:
+        configure_cycles(scene, ours, ladder[0], args.threads)
+        for mat in bpy.data.materials:
+            mat.cycles.sample_as_light = not args.no_light_sampling
+        render_ladder(scene, args, argv, ladder, stem)
+        return
     per_render = args.spp // args.seeds
     bounces = configure_cycles(scene, ours, per_render, args.threads)
     for mat in bpy.data.materials:
@@ -534,7 +721,8 @@ def main():
     scene.render.stamp_note_text = json.dumps({k: meta[k] for k in ("blender_version", "scene",
                                                "spp_per_render", "cycles_max_bounces")})
 
-    renders, times, mean, var = render_seeds(scene, meta["seeds"], per_render, w, h)
+    timings = []
+    renders, times, mean, var = render_seeds(scene, meta["seeds"], per_render, w, h, timings)
     n = len(renders)
     out_dir = os.path.dirname(os.path.abspath(args.out))
     os.makedirs(out_dir, exist_ok=True)
@@ -554,6 +742,11 @@ def main():
             "rayfarmReference": settings_text})
     meta["image_mean_rgb"] = [sum(mean[c::3]) / (w * h) for c in range(3)]
     meta["render_seconds"] = [round(t, 2) for t in times]
+    meta["render_only_seconds"] = [round(t["render_seconds"], 3) for t in timings]
+    meta["render_cpu_seconds"] = [round(t["render_cpu_seconds"], 3) for t in timings]
+    meta["timing"] = ("render_seconds: the whole render operator, file write included; "
+                      "render_only_seconds and render_cpu_seconds: Blender's render_pre to "
+                      "render_post (wall, and CPU of the process)")
     with open(stem + ".json", "w", encoding="utf-8") as f:
         json.dump(meta, f, indent=2)
         f.write("\n")
