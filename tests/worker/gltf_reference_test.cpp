@@ -118,6 +118,7 @@ TEST_P(GltfAgainstCycles, AgreesPerBlockWithinStatisticalError) {
   // little wider than normal where the reference's share of the variance (about a third) is large.
   settings.spp = 4096;
   settings.seed = 91;
+  settings.sampler = SamplerType::kIndependent;  // the per-sample variances need independence
   const Renderer renderer(scene, settings);
   const uint32_t w = scene.film.width, h = scene.film.height;
   Film film(w, h);
@@ -215,6 +216,7 @@ TEST_P(GltfLightsAgainstCycles, AgreesPerBlockWithinStatisticalError) {
   settings.integrator = IntegratorType::kMis;
   settings.spp = GetParam() == "lights" ? 4096 : 1024;
   settings.seed = 7;
+  settings.sampler = SamplerType::kIndependent;  // the per-sample variances need independence
   const Renderer renderer(scene, settings);
   const uint32_t w = scene.film.width, h = scene.film.height;
   Film film(w, h);

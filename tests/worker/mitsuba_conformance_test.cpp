@@ -78,6 +78,7 @@ TEST_P(MitsubaConformance, MatchesMitsubasReference) {
 
   RenderSettings settings = scene.render;
   settings.spp = c.spp;
+  settings.sampler = SamplerType::kIndependent;  // the per-sample variances below need it
   const Renderer renderer(scene, settings);
   Film film(w, h);
   film.add(renderer.render({0, 0, w, h}, {0, settings.spp}));

@@ -36,6 +36,7 @@ Blocks render_blocks(const Scene& scene, IntegratorType integrator, uint32_t spp
   settings.integrator = integrator;
   settings.spp = spp;
   settings.seed = 77;
+  settings.sampler = SamplerType::kIndependent;  // the per-sample variances need independence
   const Renderer renderer(scene, settings);
   const uint32_t w = scene.film.width, h = scene.film.height;
   Film film(w, h);
