@@ -86,27 +86,60 @@ constexpr uint32_t sobol_bits(uint32_t index, int dim) {
   return x;
 }
 
+/// The four generator matrices as lookup tables in the bit-reversed domain, which is where the
+/// scrambles work: entry [dim][byte][b] is the bit-reversed XOR of the direction numbers that
+/// index bits 31 - (8 byte + k) select, for the bits k set in b, so that for y = the reversed
+/// index, reverse(sobol_bits(reverse(y), dim)) is four lookups on y's bytes. A shuffled index
+/// has random high bits, and a loop over them costs a mispredicted branch per bit.
+struct ReversedTables {
+  std::array<std::array<std::array<uint32_t, 256>, 4>, 4> t{};
+};
+
+constexpr ReversedTables make_reversed_tables() {
+  ReversedTables out;
+  for (int d = 0; d < 4; ++d) {
+    for (int byte = 0; byte < 4; ++byte) {
+      for (uint32_t b = 0; b < 256; ++b) {
+        uint32_t x = 0;
+        for (int k = 0; k < 8; ++k) {
+          if ((b >> k) & 1u) x ^= sobol_bits(1u << (31 - (8 * byte + k)), d);
+        }
+        out.t[d][byte][b] = reverse_bits(x);
+      }
+    }
+  }
+  return out;
+}
+
+inline constexpr ReversedTables kReversedTables = make_reversed_tables();
+
+/// reverse_bits(sobol_bits(reverse_bits(y), dim)).
+constexpr uint32_t sobol_reversed(uint32_t y, int dim) {
+  const auto& t = kReversedTables.t[dim];
+  return t[0][y & 0xffu] ^ t[1][(y >> 8) & 0xffu] ^ t[2][(y >> 16) & 0xffu] ^ t[3][y >> 24];
+}
+
 /// 32 scrambled bits to a float in [0, 1): the top 24 bits, so that rounding never gives 1.
 constexpr float to_unit_float(uint32_t bits) { return static_cast<float>(bits >> 8) * 0x1p-24f; }
 
-/// 32-bit hash of a 64-bit key and a small integer: the keys of the shuffles and scrambles.
-constexpr uint32_t hash_key(uint64_t key, uint32_t salt) {
-  uint64_t x = key ^ (uint64_t{salt} * 0x9e3779b97f4a7c15ULL);
-  x = (x ^ (x >> 32)) * 0xd6e8feb86659fd93ULL;
-  x = (x ^ (x >> 32)) * 0xd6e8feb86659fd93ULL;
-  return static_cast<uint32_t>(x ^ (x >> 32));
-}
-
-/// Point `index` of the scrambled four-dimensional sequence of `key`: the index shuffled by a
-/// nested permutation (which maps every aligned block of 2^m indices onto one such block, so the
-/// first 2^m samples stay a net), then each Sobol' coordinate Owen-scrambled.
+/// Point `index` of the scrambled four-dimensional sequence of `key` (a well-mixed 64-bit hash):
+/// the index shuffled by a nested permutation (which maps every aligned block of 2^m indices onto
+/// one such block, so the first 2^m samples stay a net), then each Sobol' coordinate
+/// Owen-scrambled.
 template <int kDims = 4>
 constexpr std::array<float, kDims> sample(uint32_t index, uint64_t key) {
   static_assert(kDims >= 1 && kDims <= 4);
-  const uint32_t shuffled = owen_scramble(index, hash_key(key, 0x5eed));
+  // The shuffle and the scrambles both act on reversed bits; staying there between them leaves
+  // one reversal per coordinate (owen_scramble(sobol_bits(owen_scramble(index)))).
+  // `key` is already a hash: its low half keys the shuffle, its high half (offset per dimension
+  // by the golden ratio) the coordinates' scrambles.
+  const auto shuffle_key = static_cast<uint32_t>(key),
+             scramble_key = static_cast<uint32_t>(key >> 32);
+  const uint32_t y = lk_permute(reverse_bits(index), shuffle_key);
   std::array<float, kDims> out{};
   for (int d = 0; d < kDims; ++d) {
-    out[d] = to_unit_float(owen_scramble(sobol_bits(shuffled, d), hash_key(key, d + 1)));
+    const uint32_t k = scramble_key + 0x9e3779b9u * static_cast<uint32_t>(d);
+    out[d] = to_unit_float(reverse_bits(lk_permute(sobol_reversed(y, d), k)));
   }
   return out;
 }
