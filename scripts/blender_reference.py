@@ -210,7 +210,8 @@ def load_our_scene(path, approximate=False):
         "triangles": triangles,
         "spheres": spheres,
         "background": doc.get("background", [0.0, 0.0, 0.0]),
-        "max_depth": render.get("max_depth", 16),
+        # rayfarm's default is no cap; Cycles' largest bounce count (1024) stands in for it.
+        "max_depth": 1025 if render.get("max_depth", "unlimited") == "unlimited" else render["max_depth"],
     }
 
 
