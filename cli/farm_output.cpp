@@ -70,8 +70,16 @@ nlohmann::json status_json(const wire::JobStatus& st) {
       {"max_depth", st.settings().max_depth() == kUnlimitedDepth
                         ? nlohmann::json("unlimited")
                         : nlohmann::json(st.settings().max_depth())},
-      {"sampler", st.settings().sampler() == wire::SAMPLER_SOBOL ? "sobol" : "independent"},
-      {"roulette", st.settings().roulette() == wire::ROULETTE_THROUGHPUT ? "throughput" : "update"},
+      {"sampler",
+       st.state() == wire::JOB_STATE_UNSPECIFIED
+           ? nlohmann::json(nullptr)
+           : nlohmann::json(st.settings().sampler() == wire::SAMPLER_SOBOL ? "sobol"
+                                                                           : "independent")},
+      {"roulette",
+       st.state() == wire::JOB_STATE_UNSPECIFIED
+           ? nlohmann::json(nullptr)
+           : nlohmann::json(st.settings().roulette() == wire::ROULETTE_THROUGHPUT ? "throughput"
+                                                                                  : "update")},
       {"roulette_depth", st.settings().roulette_depth()},
       {"seed", st.settings().seed()},
       {"clamp", st.settings().clamp()},

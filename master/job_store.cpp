@@ -104,7 +104,8 @@ JobRecord from_json(const json& j) {
   s.settings.clamp = static_cast<float>(number_or(j, "clamp", 0.0));
   if (!(s.settings.clamp >= 0)) throw std::runtime_error("negative clamp");
   // Jobs stored before the sampler and the roulette rule were settings rendered with the
-  // independent stream and the update rule: they resume with those, sample for sample.
+  // independent stream and the update rule: they resume with those (the light sampling of the
+  // renderer that resumes them may still differ; every estimator is unbiased).
   const auto sampler = parse_sampler(j.value("sampler", std::string("independent")));
   if (!sampler) throw std::runtime_error("unknown sampler");
   s.settings.sampler = *sampler;
@@ -112,6 +113,11 @@ JobRecord from_json(const json& j) {
   if (!roulette) throw std::runtime_error("unknown roulette");
   s.settings.roulette = *roulette;
   s.settings.roulette_depth = j.value("roulette_depth", 0u);
+  if ((s.settings.max_depth > kMaxDepth && s.settings.max_depth != kUnlimitedDepth) ||
+      s.settings.roulette_depth > kMaxRouletteDepth || s.settings.spp == 0 ||
+      s.settings.spp > kMaxSpp) {
+    throw std::runtime_error("render settings out of range");
+  }
   s.film.width = j.at("width").get<uint32_t>();
   s.film.height = j.at("height").get<uint32_t>();
   s.tile_size = j.at("tile_size").get<uint32_t>();

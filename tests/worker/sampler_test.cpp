@@ -109,7 +109,7 @@ TEST(Sobol, KeysDecorrelateAndUnscrambledIsNotUsed) {
 TEST(Sobol, ScrambledPointsAreUniformOnAverage) {
   // Over 4096 keys, point 5's coordinates are uniform: mean 1/2 (standard error
   // sqrt(1/12 / 4096) = 0.0045) and the pair's product has mean 1/4 (independent coordinates;
-  // standard error about sqrt(7/144 / 4096) = 0.0034). 5 standard errors over 8 checks: a false
+  // standard error about sqrt(7/144 / 4096) = 0.0034). 5 standard errors over 6 checks: a false
   // alarm has probability below 5e-6.
   const int keys = 4096;
   std::array<double, 4> mean{};

@@ -100,7 +100,9 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, PathSampler& sampler, PathStats& s
   Vec3 radiance(0.f), beta(1.f);
   float eta_scale = 1.f;  // product of eta^2 over the refractions so far (throughput roulette)
   const bool throughput_roulette = plan_.roulette == RouletteType::kThroughput;
-  const float update_cap = plan_.max_depth == kUnlimitedDepth ? kMaxSurvival : 1.f;
+  // Update roulette keeps its old rule up to the old cap of 1024 vertices (jobs stored before
+  // it resume with it); deeper limits need the survival cap to end paths of perfect mirrors.
+  const float update_cap = plan_.max_depth > 1024 ? kMaxSurvival : 1.f;
   bool specular_bounce = true;  // the camera ray: emitters it sees count fully
   float bsdf_pdf = 0.f;
   Vec3 prev_p;
@@ -169,7 +171,9 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, PathSampler& sampler, PathStats& s
       beta *= bs.weight;
       eta_scale *= bs.eta * bs.eta;
       if (depth >= plan_.roulette_depth) {
-        const float survive = std::min(kMaxSurvival, max_component(beta) * eta_scale);
+        const float weight = max_component(beta) * eta_scale;
+        if (!(weight > 0.f)) break;  // also NaN: 0 x an eta^2 that overflowed
+        const float survive = std::min(kMaxSurvival, weight);
         if (!(sampler.roulette() < survive)) break;
         beta /= survive;
       } else if (!(max_component(beta) > 0.f)) {
@@ -177,7 +181,9 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, PathSampler& sampler, PathStats& s
       }
     } else {
       // Russian roulette with survival probability min(1, max component of the update).
-      const float survive = std::min(update_cap, max_component(bs.weight));
+      const float weight = max_component(bs.weight);
+      if (!(weight > 0.f)) break;
+      const float survive = std::min(update_cap, weight);
       if (!(sampler.roulette() < survive)) break;
       beta *= bs.weight / survive;
     }

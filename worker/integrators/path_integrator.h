@@ -117,10 +117,10 @@ inline Vec3 leaving_side(const SurfaceHit& hit, bool flat, const Vec3& wi, float
 }
 
 /// Most probability with which roulette lets a path go on where it must end some day: throughput
-/// roulette always, update roulette without a depth cap. A path of perfect mirrors (or a furnace
-/// of albedo 1) would otherwise never end; with it, a path survives 4096 such vertices with
-/// probability 1/e. Below it sit all albedos up to 0.9998, whose estimates keep a finite
-/// variance (that needs albedo^2 < the survival).
+/// roulette always, update roulette with a depth cap above 1024 or none. A path of perfect mirrors
+/// (or a furnace of albedo 1) would otherwise never end; with it, a path survives 4096 such
+/// vertices with probability 1/e. Below it sit all albedos up to 0.9998, whose estimates keep a
+/// finite variance (that needs albedo^2 < the survival).
 inline constexpr float kMaxSurvival = 1.f - 0x1p-12f;
 
 /// Power heuristic (beta = 2) weight of a strategy with density a against one with density b.

@@ -7,9 +7,9 @@
 //  - sobol: each group of numbers from its own scrambled four-dimensional Sobol' sequence
 //    (sobol.h) keyed by (seed, pixel, group), indexed by the sample number. The groups are fixed:
 //    the camera (pixel position x, y, lens u, v), and per scattering vertex up to
-//    kSobolVertices: the light (choice, point u, v) and the scattering (BSDF lobe, direction u,
-//    v, roulette). Deeper vertices, where stratification no longer shows, read the hashed
-//    stream as the independent sampler does.
+//    kSobolVertices: the light (point u, v on Sobol' dimensions 0, 1; choice on 2) and the
+//    scattering (direction u, v on 0, 1; BSDF lobe on 2; roulette on 3). Deeper vertices, where
+//    stratification no longer shows, read the hashed stream as the independent sampler does.
 // Neither depends on the tile, the thread, the pass or the machine, so the farm's image is the
 // local one bit for bit.
 #include <array>
@@ -38,9 +38,13 @@ class PathSampler {
     return {rng_.next_float(), rng_.next_float(), rng_.next_float(), rng_.next_float()};
   }
 
-  /// Light choice and point on the light at vertex `depth`.
+  /// Light choice and point on the light at vertex `depth`. The point's two numbers are Sobol'
+  /// dimensions 0 and 1, the pair whose prefixes are (0, m, 2)-nets.
   std::array<float, 3> light(uint32_t depth) {
-    if (sobol_ && depth < kSobolVertices) return sobol::sample<3>(index_, group_key(2 * depth + 1));
+    if (sobol_ && depth < kSobolVertices) {
+      const std::array<float, 3> u = sobol::sample<3>(index_, group_key(2 * depth + 1));
+      return {u[2], u[0], u[1]};
+    }
     return {rng_.next_float(), rng_.next_float(), rng_.next_float()};
   }
 
@@ -48,9 +52,10 @@ class PathSampler {
   /// drawn only when asked for (roulette()), so that the independent stream matches the path.
   std::array<float, 3> scatter(uint32_t depth) {
     if (sobol_ && depth < kSobolVertices) {
+      // The direction on dimensions 0 and 1, as for the light.
       const std::array<float, 4> u = sobol::sample<4>(index_, group_key(2 * depth + 2));
       roulette_ = u[3];
-      return {u[0], u[1], u[2]};
+      return {u[2], u[0], u[1]};
     }
     roulette_ = -1.f;
     return {rng_.next_float(), rng_.next_float(), rng_.next_float()};
