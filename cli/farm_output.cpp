@@ -28,6 +28,22 @@ const char* integrator_label(wire::Integrator value) {
   }
 }
 
+const char* sampler_label(wire::Sampler value) {
+  try {
+    return sampler_name(protocol::sampler_from_wire(value));
+  } catch (const protocol::ProtocolError&) {
+    return "unknown sampler";
+  }
+}
+
+const char* roulette_label(wire::Roulette value) {
+  try {
+    return roulette_name(protocol::roulette_from_wire(value));
+  } catch (const protocol::ProtocolError&) {
+    return "unknown roulette";
+  }
+}
+
 /// A figure for JSON: null when unknown (negative or not finite).
 nlohmann::json figure(double value) {
   return std::isfinite(value) && value >= 0 ? nlohmann::json(value) : nlohmann::json(nullptr);
@@ -70,16 +86,12 @@ nlohmann::json status_json(const wire::JobStatus& st) {
       {"max_depth", st.settings().max_depth() == kUnlimitedDepth
                         ? nlohmann::json("unlimited")
                         : nlohmann::json(st.settings().max_depth())},
-      {"sampler",
-       st.state() == wire::JOB_STATE_UNSPECIFIED
-           ? nlohmann::json(nullptr)
-           : nlohmann::json(st.settings().sampler() == wire::SAMPLER_SOBOL ? "sobol"
-                                                                           : "independent")},
-      {"roulette",
-       st.state() == wire::JOB_STATE_UNSPECIFIED
-           ? nlohmann::json(nullptr)
-           : nlohmann::json(st.settings().roulette() == wire::ROULETTE_THROUGHPUT ? "throughput"
-                                                                                  : "update")},
+      {"sampler", st.state() == wire::JOB_STATE_UNSPECIFIED
+                      ? nlohmann::json(nullptr)
+                      : nlohmann::json(sampler_label(st.settings().sampler()))},
+      {"roulette", st.state() == wire::JOB_STATE_UNSPECIFIED
+                       ? nlohmann::json(nullptr)
+                       : nlohmann::json(roulette_label(st.settings().roulette()))},
       {"roulette_depth", st.settings().roulette_depth()},
       {"seed", st.settings().seed()},
       {"clamp", st.settings().clamp()},
@@ -141,7 +153,7 @@ void print_status(const wire::JobStatus& st) {
       "image      {}x{}, {} spp, {}, max depth {}, seed {}, {} sampler{}\n", st.width(),
       st.height(), st.settings().spp(), integrator_label(st.settings().integrator()),
       depth_name(st.settings().max_depth()), st.settings().seed(),
-      st.settings().sampler() == wire::SAMPLER_SOBOL ? "sobol" : "independent",
+      sampler_label(st.settings().sampler()),
       st.settings().clamp() > 0 ? fmt::format(", clamp {:g} (biased)", st.settings().clamp()) : "");
   std::cout << fmt::format(
       "work       tiles of {} px, passes of {} spp: {}/{} units ({:.1f}%), {} leased\n",

@@ -100,9 +100,7 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, PathSampler& sampler, PathStats& s
   Vec3 radiance(0.f), beta(1.f);
   float eta_scale = 1.f;  // product of eta^2 over the refractions so far (throughput roulette)
   const bool throughput_roulette = plan_.roulette == RouletteType::kThroughput;
-  // Update roulette keeps its old rule up to the old cap of 1024 vertices (jobs stored before
-  // it resume with it); deeper limits need the survival cap to end paths of perfect mirrors.
-  const float update_cap = plan_.max_depth > 1024 ? kMaxSurvival : 1.f;
+  const float update_cap = plan_.max_depth > kUncappedUpdateDepth ? kMaxSurvival : 1.f;
   bool specular_bounce = true;  // the camera ray: emitters it sees count fully
   float bsdf_pdf = 0.f;
   Vec3 prev_p;

@@ -122,6 +122,9 @@ inline Vec3 leaving_side(const SurfaceHit& hit, bool flat, const Vec3& wi, float
 /// vertices with probability 1/e. Below it sit all albedos up to 0.9998, whose estimates keep a
 /// finite variance (that needs albedo^2 < the survival).
 inline constexpr float kMaxSurvival = 1.f - 0x1p-12f;
+/// Deepest cap under which update roulette keeps survival min(1, update), the rule of jobs
+/// stored when 1024 was the most a cap could be; above it (or with no cap) kMaxSurvival bounds it.
+inline constexpr uint32_t kUncappedUpdateDepth = 1024;
 
 /// Power heuristic (beta = 2) weight of a strategy with density a against one with density b.
 inline float power_heuristic(float a, float b) {

@@ -14,6 +14,7 @@
 // local one bit for bit.
 #include <array>
 #include <cstdint>
+#include <optional>
 
 #include "common/scene/scene.h"
 #include "worker/samplers/rng.h"
@@ -26,16 +27,22 @@ class PathSampler {
   /// Vertices (the camera ray's hit is vertex 0) whose numbers come from Sobol' sequences.
   static constexpr uint32_t kSobolVertices = 64;
 
+  // Each sampler sets up only what it reads: the Sobol' sampler its key (the stream waits for a
+  // vertex past kSobolVertices, which most paths never reach), the independent one its stream.
   PathSampler(SamplerType type, uint64_t seed, uint64_t pixel, uint32_t sample)
-      : rng_(sample_stream(seed, pixel, sample)),
-        key_(mix64(seed ^ mix64(pixel ^ 0x50b01u))),
-        index_(sample),
-        sobol_(type == SamplerType::kSobol) {}
+      : seed_(seed), pixel_(pixel), index_(sample), sobol_(type == SamplerType::kSobol) {
+    if (sobol_) {
+      key_ = mix64(seed ^ mix64(pixel ^ 0x50b01u));
+    } else {
+      rng_.emplace(sample_stream(seed, pixel, sample));
+    }
+  }
 
   /// Pixel offset x, y in [0, 1)^2, then lens u, v.
   std::array<float, 4> camera() {
     if (sobol_) return sobol::sample<4>(index_, key_);
-    return {rng_.next_float(), rng_.next_float(), rng_.next_float(), rng_.next_float()};
+    Pcg32& rng = stream();
+    return {rng.next_float(), rng.next_float(), rng.next_float(), rng.next_float()};
   }
 
   /// Light choice and point on the light at vertex `depth`. The point's two numbers are Sobol'
@@ -45,7 +52,8 @@ class PathSampler {
       const std::array<float, 3> u = sobol::sample<3>(index_, group_key(2 * depth + 1));
       return {u[2], u[0], u[1]};
     }
-    return {rng_.next_float(), rng_.next_float(), rng_.next_float()};
+    Pcg32& rng = stream();
+    return {rng.next_float(), rng.next_float(), rng.next_float()};
   }
 
   /// BSDF lobe, direction u, v and the roulette number at vertex `depth`. The roulette number is
@@ -58,17 +66,24 @@ class PathSampler {
       return {u[2], u[0], u[1]};
     }
     roulette_ = -1.f;
-    return {rng_.next_float(), rng_.next_float(), rng_.next_float()};
+    Pcg32& rng = stream();
+    return {rng.next_float(), rng.next_float(), rng.next_float()};
   }
 
   /// The roulette number of the vertex whose scatter() was the last called.
-  float roulette() { return roulette_ >= 0.f ? roulette_ : rng_.next_float(); }
+  float roulette() { return roulette_ >= 0.f ? roulette_ : stream().next_float(); }
 
  private:
   uint64_t group_key(uint32_t group) const { return mix64(key_ + group); }
 
-  Pcg32 rng_;
-  uint64_t key_;
+  Pcg32& stream() {
+    if (!rng_) rng_.emplace(sample_stream(seed_, pixel_, index_));
+    return *rng_;
+  }
+
+  std::optional<Pcg32> rng_;
+  uint64_t seed_, pixel_;
+  uint64_t key_ = 0;
   uint32_t index_;
   bool sobol_;
   float roulette_ = -1.f;

@@ -75,7 +75,8 @@ inline constexpr std::array<std::array<uint32_t, 32>, 3> kDirections = {
     direction_numbers({3, 1, {1, 3, 1}}),  // x^3 + x + 1
 };
 
-/// Coordinate `dim` (0-3) of Sobol' point `index`, unscrambled, as 32 bits (bit 31 = 1/2).
+/// Coordinate `dim` (0-3) of Sobol' point `index`, unscrambled, as 32 bits (bit 31 = 1/2): what
+/// the tables below are built from (and tests check them against); sample() reads the tables.
 constexpr uint32_t sobol_bits(uint32_t index, int dim) {
   if (dim == 0) return reverse_bits(index);
   uint32_t x = 0;
