@@ -61,10 +61,10 @@ struct Renderer::Impl {
   mutable RenderStats totals;     // guarded by stats_mutex
   mutable bool reported = false;  // guarded by stats_mutex
 
-  Impl(const Scene& scene, const RenderSettings& s, BsdfKinds kinds)
+  Impl(const Scene& scene, const RenderSettings& s, BsdfKinds kinds, LightChoice choice)
       : settings(s),
         data(scene),
-        lights(data),
+        lights(data, choice),
         integrator(make_integrator(data, lights, s, kinds)),
         camera(scene.camera, scene.film) {}
 
@@ -101,8 +101,9 @@ struct Renderer::Impl {
   }
 };
 
-Renderer::Renderer(const Scene& scene, const RenderSettings& settings, BsdfKinds kinds)
-    : impl_(std::make_unique<Impl>(scene, settings, kinds)) {}
+Renderer::Renderer(const Scene& scene, const RenderSettings& settings, BsdfKinds kinds,
+                   LightChoice choice)
+    : impl_(std::make_unique<Impl>(scene, settings, kinds, choice)) {}
 
 Renderer::~Renderer() {
   try {
@@ -246,7 +247,15 @@ std::string Renderer::plan() const {
     out += "; " + std::to_string(area) + " emitters, " + std::to_string(point) + " point, " +
            std::to_string(lights.spot_light_count()) + " spot, " +
            std::to_string(lights.directional_light_count()) + " directional lights";
-    out += p.sample_lights ? ", power-sampled" : ", not sampled";
+    if (!p.sample_lights) {
+      out += ", not sampled";
+    } else if (lights.selection().uses_tree()) {
+      out += ", chosen through a light tree (" +
+             std::to_string(lights.selection().tree().node_count()) + " nodes, depth " +
+             std::to_string(lights.selection().tree().depth()) + ")";
+    } else {
+      out += ", power-sampled";
+    }
     if (p.integrator == IntegratorType::kNaive && delta > 0) {
       out +=
           " (BSDF sampling never reaches point, spot or directional lights: they add nothing "

@@ -9,6 +9,7 @@
 #include "common/image/film.h"
 #include "common/scene/scene.h"
 #include "common/schedule/stop_rules.h"
+#include "worker/lights/light_selection.h"
 
 namespace rayfarm {
 
@@ -40,7 +41,10 @@ class Renderer {
  public:
   /// Builds the acceleration structure and light tables. Throws std::runtime_error on failure,
   /// and when the scene has a material whose kind `kinds` leaves out.
-  Renderer(const Scene& scene, const RenderSettings& settings, BsdfKinds kinds = BsdfKinds::kAll);
+  /// `lights`: how shading points choose a light (light_selection.h; kAuto for renders, the
+  /// others for tests and benchmarks that compare the two).
+  Renderer(const Scene& scene, const RenderSettings& settings, BsdfKinds kinds = BsdfKinds::kAll,
+           LightChoice lights = LightChoice::kAuto);
   /// Logs the truncation summary (report_truncation) if nobody has yet.
   ~Renderer();
   Renderer(const Renderer&) = delete;

@@ -194,6 +194,29 @@ TEST(SceneBundled, MaterialsHasEveryMicrofacetAndLayeredKind) {
   EXPECT_EQ(scene.spheres.size(), 6u);
 }
 
+TEST(SceneBundled, ManyLightsHasSixtyFourLampsFacingDown) {
+  const Scene scene = load_scene(bundled("many-lights"));
+  EXPECT_TRUE(scene.warnings.empty()) << warnings_of(scene);
+  EXPECT_TRUE(scene.point_lights.empty());
+  EXPECT_EQ(scene.render.max_depth, kUnlimitedDepth);
+  // Each lamp a small one-sided quad just below the ceiling (y = 3), emitting downwards.
+  int lamps = 0;
+  for (const TriangleMesh& mesh : scene.meshes) {
+    const Material& m = scene.materials[mesh.materials[0]];
+    if (!m.is_emissive()) continue;
+    ++lamps;
+    EXPECT_FALSE(m.two_sided);
+    ASSERT_EQ(mesh.indices.size(), 6u);
+    const Vec3 n = cross(mesh.positions[mesh.indices[1]] - mesh.positions[mesh.indices[0]],
+                         mesh.positions[mesh.indices[2]] - mesh.positions[mesh.indices[0]]);
+    EXPECT_LT(n.y, 0.f) << mesh.origin << " faces down";
+    for (const Vec3& p : mesh.positions) EXPECT_NEAR(p.y, 2.99f, 1e-5f) << mesh.origin;
+  }
+  EXPECT_EQ(lamps, 64);
+  ASSERT_EQ(scene.spheres.size(), 1u);  // the glowing orb
+  EXPECT_TRUE(scene.materials[scene.spheres[0].material].is_emissive());
+}
+
 TEST(SceneBundled, MaterialPreviewHasOneSphereOfEveryKind) {
   const Scene scene = load_scene(bundled("material-preview"));
   EXPECT_TRUE(scene.warnings.empty()) << warnings_of(scene);

@@ -234,11 +234,13 @@ TEST(TexturedEmissionTest, LightSelectionWeighsTheTexturesMean) {
                {"type": "quad", "corner": [4, 0, 0], "edge1": [1, 0, 0], "edge2": [0, 1, 0],
                 "material": "c"}])");
   SceneData data(s);
-  const LightSet lights(data);
+  const LightSet lights(data, LightChoice::kPower);
   ASSERT_EQ(lights.area_light_count(), 6u);
   // Two triangles per quad, in shape order: 1 : 1 : 3.
   for (int32_t i = 0; i < 6; ++i)
-    EXPECT_NEAR(lights.selection_probability(i), (i < 4 ? 1.0 : 3.0) / 10.0, 1e-6) << i;
+    EXPECT_NEAR(lights.selection_probability(i, Vec3(0.f), Vec3(0.f)), (i < 4 ? 1.0 : 3.0) / 10.0,
+                1e-6)
+        << i;
 }
 
 }  // namespace

@@ -129,8 +129,10 @@ Scene build_scene(const SceneSpec& s) {
 }
 
 /// A scene ready for sampling: the SceneData must outlive the LightSet that points into it.
+/// Lights are chosen by power (these tests check its frequencies; light_tree_test.cpp the tree).
 struct Lights {
-  explicit Lights(const SceneSpec& s) : setup(s), data(build_scene(s)), set(data) {}
+  explicit Lights(const SceneSpec& s)
+      : setup(s), data(build_scene(s)), set(data, LightChoice::kPower) {}
   SceneSpec setup;
   SceneData data;
   LightSet set;
@@ -157,7 +159,7 @@ bool draw(const LightSet& lights, const Vec3& ref, Pcg32& rng, LightSample& out)
   const float u_select = rng.next_float();
   const float u1 = rng.next_float();
   const float u2 = rng.next_float();
-  return lights.sample(ref, u_select, u1, u2, out);
+  return lights.sample(ref, Vec3(0.f), u_select, u1, u2, out);
 }
 
 enum Chosen { kTriangle0, kTriangle1, kSphereLight, kPointLight, kFailed, kUnknown };
@@ -277,14 +279,14 @@ TEST(LightSetTest, CollectsEmittersAndRegistersTheirIndices) {
   EXPECT_NE(t0, sphere);
   EXPECT_NE(t1, sphere);
   EXPECT_EQ(lights.light_hit_by({8.f, 8.f, 0.f}, {0.f, 0.f, -1.f}), -1);  // the grey floor
-  EXPECT_EQ(lights.set.pdf(-1, {0.f, 0.f, 2.f}, {0.f, 0.f, 0.f}, {0.f, 0.f, 1.f}), 0.f);
+  EXPECT_EQ(lights.set.pdf(-1, {0.f, 0.f, 2.f}, Vec3(0.f), {0.f, 0.f, 0.f}, {0.f, 0.f, 1.f}), 0.f);
 
   SceneSpec none;
   none.with_square = none.with_sphere = none.with_point = false;
   const Lights empty{none};
   EXPECT_TRUE(empty.set.empty());
   LightSample out;
-  EXPECT_FALSE(empty.set.sample({0.f, 0.f, 1.f}, 0.5f, 0.5f, 0.5f, out));
+  EXPECT_FALSE(empty.set.sample({0.f, 0.f, 1.f}, Vec3(0.f), 0.5f, 0.5f, 0.5f, out));
 }
 
 // ----------------------------------------------------------------------------------------------
@@ -332,7 +334,7 @@ SphereDraws check_selection(const Lights& lights, const Vec3& ref, uint64_t seed
       bad.add("target's distance to the chosen point", distance_d(p, out.target), 0.0);
     const double rel = 1e-4 + 1e-6 / (cos_light * cos_light);
     // The pdf of the chosen point, as the integrator computes it for a BSDF-sampled hit.
-    const float pdf = lights.set.pdf(index[chosen], ref, p, n);
+    const float pdf = lights.set.pdf(index[chosen], ref, Vec3(0.f), p, n);
     const double analytic = expected[chosen] * analytic_density(s, chosen, ref, p, n);
     if (!near_relative(out.pdf, pdf, rel)) bad.add("pdf vs LightSet::pdf", out.pdf, pdf);
     if (!near_relative(out.pdf, analytic, rel)) bad.add("pdf vs analytic", out.pdf, analytic);

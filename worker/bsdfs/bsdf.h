@@ -58,6 +58,20 @@ class BsdfOf {
   bool is_specular() const {
     return std::visit([](const auto& k) { return k.is_specular(); }, kind_);
   }
+  /// True when f(wo, wi) is zero for every wi on the other side of the surface from wo (the kind
+  /// says so with kReflectsOnly; kinds that do not may transmit).
+  bool reflects_only() const {
+    return std::visit(
+        [](const auto& k) {
+          using K = std::decay_t<decltype(k)>;
+          if constexpr (requires { K::kReflectsOnly; }) {
+            return K::kReflectsOnly;
+          } else {
+            return false;
+          }
+        },
+        kind_);
+  }
   /// f(wo, wi) * |cos(wi)|; zero for specular kinds.
   Vec3 eval(const Vec3& wo, const Vec3& wi) const {
     return std::visit([&](const auto& k) { return k.eval(wo, wi); }, kind_);

@@ -10,6 +10,8 @@ namespace rayfarm {
 class DiffuseBsdf {
  public:
   using Params = DiffuseMaterial;
+  /// Light arrives only from wo's side: light selection may leave out lights behind it.
+  static constexpr bool kReflectsOnly = true;
   bool is_specular() const { return false; }
 
   explicit DiffuseBsdf(const DiffuseMaterial& m) : albedo_(m.albedo) {}

@@ -9,6 +9,8 @@ namespace rayfarm {
 class PhongBsdf {
  public:
   using Params = PhongMaterial;
+  /// Light arrives only from wo's side: light selection may leave out lights behind it.
+  static constexpr bool kReflectsOnly = true;
   bool is_specular() const { return false; }
 
   explicit PhongBsdf(const PhongMaterial& m) : m_(m) {}

@@ -21,6 +21,8 @@ float internal_diffuse_reflectance(float ior);
 class PlasticBsdf {
  public:
   using Params = PlasticMaterial;
+  /// Light arrives only from wo's side: light selection may leave out lights behind it.
+  static constexpr bool kReflectsOnly = true;
 
   explicit PlasticBsdf(const PlasticMaterial& m);
 

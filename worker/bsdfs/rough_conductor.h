@@ -11,6 +11,8 @@ namespace rayfarm {
 class RoughConductorBsdf {
  public:
   using Params = RoughConductorMaterial;
+  /// Light arrives only from wo's side: light selection may leave out lights behind it.
+  static constexpr bool kReflectsOnly = true;
 
   explicit RoughConductorBsdf(const RoughConductorMaterial& m)
       : m_(m), facets_(m.distribution, m.alpha_u, m.alpha_v) {}

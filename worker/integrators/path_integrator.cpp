@@ -24,40 +24,43 @@ PathIntegratorFor<BsdfT>::PathIntegratorFor(const SceneData& data, const LightSe
   plan_.weight_emission =
       plan_.sample_lights && settings.integrator == IntegratorType::kMis && hittable;
   plan_.emitters_reachable = hittable || !is_black(background_);
+  plan_.light_tree = lights.selection().uses_tree();
   plan_.surface = data.uses_surface();
   plan_.plain = data.plain();
 }
 
 template <class BsdfT>
 float PathIntegratorFor<BsdfT>::emission_weight(const SurfaceHit& hit, bool specular_bounce,
-                                                float bsdf_pdf, const Vec3& prev_p) const {
+                                                float bsdf_pdf, const Vec3& prev_p,
+                                                const Vec3& prev_n) const {
   // Emitters seen by the camera or through a specular chain, and emitters that light sampling
   // cannot choose (no area in float, or a negligible share of the power): only BSDF rays find
   // them.
-  if (specular_bounce || !plan_.sample_lights || !(lights_.selection_probability(hit.light) > 0.f))
-    return 1.f;
-  if (!plan_.weight_emission) return 0.f;  // NEE: already counted by light sampling
-  return power_heuristic(bsdf_pdf, lights_.pdf(hit.light, prev_p, hit.p, hit.n));
+  if (specular_bounce || !plan_.sample_lights || !lights_.selectable(hit.light)) return 1.f;
+  // NEE: counted by light sampling, unless the light tree gave this light no chance from the
+  // previous vertex (its importance there 0): then this ray alone finds it.
+  if (!plan_.weight_emission)
+    return lights_.selection_probability(hit.light, prev_p, prev_n) > 0.f ? 0.f : 1.f;
+  return power_heuristic(bsdf_pdf, lights_.pdf(hit.light, prev_p, prev_n, hit.p, hit.n));
 }
 
 template <class BsdfT>
 float PathIntegratorFor<BsdfT>::environment_weight(bool specular_bounce, float bsdf_pdf,
                                                    const Vec3& dir) const {
   // As emission_weight(), for the light that escaped rays find.
-  if (specular_bounce || !plan_.sample_lights ||
-      !(lights_.selection_probability(lights_.environment_index()) > 0.f))
+  if (specular_bounce || !plan_.sample_lights || !lights_.selectable(lights_.environment_index()))
     return 1.f;
   if (!plan_.weight_emission) return 0.f;
   return power_heuristic(bsdf_pdf, lights_.environment_pdf(dir));
 }
 
 template <class BsdfT>
-Vec3 PathIntegratorFor<BsdfT>::sample_light(const SurfaceHit& hit, bool flat, const Vec3& wo,
-                                            const Vec3& wo_local, const Frame& frame,
-                                            const BsdfT& bsdf, const std::array<float, 3>& u,
-                                            uint64_t& rays) const {
+Vec3 PathIntegratorFor<BsdfT>::sample_light(const SurfaceHit& hit, const Vec3& select_n, bool flat,
+                                            const Vec3& wo, const Vec3& wo_local,
+                                            const Frame& frame, const BsdfT& bsdf,
+                                            const std::array<float, 3>& u, uint64_t& rays) const {
   LightSample ls;
-  if (!lights_.sample(hit.p, u[0], u[1], u[2], ls)) return Vec3(0.f);
+  if (!lights_.sample(hit.p, select_n, u[0], u[1], u[2], ls)) return Vec3(0.f);
   const Vec3 wi_local = frame.to_local(ls.wi);
   if (!same_sides(hit, flat, wo, ls.wi, wo_local, wi_local)) return Vec3(0.f);
   if (!(wi_local.z > 0.f) && (data_.surface_needs(hit.material) & kShadingSided)) return Vec3(0.f);
@@ -103,7 +106,7 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, PathSampler& sampler, PathStats& s
   const float update_cap = plan_.max_depth > kUncappedUpdateDepth ? kMaxSurvival : 1.f;
   bool specular_bounce = true;  // the camera ray: emitters it sees count fully
   float bsdf_pdf = 0.f;
-  Vec3 prev_p;
+  Vec3 prev_p, prev_n;  // the previous vertex and its light selection normal (select_n)
   for (uint32_t depth = 0;; ++depth) {
     // Find the next vertex; escaped rays see the background.
     ++rays;
@@ -127,7 +130,8 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, PathSampler& sampler, PathStats& s
       const Vec3 le =
           kPlain ? emitted_radiance(material, hit.n, wo)
                  : emitted_radiance(material, hit.n, wo, TextureLookup(&data_.textures(), hit.uv));
-      if (!is_black(le)) radiance += beta * le * emission_weight(hit, specular_bounce, bsdf_pdf, prev_p);
+      if (!is_black(le))
+        radiance += beta * le * emission_weight(hit, specular_bounce, bsdf_pdf, prev_p, prev_n);
     }
     if (depth == plan_.max_depth) {
       truncate(beta);
@@ -151,9 +155,14 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, PathSampler& sampler, PathStats& s
     const BsdfT bsdf = !kPlain && material.textured
                            ? BsdfT(material, TextureLookup(&data_.textures(), hit.uv))
                            : BsdfT(material);
+    // The side from which light selection takes light: wo's (geometric) side where the BSDF
+    // only reflects (same_sides() rejects the other side), every side where it may transmit.
+    const Vec3 select_n = plan_.light_tree && bsdf.reflects_only()
+                              ? (dot(wo, hit.n) >= 0.f ? hit.n : -hit.n)
+                              : Vec3(0.f);
     if (plan_.sample_lights && !bsdf.is_specular()) {
-      radiance +=
-          beta * sample_light(hit, flat, wo, wo_local, frame, bsdf, sampler.light(depth), rays);
+      radiance += beta * sample_light(hit, select_n, flat, wo, wo_local, frame, bsdf,
+                                      sampler.light(depth), rays);
     }
 
     // BSDF sampling for the next direction.
@@ -188,6 +197,7 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, PathSampler& sampler, PathStats& s
     specular_bounce = bs.specular;
     bsdf_pdf = bs.pdf;
     prev_p = hit.p;
+    prev_n = select_n;
 
     // The ray after the last scattering vertex matters only if it can find counted emission.
     const bool last_ray_useless =

@@ -1,6 +1,6 @@
 #pragma once
-// The path tracer: naive (BSDF sampling only), NEE (one light per vertex, power-sampled) and MIS
-// (light and BSDF sampling, power heuristic), each with Russian roulette (on the path's
+// The path tracer: naive (BSDF sampling only), NEE (one light per vertex, light_selection.h) and
+// MIS (light and BSDF sampling, power heuristic), each with Russian roulette (on the path's
 // throughput or on each vertex's update) and the max_depth cap of RenderSettings, if any.
 #include <cstdint>
 #include <string>
@@ -23,6 +23,8 @@ struct IntegratorPlan {
   uint32_t max_depth = 0;           ///< kUnlimitedDepth: no cap
   RouletteType roulette = RouletteType::kThroughput;
   uint32_t roulette_depth = 0;
+  /// Lights are chosen through a light tree (light_selection.h): selection reads the vertex.
+  bool light_tree = false;
   /// Some material has a normal or bump map, an anisotropic BSDF or one side only
   /// (surface_shading.h); without one the shading frame is the normal's alone.
   bool surface = false;
@@ -74,12 +76,13 @@ class PathIntegratorFor {
   template <PathMode kMode>
   Vec3 trace(Ray ray, PathSampler& sampler, PathStats& stats) const;
   // Inlined into trace(): a call passes the hit, the frame and the BSDF through memory.
-  [[gnu::always_inline]] inline Vec3 sample_light(const SurfaceHit& hit, bool flat, const Vec3& wo,
-                                                  const Vec3& wo_local, const Frame& frame,
-                                                  const BsdfT& bsdf, const std::array<float, 3>& u,
+  [[gnu::always_inline]] inline Vec3 sample_light(const SurfaceHit& hit, const Vec3& select_n,
+                                                  bool flat, const Vec3& wo, const Vec3& wo_local,
+                                                  const Frame& frame, const BsdfT& bsdf,
+                                                  const std::array<float, 3>& u,
                                                   uint64_t& rays) const;
   float emission_weight(const SurfaceHit& hit, bool specular_bounce, float bsdf_pdf,
-                        const Vec3& prev_p) const;
+                        const Vec3& prev_p, const Vec3& prev_n) const;
   float environment_weight(bool specular_bounce, float bsdf_pdf, const Vec3& dir) const;
 
   const SceneData& data_;

@@ -36,7 +36,7 @@ double scene_radius(const Scene& scene) {
 
 }  // namespace
 
-LightSet::LightSet(SceneData& data) {
+LightSet::LightSet(SceneData& data, LightChoice choice) {
   const Scene& scene = data.scene();
   // Textured emission: its power from the texture's mean, computed once per material.
   EmissionTextures emission{&data.textures(), {}};
@@ -96,10 +96,20 @@ LightSet::LightSet(SceneData& data) {
     lights_.emplace_back(std::move(*env));
   }
   std::vector<double> powers;
+  std::vector<std::optional<LightBounds>> bounds;
   for (const Light& light : lights_) {
-    powers.push_back(std::visit([](const auto& l) { return l.power(); }, light));
+    std::visit(
+        [&](const auto& l) {
+          powers.push_back(l.power());
+          if constexpr (requires { l.bounds(); }) {
+            bounds.emplace_back(l.bounds());
+          } else {
+            bounds.emplace_back();  // at infinity: chosen by power beside the tree
+          }
+        },
+        light);
   }
-  selection_ = PowerLightSelection(powers);
+  selection_ = LightSelection(powers, bounds, choice);
 }
 
 }  // namespace rayfarm

@@ -1,7 +1,7 @@
 #pragma once
 // Every light of a scene, one type per kind (emissive triangles and spheres, point, spot and
 // directional lights, the environment), and the choice of one light per shading point
-// (light_selection.h).
+// (light_selection.h: by power, or through a light tree).
 #include <cstdint>
 #include <variant>
 #include <vector>
@@ -40,8 +40,9 @@ class LightSet {
                              DeltaDirectionalLight, EnvironmentLight, TexturedTriangleLight,
                              TexturedSphereLight>;
 
-  /// Collects the lights of `data` and registers each emitter with data.set_light_index().
-  explicit LightSet(SceneData& data);
+  /// Collects the lights of `data` and registers each emitter with data.set_light_index();
+  /// `choice`: how a shading point chooses among them.
+  explicit LightSet(SceneData& data, LightChoice choice = LightChoice::kAuto);
 
   bool empty() const { return lights_.empty(); }
   size_t size() const { return lights_.size(); }
@@ -59,38 +60,47 @@ class LightSet {
   float environment_pdf(const Vec3& dir) const {
     const EnvironmentLight* env = environment();
     if (env == nullptr) return 0.f;
-    return selection_.probability(environment_) * env->pdf_direction(dir);
+    return selection_.infinite_probability(environment_) * env->pdf_direction(dir);
   }
   /// Index of the environment among the lights, or -1.
   int32_t environment_index() const { return environment_; }
 
-  /// Chooses a light and a point on it. False when the sample carries nothing.
+  /// Chooses a light for the shading point `ref` with geometric normal `ref_n` (or the zero
+  /// vector), and a point on it. False when the sample carries nothing.
   // Inlined into its one caller: as a call (it grew with the kinds' code) it cost more than the
   // sampling itself at -O3.
-  [[gnu::always_inline]] bool sample(const Vec3& ref, float u_select, float u1, float u2,
-                                     LightSample& out) const {
+  [[gnu::always_inline]] bool sample(const Vec3& ref, const Vec3& ref_n, float u_select, float u1,
+                                     float u2, LightSample& out) const {
     if (lights_.empty()) return false;
-    const int32_t index = selection_.choose(u_select);
-    const float p_select = selection_.probability(index);
-    if (!(p_select > 0.f)) return false;
+    int32_t index = -1;
+    float p_select = 0.f;
+    if (!selection_.choose(ref, ref_n, u_select, index, p_select)) return false;
     return dispatch_light(
         lights_[index], [&](const auto& light) __attribute__((always_inline)) {
           return light.sample(ref, p_select, u1, u2, out);
         });
   }
-  /// Probability that sample() chooses light `light` (0 for -1: an emitter it cannot sample).
-  float selection_probability(int32_t light) const { return selection_.probability(light); }
-  /// Density sample() would have had for reaching the emitter `light` at (p, n) from `ref`.
-  float pdf(int32_t light, const Vec3& ref, const Vec3& p, const Vec3& n) const {
+  /// Whether sample() can choose light `light` somewhere (false for -1: an emitter it cannot
+  /// sample, and for a light whose share of the power rounds to nothing).
+  bool selectable(int32_t light) const { return selection_.selectable(light); }
+  /// Probability that sample() at (ref, ref_n) chooses light `light` (0 for -1).
+  float selection_probability(int32_t light, const Vec3& ref, const Vec3& ref_n) const {
+    return selection_.probability(ref, ref_n, light);
+  }
+  /// How lights are chosen (light_selection.h).
+  const LightSelection& selection() const { return selection_; }
+  /// Density sample() at (ref, ref_n) would have had for reaching the emitter `light` at
+  /// (p, n).
+  float pdf(int32_t light, const Vec3& ref, const Vec3& ref_n, const Vec3& p, const Vec3& n) const {
     if (light < 0) return 0.f;
-    const float p_select = selection_.probability(light);
+    const float p_select = selection_.probability(ref, ref_n, light);
     return dispatch_light(lights_[light],
                           [&](const auto& l) { return l.pdf(p_select, ref, p, n); });
   }
 
  private:
   std::vector<Light> lights_;
-  PowerLightSelection selection_;
+  LightSelection selection_;
   size_t area_count_ = 0, point_count_ = 0, spot_count_ = 0, directional_count_ = 0;
   int32_t environment_ = -1;
 };

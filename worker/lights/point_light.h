@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <optional>
 
+#include "worker/lights/light_bounds.h"
 #include "worker/lights/light_sample.h"
 
 namespace rayfarm {
@@ -19,6 +20,15 @@ class DeltaPointLight {
   }
 
   double power() const { return power_; }
+  /// Where the light tree finds it: a point that emits every way.
+  LightBounds bounds() const {
+    LightBounds b;
+    b.lo = b.hi = position_;
+    b.cos_o = -1.f;
+    b.cos_e = 0.f;
+    b.intensity = power_ / (4.0 * kPi);
+    return b;
+  }
 
   /// The light as seen from `ref`; pdf is the selection probability p_select.
   bool sample(const Vec3& ref, float p_select, float /*u1*/, float /*u2*/, LightSample& out) const {

@@ -8,6 +8,7 @@
 #include <optional>
 
 #include "worker/lights/area_light.h"
+#include "worker/lights/light_bounds.h"
 #include "worker/lights/solid_angle.h"
 
 namespace rayfarm {
@@ -37,6 +38,17 @@ class SphereLight {
   }
 
   double power() const { return power_; }
+  /// Where the light tree finds it: the sphere's box; its normals point every way.
+  LightBounds bounds() const {
+    LightBounds b;
+    b.lo = center_ - Vec3(radius_);
+    b.hi = center_ + Vec3(radius_);
+    b.cos_o = -1.f;
+    b.cos_e = 0.f;
+    b.intensity = power_ / (4.0 * kPi * (two_sided_ ? 2.0 : 1.0));  // radiance x pi r^2
+    b.two_sided = two_sided_;
+    return b;
+  }
   /// The primitive that emits, for SceneData::set_light_index.
   uint32_t geom() const { return kSphereGeometry; }
   uint32_t prim() const { return index_; }

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <optional>
 
+#include "worker/lights/light_bounds.h"
 #include "worker/lights/light_sample.h"
 
 namespace rayfarm {
@@ -39,6 +40,17 @@ class DeltaSpotLight {
   }
 
   double power() const { return power_; }
+  /// Where the light tree finds it: a point that emits within the cutoff angle of its axis.
+  LightBounds bounds() const {
+    LightBounds b;
+    b.lo = b.hi = position_;
+    b.axis = axis_;
+    b.cos_o = 1.f;
+    // A little beyond the cutoff: rounding must never rule out a point the spot lights.
+    b.cos_e = static_cast<float>(std::cos(std::min(double(cutoff_) + 1e-5, 3.14159265358979)));
+    b.intensity = luminance(intensity_);  // along the axis
+    return b;
+  }
 
   /// Fraction of the central intensity sent in the unit direction `w` (away from the light).
   float falloff(const Vec3& w) const {

@@ -34,6 +34,7 @@ class TexturedTriangleLight {
   }
 
   double power() const { return base_.power(); }
+  LightBounds bounds() const { return base_.bounds(); }
   uint32_t geom() const { return base_.geom(); }
   uint32_t prim() const { return base_.prim(); }
   bool sample(const Vec3& ref, float p_select, float u1, float u2, LightSample& out) const {
@@ -70,6 +71,7 @@ class TexturedSphereLight {
   }
 
   double power() const { return base_.power(); }
+  LightBounds bounds() const { return base_.bounds(); }
   uint32_t geom() const { return base_.geom(); }
   uint32_t prim() const { return base_.prim(); }
   bool sample(const Vec3& ref, float p_select, float u1, float u2, LightSample& out) const {

@@ -9,6 +9,7 @@
 #include <optional>
 
 #include "worker/lights/area_light.h"
+#include "worker/lights/light_bounds.h"
 #include "worker/lights/solid_angle.h"
 
 namespace rayfarm {
@@ -50,6 +51,21 @@ class TriangleLight {
 
   /// Emitted power (luminance); in double: luminance x area x pi overflows float for huge ones.
   double power() const { return power_; }
+  /// Where the light tree (light_tree.h) finds it: the triangle's box, its normal, a hemisphere
+  /// of emission on one side or both.
+  LightBounds bounds() const {
+    LightBounds b;
+    b.lo = Vec3(std::min({v0_.x, v1_.x, v2_.x}), std::min({v0_.y, v1_.y, v2_.y}),
+                std::min({v0_.z, v1_.z, v2_.z}));
+    b.hi = Vec3(std::max({v0_.x, v1_.x, v2_.x}), std::max({v0_.y, v1_.y, v2_.y}),
+                std::max({v0_.z, v1_.z, v2_.z}));
+    b.axis = n_;
+    b.cos_o = 1.f;
+    b.cos_e = 0.f;
+    b.intensity = power_ / (kPi * (two_sided_ ? 2.0 : 1.0));  // radiance x area
+    b.two_sided = two_sided_;
+    return b;
+  }
   /// The primitive that emits (mesh and triangle), for SceneData::set_light_index.
   uint32_t geom() const { return geom_; }
   uint32_t prim() const { return prim_; }

@@ -1,0 +1,434 @@
+// The light tree (worker/lights/light_tree.h): its probabilities form a distribution at every
+// point and are the ones its choices are made with, bit for bit; merged bounds never rule out
+// a point that one of their lights can light; the build stays within its depth limit whatever
+// the lights' layout; and rendering through it gives the same expected image as selection by
+// power, with less noise where a scene has many lights.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include "common/image/fixed.h"
+#include "common/scene/parser.h"
+#include "test_scenes.h"
+#include "tests/support/normal_quantile.h"
+#include "worker/lights/light_tree.h"
+#include "worker/renderer.h"
+#include "worker/samplers/rng.h"
+
+namespace rayfarm {
+namespace {
+
+const std::string kScenes = std::string(RAYFARM_SOURCE_DIR) + "/scenes/";
+
+Vec3 random_unit(Pcg32& rng) {
+  const float z = 1.f - 2.f * rng.next_float();
+  const float r = std::sqrt(std::max(0.f, 1.f - z * z));
+  const float phi = 2.f * kPi * rng.next_float();
+  return {r * std::cos(phi), r * std::sin(phi), z};
+}
+
+Vec3 random_point(Pcg32& rng, float extent) {
+  return {extent * (2.f * rng.next_float() - 1.f), extent * (2.f * rng.next_float() - 1.f),
+          extent * (2.f * rng.next_float() - 1.f)};
+}
+
+/// Random lights of every kind the tree holds: one- and two-sided triangles, spheres, points
+/// and spots, of intensities spread over four decades.
+std::vector<LightBounds> random_lights(Pcg32& rng, size_t count, float extent) {
+  std::vector<LightBounds> out;
+  for (size_t i = 0; i < count; ++i) {
+    LightBounds b;
+    const Vec3 c = random_point(rng, extent);
+    const uint32_t kind = rng.next_u32() % 4;
+    if (kind == 0) {  // a triangle
+      const Vec3 v1 = c + random_point(rng, 0.2f), v2 = c + random_point(rng, 0.2f);
+      b.lo = Vec3(std::min({c.x, v1.x, v2.x}), std::min({c.y, v1.y, v2.y}),
+                  std::min({c.z, v1.z, v2.z}));
+      b.hi = Vec3(std::max({c.x, v1.x, v2.x}), std::max({c.y, v1.y, v2.y}),
+                  std::max({c.z, v1.z, v2.z}));
+      b.axis = normalize(cross(v1 - c, v2 - c));
+      b.cos_o = 1.f;
+      b.cos_e = 0.f;
+      b.two_sided = rng.next_u32() % 3 == 0;
+    } else if (kind == 1) {  // a sphere
+      const float r = 0.01f + 0.2f * rng.next_float();
+      b.lo = c - Vec3(r), b.hi = c + Vec3(r);
+      b.cos_o = -1.f;
+    } else if (kind == 2) {  // a point light
+      b.lo = b.hi = c;
+      b.cos_o = -1.f;
+    } else {  // a spot light
+      b.lo = b.hi = c;
+      b.axis = random_unit(rng);
+      b.cos_o = 1.f;
+      b.cos_e = std::cos(0.1f + 1.4f * rng.next_float());
+    }
+    b.intensity = std::pow(10.0, 4.0 * rng.next_float());
+    out.push_back(b);
+  }
+  return out;
+}
+
+std::vector<int32_t> identity(size_t n) {
+  std::vector<int32_t> out(n);
+  for (size_t i = 0; i < n; ++i) out[i] = static_cast<int32_t>(i);
+  return out;
+}
+
+/// A receiver normal: the zero vector (light from every side) one time in four.
+Vec3 random_normal(Pcg32& rng) { return rng.next_u32() % 4 == 0 ? Vec3(0.f) : random_unit(rng); }
+
+TEST(LightTree, ProbabilitiesSumToOneAndAreTheChoicesOwn) {
+  // At a point, the lights' probabilities and the chance that a choice fails (a walk that meets
+  // a node whose children both have importance 0: their looser group bounds let it through)
+  // add up to 1; where no light can reach the point, every choice fails. Each choice reports
+  // exactly the probability that probability() computes for its light (what MIS weights read).
+  // The failures of 400 choices per point are held to their binomial spread (5 sigma: with
+  // 1000 points, a false alarm below 1e-3).
+  Pcg32 rng(11, 1);
+  for (const size_t count : {size_t{1}, size_t{2}, size_t{3}, size_t{17}, size_t{300}}) {
+    const std::vector<LightBounds> lights = random_lights(rng, count, 5.f);
+    const LightTree tree(lights, identity(count));
+    EXPECT_EQ(tree.node_count(), 2 * count - 1);
+    int complete = 0, zero = 0;
+    for (int k = 0; k < 200; ++k) {
+      const Vec3 p = random_point(rng, 6.f), n = random_normal(rng);
+      double sum = 0.0;
+      for (size_t l = 0; l < count; ++l) sum += tree.probability(p, n, static_cast<int32_t>(l));
+      // A product of at most depth() float factors per light: a relative error of a few 1e-7
+      // per factor.
+      EXPECT_LE(sum, 1.0 + 1e-5) << count << " lights, point " << k;
+      complete += std::fabs(sum - 1.0) < 1e-5;
+      zero += sum == 0.0;
+      constexpr int kChoices = 400;
+      int failed = 0;
+      for (int j = 0; j < kChoices; ++j) {
+        int32_t light = -1;
+        float probability = 0.f;
+        if (!tree.choose(p, n, rng.next_float(), light, probability)) {
+          ++failed;
+          continue;
+        }
+        ASSERT_GE(light, 0);
+        ASSERT_LT(light, static_cast<int32_t>(count));
+        EXPECT_EQ(probability, tree.probability(p, n, light));
+        EXPECT_GT(probability, 0.f);
+      }
+      const double q = std::clamp(1.0 - sum, 0.0, 1.0);
+      if (sum == 0.0) EXPECT_EQ(failed, kChoices) << "no light can reach this point";
+      EXPECT_LE(std::fabs(failed - q * kChoices), 5.0 * std::sqrt(kChoices * q * (1.0 - q)) + 1.0)
+          << count << " lights, point " << k << ": probabilities sum to " << sum;
+    }
+    // With one or two lights there is no node below the root to fail at.
+    if (count <= 2) EXPECT_EQ(complete + zero, 200) << count << " lights";
+    EXPECT_EQ(tree.probability(Vec3(0.f), Vec3(0.f), -1), 0.f);
+    EXPECT_EQ(tree.probability(Vec3(0.f), Vec3(0.f), static_cast<int32_t>(count)), 0.f);
+  }
+}
+
+TEST(LightTree, ChoicesFollowTheirProbabilities) {
+  // 48 lights seen from one point: 200,000 choices from independent uniforms; each light's
+  // count (and the failed choices') against its binomial expectation, Bonferroni over the
+  // categories at a 1e-3 false alarm.
+  Pcg32 rng(12, 1);
+  const size_t count = 48;
+  const LightTree tree(random_lights(rng, count, 4.f), identity(count));
+  const Vec3 p(0.5f, -0.3f, 0.2f), n = normalize(Vec3(0.3f, 1.f, -0.2f));
+  constexpr int kDraws = 200000;
+  std::vector<int> hits(count + 1, 0);  // the last: failed choices
+  for (int k = 0; k < kDraws; ++k) {
+    int32_t light = -1;
+    float probability = 0.f;
+    ++hits[tree.choose(p, n, rng.next_float(), light, probability) ? light : count];
+  }
+  std::vector<double> q(count + 1, 1.0);
+  for (size_t l = 0; l < count; ++l) {
+    q[l] = tree.probability(p, n, static_cast<int32_t>(l));
+    q[count] -= q[l];
+  }
+  q[count] = std::max(q[count], 0.0);
+  EXPECT_LT(q[count], 0.5) << "most choices at this point fail";
+  const double z_max = testing::two_sided_z(1e-3 / double(count + 1));
+  for (size_t l = 0; l <= count; ++l) {
+    if (q[l] < 1e-9) {
+      EXPECT_EQ(hits[l], 0) << "light " << l << " has probability " << q[l];
+      continue;
+    }
+    const double expected = q[l] * kDraws, sd = std::sqrt(kDraws * q[l] * (1.0 - q[l]));
+    EXPECT_LT(std::fabs(hits[l] - expected), z_max * sd + 1.0)
+        << "light " << l << ": " << hits[l] << " choices, expected " << expected;
+  }
+}
+
+TEST(LightTree, MergedBoundsRuleOutNoPointThatALightCanReach) {
+  // Whatever lights are merged, a point that one of them can light (importance > 0) keeps a
+  // positive importance for the group: the cone union holds every normal and emission spread.
+  Pcg32 rng(13, 1);
+  int checked = 0;
+  for (int trial = 0; trial < 300; ++trial) {
+    const std::vector<LightBounds> lights = random_lights(rng, 2 + rng.next_u32() % 6, 3.f);
+    LightBounds group = lights[0];
+    for (size_t i = 1; i < lights.size(); ++i) group = merge(group, lights[i]);
+    EXPECT_LE(group.cos_o, 1.f);
+    EXPECT_GE(group.cos_o, -1.f);
+    EXPECT_NEAR(length(group.axis), 1.f, 1e-5f);
+    for (int k = 0; k < 50; ++k) {
+      const Vec3 p = random_point(rng, 8.f), n = random_normal(rng);
+      bool any = false;
+      for (const LightBounds& l : lights) any |= l.importance(p, n) > 0.0;
+      if (!any) continue;
+      ++checked;
+      EXPECT_GT(group.importance(p, n), 0.0) << "trial " << trial << ", point " << k;
+    }
+  }
+  EXPECT_GT(checked, 5000);
+}
+
+TEST(LightTree, ImportanceFollowsSidesDistanceAndIntensity) {
+  LightBounds tri;  // one-sided, facing +z, around the origin
+  tri.lo = Vec3(-0.1f, -0.1f, 0.f), tri.hi = Vec3(0.1f, 0.1f, 0.f);
+  tri.axis = Vec3(0.f, 0.f, 1.f);
+  tri.intensity = 1.0;
+  EXPECT_GT(tri.importance(Vec3(0.f, 0.f, 2.f), Vec3(0.f)), 0.0);
+  EXPECT_EQ(tri.importance(Vec3(0.f, 0.f, -2.f), Vec3(0.f)), 0.0);  // behind it
+  // A receiver facing away from the light takes nothing from it; facing it, something.
+  EXPECT_EQ(tri.importance(Vec3(0.f, 0.f, 2.f), Vec3(0.f, 0.f, 1.f)), 0.0);
+  EXPECT_GT(tri.importance(Vec3(0.f, 0.f, 2.f), Vec3(0.f, 0.f, -1.f)), 0.0);
+  tri.two_sided = true;
+  EXPECT_GT(tri.importance(Vec3(0.f, 0.f, -2.f), Vec3(0.f)), 0.0);
+  // Far away: 1 / d^2 and proportional to intensity.
+  LightBounds point;
+  point.cos_o = -1.f;
+  point.intensity = 3.0;
+  const double near = point.importance(Vec3(0.f, 10.f, 0.f), Vec3(0.f));
+  const double far = point.importance(Vec3(0.f, 20.f, 0.f), Vec3(0.f));
+  EXPECT_NEAR(near / far, 4.0, 1e-5);
+  EXPECT_NEAR(near, 3.0 / 100.0, 1e-8);
+  // A spot lights its cone only.
+  LightBounds spot = point;
+  spot.axis = Vec3(0.f, 1.f, 0.f);
+  spot.cos_o = 1.f;
+  spot.cos_e = std::cos(0.3f);
+  EXPECT_GT(spot.importance(Vec3(0.f, 5.f, 1.f), Vec3(0.f)), 0.0);   // 0.197 rad off axis
+  EXPECT_EQ(spot.importance(Vec3(0.f, 5.f, 2.f), Vec3(0.f)), 0.0);   // 0.381 rad
+  EXPECT_EQ(spot.importance(Vec3(0.f, -5.f, 0.f), Vec3(0.f)), 0.0);  // behind
+}
+
+TEST(LightTree, DepthStaysBoundedWhateverTheLayout) {
+  // Lights spaced geometrically along a line, the layout that drives a cost-based split to peel
+  // off one light at a time; and lights all at one point, which no split separates.
+  std::vector<LightBounds> line, stacked;
+  for (int k = 0; k < 3000; ++k) {
+    LightBounds b;
+    b.lo = b.hi = Vec3(std::pow(1.01f, float(k)), 0.f, 0.f);
+    b.cos_o = -1.f;
+    b.intensity = 1.0 + k % 7;
+    line.push_back(b);
+    b.lo = b.hi = Vec3(1.f, 2.f, 3.f);
+    stacked.push_back(b);
+  }
+  const LightTree a(line, identity(line.size()));
+  EXPECT_LE(a.depth(), LightTree::kMaxDepth);
+  const LightTree b(stacked, identity(stacked.size()));
+  EXPECT_EQ(b.depth(), 12u);  // balanced: ceil(log2 3000)
+  for (const LightTree* tree : {&a, &b}) {
+    for (const Vec3& p : {Vec3(0.f, 1.f, 0.f), Vec3(50.f, -3.f, 2.f), Vec3(1e5f, 1.f, 1.f)}) {
+      double sum = 0.0;
+      for (int32_t l = 0; l < 3000; ++l) sum += tree->probability(p, Vec3(0.f), l);
+      EXPECT_NEAR(sum, 1.0, 1e-4);
+    }
+  }
+  // Lights at one point: chosen by intensity alone.
+  const double total = [&] {
+    double t = 0.0;
+    for (const LightBounds& l : stacked) t += l.intensity;
+    return t;
+  }();
+  for (const int32_t l : {0, 1, 6, 2999})
+    EXPECT_NEAR(b.probability(Vec3(0.f), Vec3(0.f), l), stacked[l].intensity / total, 1e-6);
+}
+
+TEST(LightTree, BuildsTheSameTreeEveryTime) {
+  Pcg32 rng(14, 1);
+  const std::vector<LightBounds> lights = random_lights(rng, 500, 5.f);
+  const LightTree a(lights, identity(lights.size())), b(lights, identity(lights.size()));
+  ASSERT_EQ(a.node_count(), b.node_count());
+  for (int k = 0; k < 2000; ++k) {
+    const Vec3 p = random_point(rng, 6.f), n = random_normal(rng);
+    const float u = rng.next_float();
+    int32_t la = -1, lb = -1;
+    float pa = 0.f, pb = 0.f;
+    EXPECT_EQ(a.choose(p, n, u, la, pa), b.choose(p, n, u, lb, pb));
+    EXPECT_EQ(la, lb);
+    EXPECT_EQ(pa, pb);
+  }
+}
+
+// ---- rendering through the tree ----------------------------------------------------------------
+
+std::vector<float> pixel_means(const Scene& scene, RenderSettings settings, LightChoice choice,
+                               uint64_t seed) {
+  settings.seed = seed;
+  const Renderer renderer(scene, settings, BsdfKinds::kAll, choice);
+  const TileResult r =
+      renderer.render({0, 0, scene.film.width, scene.film.height}, {0, settings.spp});
+  EXPECT_EQ(r.nonfinite, 0u);
+  std::vector<float> out(r.sum.size());
+  for (size_t i = 0; i < out.size(); ++i) out[i] = float(from_fixed(r.sum[i]) / settings.spp);
+  return out;
+}
+
+struct RenderCase {
+  std::string name;
+  Scene scene;
+  IntegratorType integrator;
+  uint32_t spp = 16;
+};
+
+Scene shrunk(const std::string& file, uint32_t w, uint32_t h) {
+  Scene s = load_scene(kScenes + file);
+  s.film = {w, h};
+  return s;
+}
+
+uint32_t add_material(Scene& s, Vec3 albedo, Vec3 emission = Vec3(0.f)) {
+  Material m;
+  m.kind = DiffuseMaterial{albedo};
+  m.emission = emission;
+  s.materials.push_back(m);
+  return static_cast<uint32_t>(s.materials.size() - 1);
+}
+
+void add_quad(Scene& s, Vec3 c, Vec3 e1, Vec3 e2, uint32_t material) {
+  TriangleMesh mesh;
+  mesh.positions = {c, c + e1, c + e1 + e2, c + e2};
+  mesh.indices = {0, 1, 2, 0, 2, 3};
+  mesh.materials = {material, material};
+  s.meshes.push_back(mesh);
+}
+
+/// A closed room lit by five large panels of different colours and sizes on its walls and
+/// ceiling, close to the surfaces they light: BSDF rays find the panels often, so MIS weights
+/// (the tree's probability of the light a BSDF ray found) shape much of the image.
+Scene panel_room(uint32_t w, uint32_t h) {
+  Scene s;
+  s.film = {w, h};
+  s.camera.eye = {0.f, 0.f, -0.9f};
+  s.camera.look_at = {0.f, -0.2f, 1.f};
+  s.camera.fov_y_deg = 80.f;
+  const uint32_t wall = add_material(s, Vec3(0.6f));
+  const uint32_t green = add_material(s, Vec3(0.2f, 0.6f, 0.2f));
+  add_quad(s, {-1, -1, -1}, {0, 0, 2}, {2, 0, 0}, wall);   // floor
+  add_quad(s, {-1, 1, -1}, {2, 0, 0}, {0, 0, 2}, wall);    // ceiling
+  add_quad(s, {-1, -1, 1}, {2, 0, 0}, {0, 2, 0}, wall);    // back
+  add_quad(s, {-1, -1, -1}, {0, 2, 0}, {2, 0, 0}, wall);   // front
+  add_quad(s, {-1, -1, -1}, {0, 0, 2}, {0, 2, 0}, green);  // left
+  add_quad(s, {1, -1, -1}, {0, 2, 0}, {0, 0, 2}, wall);    // right
+  const float in = 0.999f;
+  add_quad(s, {-0.6f, in, -0.2f}, {0.5f, 0, 0}, {0, 0, 0.9f},
+           add_material(s, Vec3(0.f), {4, 3, 2}));
+  add_quad(s, {0.3f, in, 0.1f}, {0.4f, 0, 0}, {0, 0, 0.4f}, add_material(s, Vec3(0.f), {1, 2, 6}));
+  add_quad(s, {-in, -0.5f, 0.f}, {0, 0, 0.6f}, {0, 0.9f, 0}, add_material(s, Vec3(0.f), {3, 3, 3}));
+  add_quad(s, {in, -0.8f, 0.3f}, {0, 0.3f, 0}, {0, 0, 0.3f}, add_material(s, Vec3(0.f), {8, 1, 1}));
+  add_quad(s, {-0.2f, -0.9f, in}, {0.8f, 0, 0}, {0, 0.2f, 0},
+           add_material(s, Vec3(0.f), {2, 5, 2}));
+  s.render.max_depth = kUnlimitedDepth;
+  return s;
+}
+
+TEST(LightTreeRender, RendersTheSameExpectedImageAsPowerSelection) {
+  // Per pixel, D = (tree estimate) - (power estimate) at the same spp; pixels are independent
+  // and D has mean 0 where both are unbiased. Per 16 x 16 block and channel, the mean of D over
+  // its standard error stays below the Bonferroni bound for all comparisons (false alarm 1e-3).
+  // NEE cases check that a light the tree gives no chance from a point is left to BSDF rays.
+  std::vector<RenderCase> all = {
+      {"many-lights mis", shrunk("many-lights/scene.json", 48, 32), IntegratorType::kMis},
+      {"many-lights nee", shrunk("many-lights/scene.json", 48, 32), IntegratorType::kNee},
+      {"phong (quad and point light) mis", shrunk("phong/scene.json", 48, 32),
+       IntegratorType::kMis},
+      {"product (panel, spot, sky) nee", shrunk("product/scene.json", 48, 32),
+       IntegratorType::kNee},
+      {"small room (point light, glass, mirror)", testing::small_room_scene(48, 32),
+       IntegratorType::kMis},
+      // Enough samples that a light probability 1.3 times too high at BSDF hits shows (z > 5).
+      {"room of large panels mis", panel_room(32, 32), IntegratorType::kMis, 512},
+      {"room of large panels nee", panel_room(32, 32), IntegratorType::kNee, 64},
+  };
+  const uint32_t block = 16;
+  size_t comparisons = 0;
+  for (const RenderCase& c : all)
+    comparisons += size_t{c.scene.film.width / block} * (c.scene.film.height / block) * 3;
+  const double z_max = testing::two_sided_z(1e-3 / double(comparisons));
+  for (const RenderCase& c : all) {
+    RenderSettings settings = c.scene.render;
+    settings.integrator = c.integrator;
+    settings.spp = c.spp;
+    const std::vector<float> a = pixel_means(c.scene, settings, LightChoice::kTree, 5);
+    const std::vector<float> b = pixel_means(c.scene, settings, LightChoice::kPower, 6);
+    const uint32_t w = c.scene.film.width;
+    for (uint32_t by = 0; by + block <= c.scene.film.height; by += block) {
+      for (uint32_t bx = 0; bx + block <= w; bx += block) {
+        for (int ch = 0; ch < 3; ++ch) {
+          double s = 0.0, s2 = 0.0;
+          for (uint32_t y = by; y < by + block; ++y) {
+            for (uint32_t x = bx; x < bx + block; ++x) {
+              const double d =
+                  double(a[(size_t{y} * w + x) * 3 + ch]) - b[(size_t{y} * w + x) * 3 + ch];
+              s += d;
+              s2 += d * d;
+            }
+          }
+          const double n = double(block) * block, mean = s / n;
+          const double se = std::sqrt(std::max(0.0, (s2 / n - mean * mean) / (n - 1.0)));
+          if (se == 0.0) {
+            EXPECT_EQ(mean, 0.0) << c.name << " block " << bx << "," << by;
+            continue;
+          }
+          EXPECT_LT(std::fabs(mean / se), z_max)
+              << c.name << ": block at " << bx << "," << by << " channel " << ch
+              << ": mean difference " << mean << " (standard error " << se << ")";
+        }
+      }
+    }
+  }
+}
+
+// Per-pixel variance of an estimate relative to the pixel's level, averaged over the image (as
+// relMSE weighs errors): half the squared difference between two renders of different seeds
+// over (their mean^2 + 0.01).
+double mean_relative_variance(const Scene& scene, RenderSettings settings, LightChoice choice) {
+  const std::vector<float> a = pixel_means(scene, settings, choice, 21);
+  const std::vector<float> b = pixel_means(scene, settings, choice, 22);
+  double s = 0.0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    const double d = double(a[i]) - b[i], m = 0.5 * (double(a[i]) + b[i]);
+    s += 0.5 * d * d / (m * m + 0.01);
+  }
+  return s / double(a.size());
+}
+
+TEST(LightTreeRender, HasLessNoiseAmongManyLights) {
+  // The hall of 64 lamps: from any point most lamps are far, and power selection spends most
+  // samples on them. Each figure averages 4608 pixel channels (a few percent relative error);
+  // the tree leaves about a quarter of the variance, far below the bound asked for.
+  const Scene hall = shrunk("many-lights/scene.json", 48, 32);
+  RenderSettings settings = hall.render;
+  settings.spp = 8;
+  const double tree = mean_relative_variance(hall, settings, LightChoice::kTree);
+  const double power = mean_relative_variance(hall, settings, LightChoice::kPower);
+  std::cout << "relative per-pixel variance at 8 spp: light tree " << tree << ", power " << power
+            << " (ratio " << tree / power << ")\n";
+  EXPECT_LT(tree, 0.5 * power);
+  // And the renderer chooses the tree there by itself.
+  EXPECT_NE(Renderer(hall, settings).plan().find("light tree"), std::string::npos);
+  EXPECT_EQ(Renderer(shrunk("cornell-box/scene.json", 8, 8), settings).plan().find("light tree"),
+            std::string::npos);
+}
+
+}  // namespace
+}  // namespace rayfarm
