@@ -28,6 +28,16 @@ double acos_clamped(double c) { return std::acos(std::clamp(c, -1.0, 1.0)); }
 /// The smallest cone holding the cones (wa, cos_a) and (wb, cos_b), slightly widened.
 void union_cone(const Vec3& wa, float cos_a, const Vec3& wb, float cos_b, Vec3& axis,
                 float& cos_o) {
+  // Quick answers first (a build merges each light some 4 log2(n) times): a cone of every
+  // direction holds anything, and equal cones are their own union.
+  if (cos_a <= -1.f || (cos_a == cos_b && wa == wb)) {
+    axis = wa, cos_o = cos_a;
+    return;
+  }
+  if (cos_b <= -1.f) {
+    axis = wb, cos_o = cos_b;
+    return;
+  }
   const double ta = acos_clamped(cos_a), tb = acos_clamped(cos_b);
   const D3 a = d3(wa), b = d3(wb);
   const double td = acos_clamped(dot3(a, b));
@@ -147,9 +157,17 @@ uint32_t LightTree::build(std::vector<uint32_t>& order, uint32_t begin, uint32_t
   const double longest = std::max({extent[0], extent[1], extent[2]});
   // Degenerate boxes (point lights) still compare by a small share of the node's own area.
   const double area_floor = 1e-3 * surface_area(all) + 1e-30;
+  // The orientation measure (four calls into libm) of the last cones asked: groups of lights
+  // that face alike, the common case, ask for the same cones again and again.
+  float last_cos_o = 2.f, last_cos_e = 2.f;
+  double last_measure = 0.0;
   const auto cost = [&](const LightBounds& b, int axis) {
+    if (b.cos_o != last_cos_o || b.cos_e != last_cos_e) {
+      last_cos_o = b.cos_o, last_cos_e = b.cos_e;
+      last_measure = orientation_measure(b);
+    }
     const double kr = extent[axis] > 0.0 ? longest / extent[axis] : 1.0;
-    return b.intensity * orientation_measure(b) * kr * (surface_area(b) + area_floor);
+    return b.intensity * last_measure * kr * (surface_area(b) + area_floor);
   };
   const auto bin_of = [&](uint32_t light, int axis) {
     const double lo = clo[axis], hi = chi[axis];
