@@ -227,7 +227,8 @@ TEST(EnvironmentLightTest, SampledIrradianceEqualsTheSumOverTexels) {
   for (int i = 0; i < kN; ++i) {
     LightSample ls;
     const float us = rng.next_float(), u1 = rng.next_float(), u2 = rng.next_float();
-    if (!l.set.sample(Vec3(0.f, 5.f, 0.f), Vec3(0.f), us, u1, u2, ls)) continue;
+    if (!l.set.sample(Vec3(0.f, 5.f, 0.f), Vec3(0.f), SelectionNumber::from_float(us), u1, u2, ls))
+      continue;
     const float c = std::max(dot(ls.wi, n), 0.f);
     for (int ch = 0; ch < 3; ++ch) {
       const double f = ls.radiance[ch] * c / ls.pdf;
@@ -353,7 +354,7 @@ TEST(SpotLightTest, IrradianceInBeamFalloffAndOutside) {
     const double d2 = 4.0 + double(p.x) * p.x;
     const double f = deg <= 20.0 ? 1.0 : (deg < 40.0 ? (40.0 - deg) / 20.0 : 0.0);
     LightSample ls;
-    const bool ok = l.set.sample(p, Vec3(0.f), 0.5f, 0.5f, 0.5f, ls);
+    const bool ok = l.set.sample(p, Vec3(0.f), SelectionNumber::from_float(0.5f), 0.5f, 0.5f, ls);
     if (f == 0.0) {
       EXPECT_FALSE(ok) << deg << " degrees is outside the cone";
       continue;
@@ -380,7 +381,8 @@ TEST(DirectionalLightTest, IrradianceIsIrradianceTimesCosine) {
   }
   const Lights l(std::move(s));
   LightSample ls;
-  ASSERT_TRUE(l.set.sample(Vec3(0.3f, 0.f, 0.2f), Vec3(0.f), 0.3f, 0.1f, 0.9f, ls));
+  ASSERT_TRUE(l.set.sample(Vec3(0.3f, 0.f, 0.2f), Vec3(0.f), SelectionNumber::from_float(0.3f),
+                           0.1f, 0.9f, ls));
   EXPECT_TRUE(ls.delta);
   EXPECT_TRUE(ls.infinite);
   EXPECT_NEAR(ls.wi.x, -std::sin(a), 1e-6);

@@ -159,7 +159,7 @@ bool draw(const LightSet& lights, const Vec3& ref, Pcg32& rng, LightSample& out)
   const float u_select = rng.next_float();
   const float u1 = rng.next_float();
   const float u2 = rng.next_float();
-  return lights.sample(ref, Vec3(0.f), u_select, u1, u2, out);
+  return lights.sample(ref, Vec3(0.f), SelectionNumber::from_float(u_select), u1, u2, out);
 }
 
 enum Chosen { kTriangle0, kTriangle1, kSphereLight, kPointLight, kFailed, kUnknown };
@@ -286,7 +286,8 @@ TEST(LightSetTest, CollectsEmittersAndRegistersTheirIndices) {
   const Lights empty{none};
   EXPECT_TRUE(empty.set.empty());
   LightSample out;
-  EXPECT_FALSE(empty.set.sample({0.f, 0.f, 1.f}, Vec3(0.f), 0.5f, 0.5f, 0.5f, out));
+  EXPECT_FALSE(
+      empty.set.sample({0.f, 0.f, 1.f}, Vec3(0.f), SelectionNumber{1u << 31}, 0.5f, 0.5f, out));
 }
 
 // ----------------------------------------------------------------------------------------------

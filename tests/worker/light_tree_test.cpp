@@ -16,6 +16,7 @@
 #include "common/scene/parser.h"
 #include "test_scenes.h"
 #include "tests/support/normal_quantile.h"
+#include "worker/lights/light_set.h"
 #include "worker/lights/light_tree.h"
 #include "worker/renderer.h"
 #include "worker/samplers/rng.h"
@@ -133,8 +134,8 @@ TEST(LightTree, ProbabilitiesSumToOneAndAreTheChoicesOwn) {
 
 TEST(LightTree, ChoicesFollowTheirProbabilities) {
   // 48 lights seen from one point: 200,000 choices from independent uniforms; each light's
-  // count (and the failed choices') against its binomial expectation, Bonferroni over the
-  // categories at a 1e-3 false alarm.
+  // count (and the failed choices') against its binomial expectation (normal approximation,
+  // rare categories pooled), Bonferroni over the categories at a 1e-3 false alarm.
   Pcg32 rng(12, 1);
   const size_t count = 48;
   const LightTree tree(random_lights(rng, count, 4.f), identity(count));
@@ -144,7 +145,9 @@ TEST(LightTree, ChoicesFollowTheirProbabilities) {
   for (int k = 0; k < kDraws; ++k) {
     int32_t light = -1;
     float probability = 0.f;
-    ++hits[tree.choose(p, n, rng.next_float(), light, probability) ? light : count];
+    ++hits[tree.choose(p, n, SelectionNumber{rng.next_u32()}.as_double(), light, probability)
+               ? light
+               : count];
   }
   std::vector<double> q(count + 1, 1.0);
   for (size_t l = 0; l < count; ++l) {
@@ -153,15 +156,26 @@ TEST(LightTree, ChoicesFollowTheirProbabilities) {
   }
   q[count] = std::max(q[count], 0.0);
   EXPECT_LT(q[count], 0.5) << "most choices at this point fail";
-  const double z_max = testing::two_sided_z(1e-3 / double(count + 1));
+  // Categories expected fewer than 25 times are pooled into one, so that every count tested is
+  // near enough to normal for its z bound.
+  std::vector<std::pair<double, int>> tested;  // (probability, count)
+  double rare_q = 0.0;
+  int rare_hits = 0;
   for (size_t l = 0; l <= count; ++l) {
     if (q[l] < 1e-9) {
       EXPECT_EQ(hits[l], 0) << "light " << l << " has probability " << q[l];
-      continue;
+    } else if (q[l] * kDraws < 25.0) {
+      rare_q += q[l], rare_hits += hits[l];
+    } else {
+      tested.emplace_back(q[l], hits[l]);
     }
-    const double expected = q[l] * kDraws, sd = std::sqrt(kDraws * q[l] * (1.0 - q[l]));
-    EXPECT_LT(std::fabs(hits[l] - expected), z_max * sd + 1.0)
-        << "light " << l << ": " << hits[l] << " choices, expected " << expected;
+  }
+  if (rare_q > 0.0) tested.emplace_back(rare_q, rare_hits);
+  const double z_max = testing::two_sided_z(1e-3 / double(tested.size()));
+  for (const auto& [p_cat, n_cat] : tested) {
+    const double expected = p_cat * kDraws, sd = std::sqrt(kDraws * p_cat * (1.0 - p_cat));
+    EXPECT_LT(std::fabs(n_cat - expected), z_max * sd)
+        << n_cat << " choices, expected " << expected;
   }
 }
 
@@ -267,6 +281,117 @@ TEST(LightTree, BuildsTheSameTreeEveryTime) {
     EXPECT_EQ(la, lb);
     EXPECT_EQ(pa, pb);
   }
+}
+
+// ---- delta lights: the tree must give them a chance wherever they light ----------------------
+
+/// Orthonormal vector to the unit a.
+Vec3 perpendicular(const Vec3& a) {
+  const Vec3 t = std::fabs(a.x) < 0.9f ? Vec3(1.f, 0.f, 0.f) : Vec3(0.f, 1.f, 0.f);
+  return normalize(cross(a, t));
+}
+
+TEST(LightTree, EverySpotAndPointLightKeepsAChanceWhereItLights) {
+  // BSDF rays never find a point or spot light: where one lights a point, the tree must give it
+  // a probability above 0 there, or its light is lost. Spots clustered together and aimed at one
+  // target (nearly parallel axes, whose merged cones must still hold every axis), with cutoffs
+  // from 0.05 degrees to 90 (flush downlights), beside point lights; points probed on both sides
+  // of each cone's edge, with receiver normals that face the light.
+  Pcg32 rng(15, 1);
+  Scene scene;
+  const Vec3 target(0.f, -4.f, 0.3f);
+  const float cutoffs[] = {0.05f, 0.2f, 0.5f, 1.f, 5.f, 30.f, 60.f, 89.9f, 90.f};
+  for (int i = 0; i < 27; ++i) {
+    SpotLight spot;
+    spot.position = Vec3(0.01f * float(i % 5), 2.f + 0.002f * float(i), 0.003f * float(i / 5));
+    spot.direction = normalize(target - spot.position);
+    spot.intensity = Vec3(1.f + float(i % 4));
+    spot.cutoff_deg = cutoffs[i % 9];
+    spot.beam_width_deg = spot.cutoff_deg;  // full intensity up to the edge
+    scene.spot_lights.push_back(spot);
+  }
+  for (int i = 0; i < 6; ++i) scene.point_lights.push_back({random_point(rng, 3.f), Vec3(2.f)});
+  SceneData data(scene);
+  const LightSet lights(data, LightChoice::kTree);
+  ASSERT_TRUE(lights.selection().uses_tree());
+  const int32_t points = 6, spots = 27;  // the set holds point lights first, then spots
+  int lit = 0;
+  for (int32_t s = 0; s < spots; ++s) {
+    const SpotLight& spot = scene.spot_lights[s];
+    const std::optional<DeltaSpotLight> light =
+        DeltaSpotLight::make(scene, static_cast<uint32_t>(s));
+    ASSERT_TRUE(light);
+    const float cutoff = spot.cutoff_deg * kPi / 180.f;
+    const Vec3 side = perpendicular(spot.direction), up = cross(spot.direction, side);
+    for (int k = 0; k < 3000; ++k) {
+      // An angle within 1e-3 (relative) of the cutoff on either side, a random azimuth and
+      // distance.
+      const float theta = std::min(kPi, cutoff * (1.f + 2e-3f * (rng.next_float() - 0.5f)));
+      const float phi = 2.f * kPi * rng.next_float();
+      const Vec3 dir = spot.direction * std::cos(theta) +
+                       (side * std::cos(phi) + up * std::sin(phi)) * std::sin(theta);
+      const Vec3 p = spot.position + dir * (0.5f + 8.f * rng.next_float());
+      LightSample out;
+      if (!light->sample(p, 1.f, 0.5f, 0.5f, out)) continue;  // not lit by this spot
+      ++lit;
+      // A receiver that faces the light (any normal with a positive cosine to it).
+      Vec3 n = random_unit(rng);
+      if (dot(n, out.wi) <= 0.f) n = -n;
+      EXPECT_GT(lights.selection_probability(points + s, p, n), 0.f)
+          << "spot " << s << " (cutoff " << spot.cutoff_deg << " deg) lights " << p.x << "," << p.y
+          << "," << p.z << " but has no chance there";
+      EXPECT_GT(lights.selection_probability(points + s, p, Vec3(0.f)), 0.f);
+    }
+  }
+  EXPECT_GT(lit, 20000);
+  // Point lights, everywhere, with receivers barely facing them (cosines down to 1e-6).
+  for (int k = 0; k < 20000; ++k) {
+    const Vec3 p = random_point(rng, 5.f);
+    const int32_t l = static_cast<int32_t>(rng.next_u32() % points);
+    const Vec3 wi = normalize(scene.point_lights[l].position - p);
+    const Vec3 t = perpendicular(wi);
+    const float c = std::pow(10.f, -6.f * rng.next_float());
+    const Vec3 n = normalize(wi * c + t * std::sqrt(1.f - c * c));
+    if (!(dot(n, wi) > 0.f)) continue;
+    EXPECT_GT(lights.selection_probability(l, p, n), 0.f) << "point light " << l;
+  }
+}
+
+TEST(LightSelection, TreeChoicesReportTheirProbabilityBesideLightsAtInfinity) {
+  // A tree beside a sky and a sun: each choice's probability (the group's share times the
+  // tree's) is exactly what probability() computes, the number MIS weights read.
+  Pcg32 rng(16, 1);
+  std::vector<LightBounds> placed = random_lights(rng, 40, 4.f);
+  std::vector<double> powers;
+  std::vector<std::optional<LightBounds>> bounds;
+  for (const LightBounds& b : placed) {
+    powers.push_back(4.0 * kPi * b.intensity);
+    bounds.emplace_back(b);
+  }
+  double placed_power = 0.0;
+  for (const double w : powers) placed_power += w;
+  // Lights at infinity with a quarter and a twentieth of that power, one among the others.
+  powers.insert(powers.begin() + 10, 0.25 * placed_power);
+  bounds.insert(bounds.begin() + 10, std::nullopt);
+  powers.push_back(0.05 * placed_power);
+  bounds.emplace_back(std::nullopt);
+  const LightSelection selection(powers, bounds, LightChoice::kAuto);
+  ASSERT_TRUE(selection.uses_tree());
+  int infinite = 0;
+  for (int k = 0; k < 20000; ++k) {
+    const Vec3 p = random_point(rng, 5.f), n = random_normal(rng);
+    int32_t light = -1;
+    float probability = 0.f;
+    if (!selection.choose(p, n, SelectionNumber{rng.next_u32()}, light, probability)) continue;
+    ASSERT_GE(light, 0);
+    ASSERT_LT(light, static_cast<int32_t>(powers.size()));
+    EXPECT_EQ(probability, selection.probability(p, n, light)) << "light " << light;
+    if (!bounds[light]) {
+      ++infinite;
+      EXPECT_EQ(probability, selection.infinite_probability(light));
+    }
+  }
+  EXPECT_GT(infinite, 2000);  // about 23% of 20,000
 }
 
 // ---- rendering through the tree ----------------------------------------------------------------

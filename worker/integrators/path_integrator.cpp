@@ -58,9 +58,12 @@ template <class BsdfT>
 Vec3 PathIntegratorFor<BsdfT>::sample_light(const SurfaceHit& hit, const Vec3& select_n, bool flat,
                                             const Vec3& wo, const Vec3& wo_local,
                                             const Frame& frame, const BsdfT& bsdf,
-                                            const std::array<float, 3>& u, uint64_t& rays) const {
+                                            const std::array<uint32_t, 3>& u,
+                                            uint64_t& rays) const {
   LightSample ls;
-  if (!lights_.sample(hit.p, select_n, u[0], u[1], u[2], ls)) return Vec3(0.f);
+  if (!lights_.sample(hit.p, select_n, SelectionNumber{u[0]}, sobol::to_unit_float(u[1]),
+                      sobol::to_unit_float(u[2]), ls))
+    return Vec3(0.f);
   const Vec3 wi_local = frame.to_local(ls.wi);
   if (!same_sides(hit, flat, wo, ls.wi, wo_local, wi_local)) return Vec3(0.f);
   if (!(wi_local.z > 0.f) && (data_.surface_needs(hit.material) & kShadingSided)) return Vec3(0.f);
@@ -162,7 +165,7 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, PathSampler& sampler, PathStats& s
                               : Vec3(0.f);
     if (plan_.sample_lights && !bsdf.is_specular()) {
       radiance += beta * sample_light(hit, select_n, flat, wo, wo_local, frame, bsdf,
-                                      sampler.light(depth), rays);
+                                      sampler.light_bits(depth), rays);
     }
 
     // BSDF sampling for the next direction.
@@ -200,9 +203,10 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, PathSampler& sampler, PathStats& s
     prev_n = select_n;
 
     // The ray after the last scattering vertex matters only if it can find counted emission.
+    // (Not with a light tree: NEE counts a BSDF ray's emitter that the tree could not choose.)
     const bool last_ray_useless =
         !plan_.emitters_reachable ||
-        (!specular_bounce && plan_.sample_lights && !plan_.weight_emission &&
+        (!specular_bounce && plan_.sample_lights && !plan_.weight_emission && !plan_.light_tree &&
          is_black(background_));  // NEE: diffuse-bounce emitter and environment hits not counted
     if (depth + 1 == plan_.max_depth && last_ray_useless) {
       truncate(beta);

@@ -79,7 +79,7 @@ class PathIntegratorFor {
   [[gnu::always_inline]] inline Vec3 sample_light(const SurfaceHit& hit, const Vec3& select_n,
                                                   bool flat, const Vec3& wo, const Vec3& wo_local,
                                                   const Frame& frame, const BsdfT& bsdf,
-                                                  const std::array<float, 3>& u,
+                                                  const std::array<uint32_t, 3>& u,
                                                   uint64_t& rays) const;
   float emission_weight(const SurfaceHit& hit, bool specular_bounce, float bsdf_pdf,
                         const Vec3& prev_p, const Vec3& prev_n) const;

@@ -48,16 +48,21 @@ struct ImportanceBounds {
     const float sin_x = sin_less(cos_w, sin_w, cos_o, sin_o);
     const float cos_p = cos_less(cos_x, sin_x, cos_b, sin_b);
     if (!(cos_p > cos_e)) return 0.0;
-    float cosines = cos_p;
+    // A group may light p beyond 90 degrees from its normals (spots of wide cutoffs): the
+    // cosine is then floored, never negative or 0, so that it keeps a chance.
+    float cosines = std::max(cos_p, kLeastCosine);
     // The receiver's side: the angle between its normal and the direction to the centre, less
-    // theta_b.
+    // theta_b; a little tolerance for the rounding of w against the light's own direction.
     if (n.x != 0.f || n.y != 0.f || n.z != 0.f) {
-      const float cos_i = -dot(w, n);
+      const float cos_i = std::min(1.f, -dot(w, n) + kHorizonTolerance);
       const float sin_i = std::sqrt(std::max(0.f, 1.f - cos_i * cos_i));
       cosines *= std::max(0.f, cos_less(cos_i, sin_i, cos_b, sin_b));
     }
     return intensity * (double(cosines) / double(d2));
   }
+
+  static constexpr float kLeastCosine = 1e-3f;
+  static constexpr float kHorizonTolerance = 1e-5f;
 
   /// cos(max(0, a - b)) for angles a, b in [0, pi] given by their cosines and sines.
   static float cos_less(float cos_a, float sin_a, float cos_b, float sin_b) {

@@ -14,14 +14,27 @@
 
 namespace rayfarm {
 
+/// The number that chooses a light: 32 uniform bits. Selection by power reads the top 24 (as a
+/// float in [0, 1)); the tree all 32, remapped in double along its path.
+struct SelectionNumber {
+  uint32_t bits = 0;
+  float as_float() const { return static_cast<float>(bits >> 8) * 0x1p-24f; }
+  double as_double() const { return static_cast<double>(bits) * 0x1p-32; }
+  /// The number whose float is u (u in [0, 1)), for callers that hold a float.
+  static SelectionNumber from_float(float u) {
+    return {static_cast<uint32_t>(std::clamp(double(u), 0.0, 0x1.fffffep-1) * 0x1p32)};
+  }
+};
+
 /// How lights are chosen: kAuto (a light tree from kTreeMinLights lights with a place on),
 /// or either strategy always (for tests and benchmarks).
 enum class LightChoice : uint8_t { kAuto, kPower, kTree };
 /// Fewest lights with a place for which kAuto builds a light tree. The tree's importance is an
 /// irradiance estimate that knows nothing of glossy BSDFs; among a few lamps it ranks them no
 /// better than their powers do, and its walk costs time at every vertex (docs/benchmarks.md,
-/// "Light selection by a light tree": 0.6 to 1.3 times the efficiency of power selection on the
-/// bundled scenes with 2 or 3 lights, 2.6 times on 129).
+/// "Light selection by a light tree": 0.8 to 1.3 times the efficiency of power selection on the
+/// bundled scenes with 2 or 3 lights, 2.6 times on 129). Each emissive triangle counts: a quad
+/// is two lights.
 inline constexpr size_t kTreeMinLights = 8;
 
 class PowerLightSelection {
@@ -41,7 +54,8 @@ class PowerLightSelection {
   }
 
   /// The light that the uniform number u chooses; there must be at least one light.
-  int32_t choose(float u) const {
+  template <class Real>
+  int32_t choose(Real u) const {
     if (cdf_.size() <= 1) return 0;
     const auto it = std::upper_bound(cdf_.begin(), cdf_.end(), u);
     return static_cast<int32_t>(std::min<size_t>(it - cdf_.begin(), cdf_.size() - 1));
@@ -76,13 +90,14 @@ class LightSelection {
 
   /// Chooses a light for the point p with normal n (or zero) from the uniform number u, and
   /// its probability. False when none can be chosen there.
-  [[gnu::always_inline]] bool choose(const Vec3& p, const Vec3& n, float u, int32_t& light,
-                                     float& probability) const {
+  [[gnu::always_inline]] bool choose(const Vec3& p, const Vec3& n, SelectionNumber number,
+                                     int32_t& light, float& probability) const {
     if (tree_.empty()) {
-      light = power_.choose(u);
+      light = power_.choose(number.as_float());
       probability = power_.probability(light);
       return probability > 0.f;
     }
+    const double u = number.as_double();
     const int32_t group = groups_.choose(u);
     const float p_group = groups_.probability(group);
     if (!(p_group > 0.f)) return false;
@@ -92,7 +107,8 @@ class LightSelection {
       return true;
     }
     // The tree's interval of u, stretched back to [0, 1).
-    const float v = std::min((u - groups_.lower(0)) / p_group, 0x1.fffffep-1f);
+    const double v =
+        std::clamp((u - groups_.lower(0)) / double(p_group), 0.0, 0x1.fffffffffffffp-1);
     float p_tree = 0.f;
     if (!tree_.choose(p, n, v, light, p_tree)) return false;
     probability = p_group * p_tree;

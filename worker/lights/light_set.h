@@ -69,12 +69,12 @@ class LightSet {
   /// vector), and a point on it. False when the sample carries nothing.
   // Inlined into its one caller: as a call (it grew with the kinds' code) it cost more than the
   // sampling itself at -O3.
-  [[gnu::always_inline]] bool sample(const Vec3& ref, const Vec3& ref_n, float u_select, float u1,
-                                     float u2, LightSample& out) const {
+  [[gnu::always_inline]] bool sample(const Vec3& ref, const Vec3& ref_n, SelectionNumber select,
+                                     float u1, float u2, LightSample& out) const {
     if (lights_.empty()) return false;
     int32_t index = -1;
     float p_select = 0.f;
-    if (!selection_.choose(ref, ref_n, u_select, index, p_select)) return false;
+    if (!selection_.choose(ref, ref_n, select, index, p_select)) return false;
     return dispatch_light(
         lights_[index], [&](const auto& light) __attribute__((always_inline)) {
           return light.sample(ref, p_select, u1, u2, out);

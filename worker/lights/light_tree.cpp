@@ -25,7 +25,22 @@ D3 cross3(const D3& a, const D3& b) {
 }
 double acos_clamped(double c) { return std::acos(std::clamp(c, -1.0, 1.0)); }
 
-/// The smallest cone holding the cones (wa, cos_a) and (wb, cos_b), slightly widened.
+/// Angle between two directions, well conditioned at 0 and pi (atan2 of |a x b| and a . b).
+double angle_between(const D3& a, const D3& b) {
+  const D3 c = cross3(a, b);
+  return std::atan2(std::sqrt(dot3(c, c)), dot3(a, b));
+}
+
+D3 unit3(const Vec3& v) {
+  const D3 d = d3(v);
+  const double l = std::sqrt(dot3(d, d));
+  return {d.x / l, d.y / l, d.z / l};
+}
+
+/// The smallest cone holding the cones (wa, cos_a) and (wb, cos_b), widened against rounding:
+/// its half-angle is recomputed from the float axis it ends up with (its angle to each input
+/// axis plus that cone's half-angle, plus kConeSlack), and its cosine rounded down by a few
+/// float steps, so that no normal of either cone falls outside it, however close the axes are.
 void union_cone(const Vec3& wa, float cos_a, const Vec3& wb, float cos_b, Vec3& axis,
                 float& cos_o) {
   // Quick answers first (a build merges each light some 4 log2(n) times): a cone of every
@@ -39,34 +54,40 @@ void union_cone(const Vec3& wa, float cos_a, const Vec3& wb, float cos_b, Vec3& 
     return;
   }
   const double ta = acos_clamped(cos_a), tb = acos_clamped(cos_b);
-  const D3 a = d3(wa), b = d3(wb);
-  const double td = acos_clamped(dot3(a, b));
+  const D3 a = unit3(wa), b = unit3(wb);
+  const double td = angle_between(a, b);
   if (std::min(td + tb, kPiD) <= ta) {
-    axis = wa, cos_o = cos_a;
+    axis = wa;
+  } else if (std::min(td + ta, kPiD) <= tb) {
+    axis = wb;
+  } else {
+    const double to = 0.5 * (ta + td + tb);
+    const D3 k = cross3(a, b);
+    const double k_len = std::sqrt(dot3(k, k));
+    if (to + kConeSlack >= kPiD || !(k_len > 0.0)) {
+      // Opposite axes, or a cone that is all directions anyway.
+      axis = wa, cos_o = -1.f;
+      return;
+    }
+    // Rotate a towards b, about their common normal, by to - ta.
+    const double tr = to - ta, c = std::cos(tr), s = std::sin(tr);
+    const D3 kn{k.x / k_len, k.y / k_len, k.z / k_len};
+    const D3 kxa = cross3(kn, a);
+    const D3 w{a.x * c + kxa.x * s, a.y * c + kxa.y * s, a.z * c + kxa.z * s};
+    const double w_len = std::sqrt(dot3(w, w));
+    axis = Vec3(static_cast<float>(w.x / w_len), static_cast<float>(w.y / w_len),
+                static_cast<float>(w.z / w_len));
+  }
+  // The half-angle that the float axis needs to hold both cones.
+  const D3 w = unit3(axis);
+  const double need = std::max(angle_between(w, a) + ta, angle_between(w, b) + tb) + kConeSlack;
+  if (need >= kPiD) {
+    cos_o = -1.f;
     return;
   }
-  if (std::min(td + ta, kPiD) <= tb) {
-    axis = wb, cos_o = cos_b;
-    return;
-  }
-  const double to = 0.5 * (ta + td + tb);
-  const D3 k = cross3(a, b);
-  const double k_len = std::sqrt(dot3(k, k));
-  if (to + kConeSlack >= kPiD || !(k_len > 1e-12)) {
-    // Opposite axes, or a cone that is all directions anyway.
-    axis = wa, cos_o = -1.f;
-    return;
-  }
-  // Rotate wa towards wb, about their common normal, by to - ta.
-  const double tr = to - ta, c = std::cos(tr), s = std::sin(tr);
-  const D3 kn{k.x / k_len, k.y / k_len, k.z / k_len};
-  const D3 kxa = cross3(kn, a);
-  D3 w{a.x * c + kxa.x * s, a.y * c + kxa.y * s, a.z * c + kxa.z * s};
-  const double w_len = std::sqrt(dot3(w, w));
-  axis = Vec3(static_cast<float>(w.x / w_len), static_cast<float>(w.y / w_len),
-              static_cast<float>(w.z / w_len));
-  // Rounded down (a wider cone), the axis' own rounding covered by the slack.
-  cos_o = std::nextafter(static_cast<float>(std::cos(to + kConeSlack)), -1.f);
+  float c = static_cast<float>(std::cos(need));
+  for (int i = 0; i < 4; ++i) c = std::nextafter(c, -1.f);
+  cos_o = std::max(c, -1.f);
 }
 
 /// The orientation measure of pbrt-v4's light BVH: the solid angle, weighted by cosine, into
@@ -237,17 +258,24 @@ uint32_t LightTree::build(std::vector<uint32_t>& order, uint32_t begin, uint32_t
 }
 
 float LightTree::first_share(uint32_t node, const Vec3& p, const Vec3& n) const {
-  const double a = nodes_[node + 1].bounds.importance(p, n);
-  const double b = nodes_[nodes_[node].second].bounds.importance(p, n);
+  double a = nodes_[node + 1].bounds.importance(p, n);
+  double b = nodes_[nodes_[node].second].bounds.importance(p, n);
+  a = a > 0.0 ? a : 0.0;  // also NaN
+  b = b > 0.0 ? b : 0.0;
   const double total = a + b;
   if (!(total > 0.0)) return -1.f;  // neither child can reach p
-  return static_cast<float>(a / total);
+  if (b == 0.0) return 1.f;
+  if (a == 0.0) return 0.f;
+  // Both can reach p: neither share may round to nothing (1 - share exactly 0 in float).
+  return std::clamp(static_cast<float>(a / total), 0x1p-24f, 1.f - 0x1p-24f);
 }
 
-bool LightTree::choose(const Vec3& p, const Vec3& n, float u, int32_t& light,
+bool LightTree::choose(const Vec3& p, const Vec3& n, double u, int32_t& light,
                        float& probability) const {
   if (nodes_.empty()) return false;
-  constexpr float kBelowOne = 0x1.fffffep-1f;
+  // u is remapped in double at every level: a float's 24 bits, divided by the shares along
+  // a path, would leave lights below a branch of small probability unreachable.
+  constexpr double kBelowOne = 0x1.fffffffffffffp-1;
   uint32_t node = 0;
   float pmf = 1.f;
   while (nodes_[node].light < 0) {
@@ -260,7 +288,7 @@ bool LightTree::choose(const Vec3& p, const Vec3& n, float u, int32_t& light,
     } else {
       const float rest = 1.f - share;
       pmf *= rest;
-      u = std::min((u - share) / rest, kBelowOne);
+      u = std::min((u - share) / double(rest), kBelowOne);
       node = nodes_[node].second;
     }
   }

@@ -30,9 +30,9 @@ class LightTree {
   uint32_t depth() const { return depth_; }
   static constexpr uint32_t kMaxDepth = 64;
 
-  /// Chooses a light for the point p with normal n (or zero) from the uniform number u; sets its
-  /// probability. False when no light can reach p (every importance 0).
-  bool choose(const Vec3& p, const Vec3& n, float u, int32_t& light, float& probability) const;
+  /// Chooses a light for the point p with normal n (or zero) from the uniform number u in
+  /// [0, 1); sets its probability. False when no light can reach p (every importance 0).
+  bool choose(const Vec3& p, const Vec3& n, double u, int32_t& light, float& probability) const;
   /// Probability that choose() at (p, n) returns `light`; 0 for a light not in the tree.
   float probability(const Vec3& p, const Vec3& n, int32_t light) const;
 

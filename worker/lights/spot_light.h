@@ -46,8 +46,13 @@ class DeltaSpotLight {
     b.lo = b.hi = position_;
     b.axis = axis_;
     b.cos_o = 1.f;
-    // A little beyond the cutoff: rounding must never rule out a point the spot lights.
-    b.cos_e = static_cast<float>(std::cos(std::min(double(cutoff_) + 1e-5, 3.14159265358979)));
+    // A little beyond the cutoff, in cosine (1e-6 is some 16 float steps near 1, which covers
+    // the rounding of a direction even for the narrowest spot): rounding must never rule out a
+    // point the spot lights.
+    const float cos_cut =
+        std::min(static_cast<float>(std::cos(std::min(double(cutoff_) + 1e-5, 3.14159265358979))),
+                 cos_cutoff_);
+    b.cos_e = std::max(-1.f, cos_cut - 1e-6f);
     b.intensity = luminance(intensity_);  // along the axis
     return b;
   }

@@ -45,15 +45,22 @@ class PathSampler {
     return {rng.next_float(), rng.next_float(), rng.next_float(), rng.next_float()};
   }
 
-  /// Light choice and point on the light at vertex `depth`. The point's two numbers are Sobol'
-  /// dimensions 0 and 1, the pair whose prefixes are (0, m, 2)-nets.
-  std::array<float, 3> light(uint32_t depth) {
+  /// Light choice and point on the light at vertex `depth`, as 32-bit numbers (light selection
+  /// through a tree reads all the choice's bits; light() the top 24 of each). The point's two
+  /// numbers are Sobol' dimensions 0 and 1, the pair whose prefixes are (0, m, 2)-nets.
+  std::array<uint32_t, 3> light_bits(uint32_t depth) {
     if (sobol_ && depth < kSobolVertices) {
-      const std::array<float, 3> u = sobol::sample<3>(index_, group_key(2 * depth + 1));
+      const std::array<uint32_t, 3> u = sobol::sample_bits<3>(index_, group_key(2 * depth + 1));
       return {u[2], u[0], u[1]};
     }
     Pcg32& rng = stream();
-    return {rng.next_float(), rng.next_float(), rng.next_float()};
+    const uint32_t choice = rng.next_u32(), u1 = rng.next_u32();
+    return {choice, u1, rng.next_u32()};
+  }
+  /// light_bits() as floats in [0, 1).
+  std::array<float, 3> light(uint32_t depth) {
+    const std::array<uint32_t, 3> b = light_bits(depth);
+    return {sobol::to_unit_float(b[0]), sobol::to_unit_float(b[1]), sobol::to_unit_float(b[2])};
   }
 
   /// BSDF lobe, direction u, v and the roulette number at vertex `depth`. The roulette number is

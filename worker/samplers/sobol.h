@@ -128,7 +128,7 @@ constexpr float to_unit_float(uint32_t bits) { return static_cast<float>(bits >>
 /// one such block, so the first 2^m samples stay a net), then each Sobol' coordinate
 /// Owen-scrambled.
 template <int kDims = 4>
-constexpr std::array<float, kDims> sample(uint32_t index, uint64_t key) {
+constexpr std::array<uint32_t, kDims> sample_bits(uint32_t index, uint64_t key) {
   static_assert(kDims >= 1 && kDims <= 4);
   // The shuffle and the scrambles both act on reversed bits; staying there between them leaves
   // one reversal per coordinate (owen_scramble(sobol_bits(owen_scramble(index)))).
@@ -137,11 +137,20 @@ constexpr std::array<float, kDims> sample(uint32_t index, uint64_t key) {
   const auto shuffle_key = static_cast<uint32_t>(key),
              scramble_key = static_cast<uint32_t>(key >> 32);
   const uint32_t y = lk_permute(reverse_bits(index), shuffle_key);
-  std::array<float, kDims> out{};
+  std::array<uint32_t, kDims> out{};
   for (int d = 0; d < kDims; ++d) {
     const uint32_t k = scramble_key + 0x9e3779b9u * static_cast<uint32_t>(d);
-    out[d] = to_unit_float(reverse_bits(lk_permute(sobol_reversed(y, d), k)));
+    out[d] = reverse_bits(lk_permute(sobol_reversed(y, d), k));
   }
+  return out;
+}
+
+/// sample_bits() as floats in [0, 1) (their top 24 bits).
+template <int kDims = 4>
+constexpr std::array<float, kDims> sample(uint32_t index, uint64_t key) {
+  const std::array<uint32_t, kDims> bits = sample_bits<kDims>(index, key);
+  std::array<float, kDims> out{};
+  for (int d = 0; d < kDims; ++d) out[d] = to_unit_float(bits[d]);
   return out;
 }
 
