@@ -14,6 +14,7 @@
 
 #include "common/image/fixed.h"
 #include "common/scene/parser.h"
+#include "mc_stats.h"
 #include "test_scenes.h"
 #include "tests/support/normal_quantile.h"
 #include "worker/lights/light_set.h"
@@ -403,9 +404,7 @@ std::vector<float> pixel_means(const Scene& scene, RenderSettings settings, Ligh
   const TileResult r =
       renderer.render({0, 0, scene.film.width, scene.film.height}, {0, settings.spp});
   EXPECT_EQ(r.nonfinite, 0u);
-  std::vector<float> out(r.sum.size());
-  for (size_t i = 0; i < out.size(); ++i) out[i] = float(from_fixed(r.sum[i]) / settings.spp);
-  return out;
+  return testing::pixel_means(r, settings.spp);
 }
 
 struct RenderCase {
@@ -487,45 +486,19 @@ TEST(LightTreeRender, RendersTheSameExpectedImageAsPowerSelection) {
   const uint32_t block = 16;
   size_t comparisons = 0;
   for (const RenderCase& c : all)
-    comparisons += size_t{c.scene.film.width / block} * (c.scene.film.height / block) * 3;
-  const double z_max = testing::two_sided_z(1e-3 / double(comparisons));
+    comparisons += testing::blocks_compared(c.scene.film.width, c.scene.film.height, block);
+  const double z_max = testing::bonferroni_z(comparisons);
   for (const RenderCase& c : all) {
     RenderSettings settings = c.scene.render;
     settings.integrator = c.integrator;
     settings.spp = c.spp;
     const std::vector<float> a = pixel_means(c.scene, settings, LightChoice::kTree, 5);
     const std::vector<float> b = pixel_means(c.scene, settings, LightChoice::kPower, 6);
-    const uint32_t w = c.scene.film.width;
-    for (uint32_t by = 0; by + block <= c.scene.film.height; by += block) {
-      for (uint32_t bx = 0; bx + block <= w; bx += block) {
-        for (int ch = 0; ch < 3; ++ch) {
-          double s = 0.0, s2 = 0.0;
-          for (uint32_t y = by; y < by + block; ++y) {
-            for (uint32_t x = bx; x < bx + block; ++x) {
-              const double d =
-                  double(a[(size_t{y} * w + x) * 3 + ch]) - b[(size_t{y} * w + x) * 3 + ch];
-              s += d;
-              s2 += d * d;
-            }
-          }
-          const double n = double(block) * block, mean = s / n;
-          const double se = std::sqrt(std::max(0.0, (s2 / n - mean * mean) / (n - 1.0)));
-          if (se == 0.0) {
-            EXPECT_EQ(mean, 0.0) << c.name << " block " << bx << "," << by;
-            continue;
-          }
-          EXPECT_LT(std::fabs(mean / se), z_max)
-              << c.name << ": block at " << bx << "," << by << " channel " << ch
-              << ": mean difference " << mean << " (standard error " << se << ")";
-        }
-      }
-    }
+    testing::expect_same_expectation(a, b, c.scene.film.width, c.scene.film.height, block, z_max,
+                                     c.name);
   }
 }
 
-// Per-pixel variance of an estimate relative to the pixel's level, averaged over the image (as
-// relMSE weighs errors): half the squared difference between two renders of different seeds
-// over (their mean^2 + 0.01).
 double mean_relative_variance(const Scene& scene, RenderSettings settings, LightChoice choice) {
   const std::vector<float> a = pixel_means(scene, settings, choice, 21);
   const std::vector<float> b = pixel_means(scene, settings, choice, 22);

@@ -130,6 +130,58 @@ inline size_t expect_same_within_noise(const BlockStats& a, const BlockStats& b,
   return compared;
 }
 
+/// Per-pixel means (RGB, row-major) of a render of `spp` samples per pixel.
+inline std::vector<float> pixel_means(const TileResult& r, uint32_t spp) {
+  std::vector<float> out(r.sum.size());
+  for (size_t i = 0; i < out.size(); ++i) out[i] = float(from_fixed(r.sum[i]) / spp);
+  return out;
+}
+
+/// Paired comparison of two renders of the same image (pixel means `a` and `b`, `width` wide)
+/// whose pixels are independent of each other, whatever the sampler within a pixel: per pixel
+/// D = a - b has mean 0 if both estimate the same image. Per `block` x `block` block and
+/// channel, the mean of D over its standard error (from the D's own spread) is held below
+/// `z_max`; blocks whose D all agree must have mean 0. Returns the number of comparisons made.
+/// blocks_compared() counts them beforehand, for the Bonferroni bound of a family of calls.
+inline size_t expect_same_expectation(const std::vector<float>& a, const std::vector<float>& b,
+                                      uint32_t width, uint32_t height, uint32_t block, double z_max,
+                                      const std::string& what) {
+  EXPECT_EQ(a.size(), b.size()) << what;
+  if (a.size() != b.size() || a.size() != size_t{width} * height * 3) return 0;
+  size_t compared = 0;
+  for (uint32_t by = 0; by + block <= height; by += block) {
+    for (uint32_t bx = 0; bx + block <= width; bx += block) {
+      for (int ch = 0; ch < 3; ++ch) {
+        double s = 0.0, s2 = 0.0;
+        for (uint32_t y = by; y < by + block; ++y) {
+          for (uint32_t x = bx; x < bx + block; ++x) {
+            const size_t i = (size_t{y} * width + x) * 3 + ch;
+            const double d = double(a[i]) - double(b[i]);
+            s += d;
+            s2 += d * d;
+          }
+        }
+        const double n = double(block) * block, mean = s / n;
+        const double se = std::sqrt(std::max(0.0, (s2 / n - mean * mean) / (n - 1.0)));
+        ++compared;
+        if (se == 0.0) {
+          EXPECT_EQ(mean, 0.0) << what << ": block " << bx << "," << by;
+          continue;
+        }
+        EXPECT_LT(std::fabs(mean / se), z_max)
+            << what << ": block at " << bx << "," << by << " channel " << ch << ": mean difference "
+            << mean << " (standard error " << se << ")";
+      }
+    }
+  }
+  return compared;
+}
+
+/// The comparisons expect_same_expectation() makes on an image of this size.
+inline size_t blocks_compared(uint32_t width, uint32_t height, uint32_t block) {
+  return size_t{width / block} * (height / block) * 3;
+}
+
 /// True when every sum of `r` is a finite number and no sample was dropped.
 inline bool all_finite(const TileResult& r) {
   for (size_t i = 0; i < r.sum.size(); ++i) {

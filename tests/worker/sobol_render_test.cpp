@@ -14,8 +14,8 @@
 
 #include "common/image/fixed.h"
 #include "common/scene/parser.h"
+#include "mc_stats.h"
 #include "test_scenes.h"
-#include "tests/support/normal_quantile.h"
 #include "worker/renderer.h"
 
 namespace rayfarm {
@@ -36,9 +36,7 @@ std::vector<float> pixel_means(const Scene& scene, RenderSettings settings, Samp
   const TileResult r =
       renderer.render({0, 0, scene.film.width, scene.film.height}, {0, settings.spp});
   EXPECT_EQ(r.nonfinite, 0u);
-  std::vector<float> out(r.sum.size());
-  for (size_t i = 0; i < out.size(); ++i) out[i] = float(from_fixed(r.sum[i]) / settings.spp);
-  return out;
+  return testing::pixel_means(r, settings.spp);
 }
 
 std::vector<Case> cases() {
@@ -61,38 +59,15 @@ TEST(SobolSampler, RendersTheSameExpectedImageAsIndependentSamples) {
   const std::vector<Case> all = cases();
   size_t comparisons = 0;
   for (const Case& c : all)
-    comparisons += size_t{c.scene.film.width / block} * (c.scene.film.height / block) * 3;
-  const double z_max = testing::two_sided_z(1e-3 / double(comparisons));
+    comparisons += testing::blocks_compared(c.scene.film.width, c.scene.film.height, block);
+  const double z_max = testing::bonferroni_z(comparisons);
   for (const Case& c : all) {
     RenderSettings settings = c.scene.render;
     settings.spp = 16;
     const std::vector<float> a = pixel_means(c.scene, settings, SamplerType::kSobol, 5);
     const std::vector<float> b = pixel_means(c.scene, settings, SamplerType::kIndependent, 6);
-    const uint32_t w = c.scene.film.width;
-    for (uint32_t by = 0; by + block <= c.scene.film.height; by += block) {
-      for (uint32_t bx = 0; bx + block <= w; bx += block) {
-        for (int ch = 0; ch < 3; ++ch) {
-          double s = 0.0, s2 = 0.0;
-          for (uint32_t y = by; y < by + block; ++y) {
-            for (uint32_t x = bx; x < bx + block; ++x) {
-              const size_t i = (size_t{y} * w + x) * 3 + ch;
-              const double d = double(a[i]) - double(b[i]);
-              s += d;
-              s2 += d * d;
-            }
-          }
-          const double n = double(block) * block, mean = s / n;
-          const double se = std::sqrt(std::max(0.0, (s2 / n - mean * mean) / (n - 1.0)));
-          if (se == 0.0) {
-            EXPECT_EQ(mean, 0.0) << c.name << " block " << bx << "," << by;
-            continue;
-          }
-          EXPECT_LT(std::fabs(mean / se), z_max)
-              << c.name << ": block at " << bx << "," << by << " channel " << ch
-              << ": mean difference " << mean << " (standard error " << se << ")";
-        }
-      }
-    }
+    testing::expect_same_expectation(a, b, c.scene.film.width, c.scene.film.height, block, z_max,
+                                     c.name);
   }
 }
 

@@ -33,7 +33,7 @@ enum class LightChoice : uint8_t { kAuto, kPower, kTree };
 /// irradiance estimate that knows nothing of glossy BSDFs; among a few lamps it ranks them no
 /// better than their powers do, and its walk costs time at every vertex (docs/benchmarks.md,
 /// "Light selection by a light tree": 0.8 to 1.3 times the efficiency of power selection on the
-/// bundled scenes with 2 or 3 lights, 2.6 times on 129). Each emissive triangle counts: a quad
+/// bundled scenes with 2 or 3 lights, 2.7 times on 129). Each emissive triangle counts: a quad
 /// is two lights.
 inline constexpr size_t kTreeMinLights = 8;
 
