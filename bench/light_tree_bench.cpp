@@ -2,7 +2,9 @@
 // time: renders SCENE with each strategy at the same spp, alternating, ROUNDS times, and prints
 // per strategy the median time, the median relMSE against a reference (the tree's, at many
 // samples, its own noise subtracted) and their product, relMSE x time, whose inverse is the
-// efficiency. The figures are in docs/benchmarks.md ("Light selection by a light tree").
+// efficiency. With --build N it times instead the building of a tree over N random lights
+// (random orientations, then all facing alike). The figures are in docs/benchmarks.md ("Light
+// selection by a light tree").
 #include <tbb/task_arena.h>
 
 #include <algorithm>
@@ -19,7 +21,9 @@
 #include "common/image/fixed.h"
 #include "common/scene/parser.h"
 #include "common/util/log.h"
+#include "worker/lights/light_tree.h"
 #include "worker/renderer.h"
+#include "worker/samplers/rng.h"
 
 namespace {
 
@@ -47,13 +51,41 @@ double median(std::vector<double> v) {
   return v.empty() ? 0.0 : v[v.size() / 2];
 }
 
+/// Seconds to build a tree over `count` lights (small boxes in a 100-unit cube), facing random
+/// ways or all down; the median of 3 builds.
+double build_seconds(size_t count, bool alike) {
+  Pcg32 rng(7, 1);
+  std::vector<LightBounds> bounds(count);
+  std::vector<int32_t> index(count);
+  for (size_t i = 0; i < count; ++i) {
+    const Vec3 c(100.f * rng.next_float(), 100.f * rng.next_float(), 100.f * rng.next_float());
+    bounds[i].lo = c;
+    bounds[i].hi = c + Vec3(0.1f);
+    const float z = 1.f - 2.f * rng.next_float(), phi = 2.f * kPi * rng.next_float();
+    const float r = std::sqrt(std::max(0.f, 1.f - z * z));
+    bounds[i].axis = alike ? Vec3(0.f, -1.f, 0.f) : Vec3(r * std::cos(phi), r * std::sin(phi), z);
+    bounds[i].intensity = 1.0 + rng.next_float();
+    index[i] = static_cast<int32_t>(i);
+  }
+  std::vector<double> times;
+  for (int k = 0; k < 3; ++k) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const LightTree tree(bounds, index);
+    times.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    if (tree.node_count() != 2 * count - 1) std::cerr << "unexpected tree size\n";
+  }
+  return median(times);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"light_tree_bench: light selection by power and by the light tree at equal spp"};
   std::string path;
   uint32_t spp = 16, reference_spp = 1024, threads = 2, rounds = 3, width = 0;
-  app.add_option("scene", path, "Scene file")->required();
+  size_t build = 0;
+  app.add_option("scene", path, "Scene file");
+  app.add_option("--build", build, "Time building a tree over this many random lights instead");
   app.add_option("--spp", spp, "Samples per pixel of each measured render")->capture_default_str();
   app.add_option("--reference-spp", reference_spp, "Samples of the reference (light tree)")
       ->capture_default_str();
@@ -63,6 +95,15 @@ int main(int argc, char** argv) {
                  "Film width (the height follows the aspect ratio); 0: the scene's");
   CLI11_PARSE(app, argc, argv);
   configure_logging("error");
+  if (build > 0) {
+    std::cout << fmt::format("{} lights: {:.3f} s facing random ways, {:.3f} s all facing alike\n",
+                             build, build_seconds(build, false), build_seconds(build, true));
+    return 0;
+  }
+  if (path.empty()) {
+    std::cerr << "light_tree_bench: a scene file, or --build N\n";
+    return 2;
+  }
   Scene scene = load_scene(path);
   if (width > 0) {
     scene.film.height = std::max<uint32_t>(1, scene.film.height * width / scene.film.width);

@@ -158,14 +158,19 @@ uint32_t LightTree::build(std::vector<uint32_t>& order, uint32_t begin, uint32_t
     depth_ = std::max(depth_, depth);
     return index;
   }
-  // The node's box and its lights' centroids' box.
+  // The node's box (its cones are not needed here: merge() of the children makes them) and its
+  // lights' centroids' box.
   LightBounds all = bounds[order[begin]];
   double clo[3] = {INFINITY, INFINITY, INFINITY}, chi[3] = {-INFINITY, -INFINITY, -INFINITY};
   const auto centroid = [&](uint32_t i, int axis) {
     return 0.5 * (double(bounds[i].lo[axis]) + bounds[i].hi[axis]);
   };
   for (uint32_t i = begin; i < end; ++i) {
-    if (i > begin) all = merge(all, bounds[order[i]]);
+    const LightBounds& b = bounds[order[i]];
+    all.lo =
+        Vec3(std::min(all.lo.x, b.lo.x), std::min(all.lo.y, b.lo.y), std::min(all.lo.z, b.lo.z));
+    all.hi =
+        Vec3(std::max(all.hi.x, b.hi.x), std::max(all.hi.y, b.hi.y), std::max(all.hi.z, b.hi.z));
     for (int a = 0; a < 3; ++a) {
       clo[a] = std::min(clo[a], centroid(order[i], a));
       chi[a] = std::max(chi[a], centroid(order[i], a));
