@@ -15,6 +15,7 @@
 #include "common/image/fixed.h"
 #include "common/scene/parser.h"
 #include "mc_stats.h"
+#include "stability_scenes.h"
 #include "test_scenes.h"
 #include "tests/support/normal_quantile.h"
 #include "worker/lights/light_set.h"
@@ -420,33 +421,18 @@ Scene shrunk(const std::string& file, uint32_t w, uint32_t h) {
   return s;
 }
 
-uint32_t add_material(Scene& s, Vec3 albedo, Vec3 emission = Vec3(0.f)) {
-  Material m;
-  m.kind = DiffuseMaterial{albedo};
-  m.emission = emission;
-  s.materials.push_back(m);
-  return static_cast<uint32_t>(s.materials.size() - 1);
-}
-
-void add_quad(Scene& s, Vec3 c, Vec3 e1, Vec3 e2, uint32_t material) {
-  TriangleMesh mesh;
-  mesh.positions = {c, c + e1, c + e1 + e2, c + e2};
-  mesh.indices = {0, 1, 2, 0, 2, 3};
-  mesh.materials = {material, material};
-  s.meshes.push_back(mesh);
-}
-
 /// A closed room lit by five large panels of different colours and sizes on its walls and
 /// ceiling, close to the surfaces they light: BSDF rays find the panels often, so MIS weights
 /// (the tree's probability of the light a BSDF ray found) shape much of the image.
 Scene panel_room(uint32_t w, uint32_t h) {
+  using testing::add_material, testing::add_quad, testing::diffuse;
   Scene s;
   s.film = {w, h};
   s.camera.eye = {0.f, 0.f, -0.9f};
   s.camera.look_at = {0.f, -0.2f, 1.f};
   s.camera.fov_y_deg = 80.f;
-  const uint32_t wall = add_material(s, Vec3(0.6f));
-  const uint32_t green = add_material(s, Vec3(0.2f, 0.6f, 0.2f));
+  const uint32_t wall = add_material(s, diffuse(Vec3(0.6f)));
+  const uint32_t green = add_material(s, diffuse(Vec3(0.2f, 0.6f, 0.2f)));
   add_quad(s, {-1, -1, -1}, {0, 0, 2}, {2, 0, 0}, wall);   // floor
   add_quad(s, {-1, 1, -1}, {2, 0, 0}, {0, 0, 2}, wall);    // ceiling
   add_quad(s, {-1, -1, 1}, {2, 0, 0}, {0, 2, 0}, wall);    // back
@@ -455,12 +441,15 @@ Scene panel_room(uint32_t w, uint32_t h) {
   add_quad(s, {1, -1, -1}, {0, 2, 0}, {0, 0, 2}, wall);    // right
   const float in = 0.999f;
   add_quad(s, {-0.6f, in, -0.2f}, {0.5f, 0, 0}, {0, 0, 0.9f},
-           add_material(s, Vec3(0.f), {4, 3, 2}));
-  add_quad(s, {0.3f, in, 0.1f}, {0.4f, 0, 0}, {0, 0, 0.4f}, add_material(s, Vec3(0.f), {1, 2, 6}));
-  add_quad(s, {-in, -0.5f, 0.f}, {0, 0, 0.6f}, {0, 0.9f, 0}, add_material(s, Vec3(0.f), {3, 3, 3}));
-  add_quad(s, {in, -0.8f, 0.3f}, {0, 0.3f, 0}, {0, 0, 0.3f}, add_material(s, Vec3(0.f), {8, 1, 1}));
+           add_material(s, diffuse(Vec3(0.f), {4, 3, 2})));
+  add_quad(s, {0.3f, in, 0.1f}, {0.4f, 0, 0}, {0, 0, 0.4f},
+           add_material(s, diffuse(Vec3(0.f), {1, 2, 6})));
+  add_quad(s, {-in, -0.5f, 0.f}, {0, 0, 0.6f}, {0, 0.9f, 0},
+           add_material(s, diffuse(Vec3(0.f), {3, 3, 3})));
+  add_quad(s, {in, -0.8f, 0.3f}, {0, 0.3f, 0}, {0, 0, 0.3f},
+           add_material(s, diffuse(Vec3(0.f), {8, 1, 1})));
   add_quad(s, {-0.2f, -0.9f, in}, {0.8f, 0, 0}, {0, 0.2f, 0},
-           add_material(s, Vec3(0.f), {2, 5, 2}));
+           add_material(s, diffuse(Vec3(0.f), {2, 5, 2})));
   s.render.max_depth = kUnlimitedDepth;
   return s;
 }
