@@ -147,7 +147,11 @@ inline size_t expect_same_expectation(const std::vector<float>& a, const std::ve
                                       uint32_t width, uint32_t height, uint32_t block, double z_max,
                                       const std::string& what) {
   EXPECT_EQ(a.size(), b.size()) << what;
-  if (a.size() != b.size() || a.size() != size_t{width} * height * 3) return 0;
+  if (a.size() != b.size() || a.size() != size_t{width} * height * 3) {
+    ADD_FAILURE() << what << ": " << a.size() << " values, not " << width << " x " << height
+                  << " x 3";
+    return 0;
+  }
   size_t compared = 0;
   for (uint32_t by = 0; by + block <= height; by += block) {
     for (uint32_t bx = 0; bx + block <= width; bx += block) {

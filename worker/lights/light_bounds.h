@@ -48,8 +48,8 @@ struct ImportanceBounds {
     const float sin_x = sin_less(cos_w, sin_w, cos_o, sin_o);
     const float cos_p = cos_less(cos_x, sin_x, cos_b, sin_b);
     if (!(cos_p > cos_e)) return 0.0;
-    // A group may light p beyond 90 degrees from its normals (spots of wide cutoffs): the
-    // cosine is then floored, never negative or 0, so that it keeps a chance.
+    // A group may light p from beyond 90 degrees off its normals (a spot of 90-degree cutoff,
+    // within its slack): the cosine is floored, never negative or 0, so that it keeps a chance.
     float cosines = std::max(cos_p, kLeastCosine);
     // The receiver's side: the angle between its normal and the direction to the centre, less
     // theta_b; a little tolerance for the rounding of w against the light's own direction.

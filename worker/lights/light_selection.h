@@ -20,7 +20,8 @@ struct SelectionNumber {
   uint32_t bits = 0;
   float as_float() const { return static_cast<float>(bits >> 8) * 0x1p-24f; }
   double as_double() const { return static_cast<double>(bits) * 0x1p-32; }
-  /// The number whose float is u (u in [0, 1)), for callers that hold a float.
+  /// The number whose float is u rounded down to 24 bits (u in [0, 1)), for callers that hold
+  /// a float.
   static SelectionNumber from_float(float u) {
     return {static_cast<uint32_t>(std::clamp(double(u), 0.0, 0x1.fffffep-1) * 0x1p32)};
   }
@@ -32,8 +33,8 @@ enum class LightChoice : uint8_t { kAuto, kPower, kTree };
 /// Fewest lights with a place for which kAuto builds a light tree. The tree's importance is an
 /// irradiance estimate that knows nothing of glossy BSDFs; among a few lamps it ranks them no
 /// better than their powers do, and its walk costs time at every vertex (docs/benchmarks.md,
-/// "Light selection by a light tree": 0.8 to 1.3 times the efficiency of power selection on the
-/// bundled scenes with 2 or 3 lights, 2.7 times on 129). Each emissive triangle counts: a quad
+/// "Light selection by a light tree": 0.8 to 1.4 times the efficiency of power selection on the
+/// bundled scenes with 2 or 3 lights, 2.8 times on 129). Each emissive triangle counts: a quad
 /// is two lights.
 inline constexpr size_t kTreeMinLights = 8;
 
