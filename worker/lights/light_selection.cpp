@@ -22,16 +22,16 @@ LightSelection::LightSelection(const std::vector<double>& powers,
     return;
   }
   tree_ = LightTree(placed, placed_index);
-  in_tree_.assign(powers.size(), false);
+  std::vector<bool> in_tree(powers.size(), false);
   group_.assign(powers.size(), 0);
   double tree_power = 0.0;
   for (const int32_t i : placed_index) {
-    in_tree_[i] = true;
+    in_tree[i] = true;
     tree_power += std::max(powers[i], 1e-30);
   }
   std::vector<double> group_powers{tree_power};
   for (size_t i = 0; i < powers.size(); ++i) {
-    if (in_tree_[i]) continue;
+    if (in_tree[i]) continue;
     group_[i] = static_cast<int32_t>(group_powers.size());
     infinite_.push_back(static_cast<int32_t>(i));
     group_powers.push_back(powers[i]);

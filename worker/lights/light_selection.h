@@ -120,21 +120,21 @@ class LightSelection {
   float probability(const Vec3& p, const Vec3& n, int32_t light) const {
     if (light < 0) return 0.f;
     if (tree_.empty()) return power_.probability(light);
-    if (in_tree_[light]) return groups_.probability(0) * tree_.probability(p, n, light);
+    if (group_[light] == 0) return groups_.probability(0) * tree_.probability(p, n, light);
     return groups_.probability(group_[light]);
   }
   /// Probability of choosing `light`, a light at infinity: the same at every point.
   float infinite_probability(int32_t light) const {
     if (light < 0) return 0.f;
     if (tree_.empty()) return power_.probability(light);
-    return in_tree_[light] ? 0.f : groups_.probability(group_[light]);
+    return group_[light] == 0 ? 0.f : groups_.probability(group_[light]);
   }
   /// Whether choose() can return `light` at some point: false for -1 and for a light of
   /// negligible power whose share rounds to nothing.
   bool selectable(int32_t light) const {
     if (light < 0) return false;
     if (tree_.empty()) return power_.probability(light) > 0.f;
-    return groups_.probability(in_tree_[light] ? 0 : group_[light]) > 0.f;
+    return groups_.probability(group_[light]) > 0.f;
   }
 
  private:
@@ -142,8 +142,7 @@ class LightSelection {
   PowerLightSelection groups_;  // with one: entry 0 the tree, then each light at infinity
   LightTree tree_;
   std::vector<int32_t> infinite_;  // group - 1 -> light
-  std::vector<int32_t> group_;     // light -> its group
-  std::vector<bool> in_tree_;      // light -> in the tree
+  std::vector<int32_t> group_;     // light -> its group (0: in the tree)
 };
 
 }  // namespace rayfarm

@@ -140,23 +140,19 @@ LightTree::LightTree(const std::vector<LightBounds>& bounds, const std::vector<i
   std::vector<uint32_t> order(bounds.size());
   for (uint32_t i = 0; i < order.size(); ++i) order[i] = i;
   build(order, 0, static_cast<uint32_t>(order.size()), 0, 0, bounds, lights);
-  full_.clear();
-  full_.shrink_to_fit();
 }
 
-uint32_t LightTree::build(std::vector<uint32_t>& order, uint32_t begin, uint32_t end,
-                          uint32_t depth, uint64_t turns, const std::vector<LightBounds>& bounds,
-                          const std::vector<int32_t>& lights) {
+LightBounds LightTree::build(std::vector<uint32_t>& order, uint32_t begin, uint32_t end,
+                             uint32_t depth, uint64_t turns, const std::vector<LightBounds>& bounds,
+                             const std::vector<int32_t>& lights) {
   const uint32_t index = static_cast<uint32_t>(nodes_.size());
   nodes_.emplace_back();
-  full_.emplace_back();
   if (end - begin == 1) {
-    full_[index] = bounds[order[begin]];
-    nodes_[index].bounds = full_[index].compact();
+    nodes_[index].bounds = bounds[order[begin]].compact();
     nodes_[index].light = lights[order[begin]];
     paths_[lights[order[begin]]] = Path{turns, depth, true};
     depth_ = std::max(depth_, depth);
-    return index;
+    return bounds[order[begin]];
   }
   // The node's box (its cones are not needed here: merge() of the children makes them) and its
   // lights' centroids' box.
@@ -253,13 +249,14 @@ uint32_t LightTree::build(std::vector<uint32_t>& order, uint32_t begin, uint32_t
                        return ca < cb || (ca == cb && a < b);
                      });
   }
-  build(order, begin, middle, depth + 1, turns, bounds, lights);
-  const uint32_t second =
+  // The first child follows the node; the second follows the first's subtree.
+  const LightBounds first = build(order, begin, middle, depth + 1, turns, bounds, lights);
+  nodes_[index].second = static_cast<uint32_t>(nodes_.size());
+  const LightBounds second =
       build(order, middle, end, depth + 1, turns | (uint64_t{1} << depth), bounds, lights);
-  nodes_[index].second = second;
-  full_[index] = merge(full_[index + 1], full_[second]);
-  nodes_[index].bounds = full_[index].compact();
-  return index;
+  const LightBounds both = merge(first, second);
+  nodes_[index].bounds = both.compact();
+  return both;
 }
 
 float LightTree::first_share(uint32_t node, const Vec3& p, const Vec3& n) const {

@@ -48,14 +48,14 @@ class LightTree {
     bool present = false;
   };
 
-  uint32_t build(std::vector<uint32_t>& order, uint32_t begin, uint32_t end, uint32_t depth,
-                 uint64_t turns, const std::vector<LightBounds>& bounds,
-                 const std::vector<int32_t>& lights);
+  /// Builds the subtree of lights order[begin, end) as the next nodes; returns its bounds.
+  LightBounds build(std::vector<uint32_t>& order, uint32_t begin, uint32_t end, uint32_t depth,
+                    uint64_t turns, const std::vector<LightBounds>& bounds,
+                    const std::vector<int32_t>& lights);
   /// Probability of taking the first child of interior node `node` at (p, n), as a float.
   float first_share(uint32_t node, const Vec3& p, const Vec3& n) const;
 
   std::vector<Node> nodes_;
-  std::vector<LightBounds> full_;  // by node, while building
   std::vector<Path> paths_;        // by light index
   uint32_t depth_ = 0;
 };
