@@ -18,6 +18,16 @@ void Scheduler::add_job(const std::string& job) {
   order_.push_back(job);
 }
 
+void Scheduler::set_priority(const std::string& job, int priority) {
+  auto it = jobs_.find(job);
+  if (it != jobs_.end()) it->second.priority = priority;
+}
+
+void Scheduler::set_paused(const std::string& job, bool paused) {
+  auto it = jobs_.find(job);
+  if (it != jobs_.end()) it->second.paused = paused;
+}
+
 void Scheduler::release(const std::string& job, const std::vector<uint64_t>& units) {
   auto it = jobs_.find(job);
   if (it == jobs_.end()) return;
@@ -58,19 +68,37 @@ void Scheduler::remove_job(const std::string& job) {
   order_.erase(std::remove(order_.begin(), order_.end(), job), order_.end());
 }
 
+bool Scheduler::has_pending(const Job& j) {
+  return !j.requeued.empty() || !j.ready.empty() || j.next_fresh < j.fresh_end;
+}
+
+bool Scheduler::served_before(const Job& a, const Job& b) {
+  if (a.priority != b.priority) return a.priority > b.priority;
+  if (a.leased.size() != b.leased.size()) return a.leased.size() < b.leased.size();
+  return a.served < b.served;
+}
+
 std::optional<UnitRef> Scheduler::lease(const WorkerId& worker, Clock::time_point now,
                                         const std::string& key) {
   const std::string& who = key.empty() ? worker : key;
+  // The first best in the order of addition: ties go to the older job.
+  const std::string* best = nullptr;
+  Job* best_job = nullptr;
   for (const auto& name : order_) {
     Job& j = jobs_.at(name);
-    if (j.blocked.count(who)) continue;
-    const std::optional<uint64_t> unit = take_pending(j);
-    if (!unit) continue;
-    j.leased[*unit] = {Job::Holder{worker, now}};
-    by_worker_[worker].insert(UnitRef{name, *unit});
-    return UnitRef{name, *unit};
+    if (j.paused || j.blocked.count(who) || !has_pending(j)) continue;
+    if (best_job == nullptr || served_before(j, *best_job)) {
+      best = &name;
+      best_job = &j;
+    }
   }
-  return std::nullopt;
+  if (best_job == nullptr) return std::nullopt;
+  const std::optional<uint64_t> unit = take_pending(*best_job);
+  RAYFARM_CHECK(unit.has_value(), "a job with units pending gave none");
+  best_job->leased[*unit] = {Job::Holder{worker, now}};
+  best_job->served = ++lease_serial_;
+  by_worker_[worker].insert(UnitRef{*best, *unit});
+  return UnitRef{*best, *unit};
 }
 
 double Scheduler::median(const std::deque<double>& values) {
@@ -94,9 +122,16 @@ std::optional<Scheduler::StragglerLease> Scheduler::lease_straggler(const Worker
                                                                     Clock::time_point now,
                                                                     const std::string& key) {
   const std::string& who = key.empty() ? worker : key;
-  for (const auto& name : order_) {
+  // Jobs by priority, the older first among equals (stable).
+  std::vector<const std::string*> names;
+  for (const auto& name : order_) names.push_back(&name);
+  std::stable_sort(names.begin(), names.end(), [this](const std::string* a, const std::string* b) {
+    return jobs_.at(*a).priority > jobs_.at(*b).priority;
+  });
+  for (const std::string* name_ptr : names) {
+    const std::string& name = *name_ptr;
     Job& j = jobs_.at(name);
-    if (j.blocked.count(who)) continue;
+    if (j.paused || j.blocked.count(who)) continue;
     const auto threshold = straggler_threshold(j, policy);
     if (!threshold) continue;
     // The slowest single lease past the threshold that `worker` does not hold.
@@ -123,6 +158,7 @@ std::optional<Scheduler::StragglerLease> Scheduler::lease_straggler(const Worker
 
 bool Scheduler::has_straggler(const StragglerPolicy& policy, Clock::time_point now) const {
   for (const auto& [name, j] : jobs_) {
+    if (j.paused) continue;
     const auto threshold = straggler_threshold(j, policy);
     if (!threshold) continue;
     for (const auto& [unit, holders] : j.leased) {
@@ -234,7 +270,7 @@ bool Scheduler::holds(const UnitRef& unit, const WorkerId& worker) const {
 
 bool Scheduler::has_pending() const {
   for (const auto& [name, j] : jobs_) {
-    if (!j.requeued.empty() || !j.ready.empty() || j.next_fresh < j.fresh_end) return true;
+    if (!j.paused && has_pending(j)) return true;
   }
   return false;
 }

@@ -3,10 +3,16 @@
 // a name and the units released to it; a worker is an opaque id. The scheduler owns leases and
 // the queue of units waiting for one, nothing else: which units are released is the pass
 // planner's (common/schedule/pass_planner.h), which are merged the merger's, and the job manager
-// releases a unit here once, when it is released and not merged. Jobs are served in the order
-// they were added; within a job the lowest-numbered pending unit goes first (pass-major,
-// common/schedule/unit_grid.h). A worker's leases go back to the queue when it is lost, ahead of
-// units never handed out.
+// releases a unit here once, when it is released and not merged.
+//
+// Which job a free worker serves: among the jobs with a unit pending that are not paused (and
+// that the worker is not blocked from), one of the highest priority; among those, the job that
+// holds the fewest leases now, then the one served longest ago, then the oldest, so that jobs of
+// equal priority share the workers evenly and a job submitted behind a long one gets the next
+// worker that frees up. A job of higher priority takes every worker it can use first. Within a
+// job the lowest-numbered pending unit goes first (pass-major, common/schedule/unit_grid.h). A
+// worker's leases go back to the queue when it is lost, ahead of units never handed out. Pausing a
+// job stops new leases of it (second leases too); the leases it holds run to their end.
 //
 // Failures and slow workers: a worker can be blocked from a job (it keeps failing there) and is
 // then given only other jobs' units. A unit leased for much longer than its job's median unit
@@ -60,8 +66,13 @@ class Scheduler {
     uint32_t workers = 0;  ///< distinct workers holding leases of the job
   };
 
-  /// Adds a job with no unit pending yet. A job id already present is a CHECK.
+  /// Adds a job with no unit pending yet, of priority 0, not paused. A job id already present is
+  /// a CHECK.
   void add_job(const std::string& job);
+  /// Higher priorities are served first (see the top of this file). Unknown jobs are ignored.
+  void set_priority(const std::string& job, int priority);
+  /// A paused job gets no new leases (nor second leases of its stragglers) until resumed.
+  void set_paused(const std::string& job, bool paused);
   /// Makes `units` of the job pending. Each unit is released once (the caller's planner decides).
   void release(const std::string& job, const std::vector<uint64_t>& units);
   /// Makes units [0, unit_count) of the job pending: a job that needs every unit, held in O(1).
@@ -75,7 +86,8 @@ class Scheduler {
   std::optional<UnitRef> lease(const WorkerId& worker, Clock::time_point now = Clock::now(),
                                const std::string& key = {});
   /// Leases to `worker` a second copy of the slowest straggler (policy) it does not hold, of a
-  /// job it is not blocked from; nullopt when there is none.
+  /// job it is not blocked from and that is not paused, of the highest priority that has one;
+  /// nullopt when there is none.
   std::optional<StragglerLease> lease_straggler(const WorkerId& worker,
                                                 const StragglerPolicy& policy,
                                                 Clock::time_point now = Clock::now(),
@@ -103,7 +115,7 @@ class Scheduler {
   bool is_blocked(const std::string& job, const std::string& who) const;
   /// Whether `worker` holds a lease of `unit` now.
   bool holds(const UnitRef& unit, const WorkerId& worker) const;
-  /// Some unit of some job waits for a lease.
+  /// Some unit of some job that is not paused waits for a lease.
   bool has_pending() const;
   Counts counts(const std::string& job) const;
   /// The units leased to `worker`, in order.
@@ -122,15 +134,23 @@ class Scheduler {
     std::map<uint64_t, std::vector<Holder>> leased;  // one holder, two for a straggler
     std::set<std::string> blocked;  // workers or keys
     std::deque<double> durations;  // seconds of the latest units done
+    int priority = 0;
+    bool paused = false;
+    uint64_t served = 0;  // lease_serial_ at its latest lease; 0: never leased
   };
   std::map<std::string, Job> jobs_;
   std::vector<std::string> order_;                   // jobs in the order they were added
   std::map<WorkerId, std::set<UnitRef>> by_worker_;  // leases per worker
+  uint64_t lease_serial_ = 0;                        // counts leases, for Job::served
 
   void drop_lease(const WorkerId& worker, const UnitRef& unit);
   /// The next unit of `j` to lease (requeued first, then the lowest fresh one), taken out of the
   /// queue; nullopt when none is pending.
   static std::optional<uint64_t> take_pending(Job& j);
+  static bool has_pending(const Job& j);
+  /// Whether `a` is served before `b` (both with units pending): priority, then fewer leases now,
+  /// then served longer ago.
+  static bool served_before(const Job& a, const Job& b);
   static double median(const std::deque<double>& values);
   /// The threshold past which a lease of `j` is a straggler; nullopt when the policy is off or
   /// the median is not trusted yet.

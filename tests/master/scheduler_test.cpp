@@ -1,8 +1,8 @@
-// The scheduler without sockets: units go out lowest first (pass-major), jobs in the order they
-// came, one lease per request, only units released to the job; a lost worker's units go back to
-// the queue ahead of fresh ones; a merged unit leaves the queue, whoever finished it. A blocked
-// worker gets only other jobs' units; a straggler is leased a second time to an idle worker, and
-// the first result ends both leases.
+// The scheduler without sockets: units go out lowest first (pass-major), jobs by priority and
+// then by fair share (fewest leases now), one lease per request; a paused job gets none, only units
+// released to the job; a lost worker's units go back to the queue ahead of fresh ones; a merged
+// unit leaves the queue, whoever finished it. A blocked worker gets only other jobs' units; a
+// straggler is leased a second time to an idle worker, and the first result ends both leases.
 #include <gtest/gtest.h>
 
 #include "master/scheduler.h"
@@ -22,24 +22,101 @@ uint64_t lease_unit(Scheduler& s, const WorkerId& w) {
   return ref ? ref->unit : ~uint64_t{0};
 }
 
-TEST(Scheduler, LeasesLowestFirstAndJobsInOrder) {
+TEST(Scheduler, LeasesLowestFirstAndSharesBetweenJobs) {
   Scheduler s;
   add_job(s, "a", 3);
   add_job(s, "b", 2);
-  EXPECT_EQ(lease_unit(s, "w1"), 0u);
-  EXPECT_EQ(lease_unit(s, "w2"), 1u);
-  EXPECT_EQ(lease_unit(s, "w1"), 2u);
-  const auto next = s.lease("w1");
-  ASSERT_TRUE(next);
-  EXPECT_EQ(*next, (UnitRef{"b", 0}));
-  EXPECT_EQ(s.leased_units("w1"), (std::vector<UnitRef>{{"a", 0}, {"a", 2}, {"b", 0}}));
-  EXPECT_EQ(s.counts("a").leased, 3u);
-  EXPECT_EQ(s.counts("a").workers, 2u);
-  EXPECT_EQ(s.counts("b").leased, 1u);
-  EXPECT_TRUE(s.holds({"a", 1}, "w2"));
-  EXPECT_FALSE(s.holds({"a", 1}, "w1"));
-  EXPECT_EQ(lease_unit(s, "w3"), 1u) << "b's last unit";
+  // Equal priority: each lease goes to the job holding the fewest (ties to the older job).
+  EXPECT_EQ(s.lease("w1"), (UnitRef{"a", 0}));
+  EXPECT_EQ(s.lease("w2"), (UnitRef{"b", 0}));
+  EXPECT_EQ(s.lease("w1"), (UnitRef{"a", 1}));
+  EXPECT_EQ(s.lease("w3"), (UnitRef{"b", 1}));
+  EXPECT_EQ(s.leased_units("w1"), (std::vector<UnitRef>{{"a", 0}, {"a", 1}}));
+  EXPECT_EQ(s.counts("a").leased, 2u);
+  EXPECT_EQ(s.counts("a").workers, 1u);
+  EXPECT_EQ(s.counts("b").leased, 2u);
+  EXPECT_EQ(s.counts("b").workers, 2u);
+  EXPECT_TRUE(s.holds({"b", 0}, "w2"));
+  EXPECT_FALSE(s.holds({"b", 0}, "w1"));
+  EXPECT_EQ(s.lease("w2"), (UnitRef{"a", 2})) << "b has no unit left";
   EXPECT_FALSE(s.has_pending());
+}
+
+TEST(Scheduler, AJobSubmittedBehindALongOneGetsTheNextFreeWorker) {
+  Scheduler s;
+  add_job(s, "long", 1000);
+  for (int w = 0; w < 8; ++w) lease_unit(s, "w" + std::to_string(w));
+  add_job(s, "short", 3);
+  // Each worker that frees up goes to the short job while it holds fewer leases than the long
+  // one, ahead of the long job's 992 units waiting.
+  for (const int w : {3, 5, 6}) {
+    ASSERT_TRUE(s.complete({"long", uint64_t(w)}, "w" + std::to_string(w)));
+    const auto ref = s.lease("w" + std::to_string(w));
+    ASSERT_TRUE(ref);
+    EXPECT_EQ(ref->job, "short");
+  }
+  EXPECT_EQ(s.counts("short").leased, 3u);
+  ASSERT_TRUE(s.complete({"long", 7}, std::string("w7")));
+  EXPECT_EQ(s.lease("w7"), (UnitRef{"long", 8})) << "the short job has nothing left";
+}
+
+TEST(Scheduler, EqualJobsAlternateOnOneWorker) {
+  // One worker taking one unit at a time: the jobs take turns (each holds none when it asks), so
+  // neither waits for the other to finish.
+  Scheduler s;
+  add_job(s, "a", 4);
+  add_job(s, "b", 4);
+  add_job(s, "c", 4);
+  std::string order;
+  for (int i = 0; i < 12; ++i) {
+    const auto ref = s.lease("w");
+    ASSERT_TRUE(ref);
+    order += ref->job;
+    ASSERT_TRUE(s.complete(*ref, std::string("w")));
+  }
+  EXPECT_EQ(order, "abcabcabcabc");
+  EXPECT_FALSE(s.lease("w"));
+}
+
+TEST(Scheduler, HigherPriorityFirstAndChangeableWhileRunning) {
+  Scheduler s;
+  add_job(s, "low", 3);
+  add_job(s, "high", 2);
+  s.set_priority("low", -5);
+  s.set_priority("high", 10);
+  EXPECT_EQ(s.lease("w1"), (UnitRef{"high", 0}));
+  EXPECT_EQ(s.lease("w2"), (UnitRef{"high", 1})) << "priority beats the fair share";
+  EXPECT_EQ(s.lease("w3"), (UnitRef{"low", 0})) << "high has nothing left";
+  add_job(s, "mid", 3);
+  s.set_priority("low", 20);  // raised while it runs
+  EXPECT_EQ(s.lease("w4"), (UnitRef{"low", 1}));
+  EXPECT_EQ(s.lease("w5"), (UnitRef{"low", 2}));
+  EXPECT_EQ(s.lease("w6"), (UnitRef{"mid", 0}));
+  s.set_priority("nobody", 3);  // unknown: ignored
+}
+
+TEST(Scheduler, APausedJobGetsNoLeasesUntilResumed) {
+  Scheduler s;
+  add_job(s, "a", 3);
+  add_job(s, "b", 1);
+  EXPECT_EQ(s.lease("w1"), (UnitRef{"a", 0}));
+  s.set_paused("a", true);
+  EXPECT_EQ(s.lease("w2"), (UnitRef{"b", 0}));
+  EXPECT_FALSE(s.lease("w2")) << "a is paused";
+  EXPECT_FALSE(s.has_pending()) << "a's units wait, but not for a worker";
+  // A lease it held before the pause still completes.
+  EXPECT_TRUE(s.holds({"a", 0}, "w1"));
+  EXPECT_TRUE(s.complete({"a", 0}, std::string("w1")));
+  // A lost worker's unit of a paused job waits in the queue too.
+  s.set_paused("a", false);
+  EXPECT_EQ(s.lease("w3"), (UnitRef{"a", 1}));
+  s.set_paused("a", true);
+  EXPECT_EQ(s.release_worker("w3"), (std::vector<UnitRef>{{"a", 1}}));
+  EXPECT_FALSE(s.lease("w4"));
+  s.set_paused("a", false);
+  EXPECT_TRUE(s.has_pending());
+  EXPECT_EQ(s.lease("w4"), (UnitRef{"a", 1}));
+  EXPECT_EQ(s.lease("w4"), (UnitRef{"a", 2}));
 }
 
 TEST(Scheduler, NothingPendingMeansNoLease) {
@@ -214,6 +291,25 @@ TEST(Scheduler, AStragglerIsLeasedTwiceAndTheFirstResultEndsBothLeases) {
   EXPECT_FALSE(s.complete({"a", 3}, WorkerId("slow"), t0 + 9s));
   EXPECT_EQ(s.counts("a").leased, 0u);
   EXPECT_FALSE(s.has_pending());
+}
+
+TEST(Scheduler, APausedJobsStragglerIsNotLeasedAgain) {
+  Scheduler s;
+  add_job(s, "a", 4);
+  const StragglerPolicy policy{4.0, 5000ms, 3};
+  const auto t0 = Scheduler::Clock::now();
+  for (int i = 0; i < 3; ++i) {
+    const auto u = s.lease("w1", t0);
+    ASSERT_TRUE(u);
+    EXPECT_TRUE(s.complete(*u, WorkerId("w1"), t0 + 1s));
+  }
+  ASSERT_TRUE(s.lease("slow", t0 + 1s));  // unit 3
+  ASSERT_TRUE(s.has_straggler(policy, t0 + 60s));
+  s.set_paused("a", true);
+  EXPECT_FALSE(s.has_straggler(policy, t0 + 60s));
+  EXPECT_FALSE(s.lease_straggler("idle", policy, t0 + 60s));
+  s.set_paused("a", false);
+  EXPECT_TRUE(s.lease_straggler("idle", policy, t0 + 60s));
 }
 
 TEST(Scheduler, BothLeasesOfAStragglerEndWhenEitherFinishesOrFails) {
