@@ -12,6 +12,8 @@ void add_farm_commands(CLI::App& app, int& exit_code) {
   add_list(app, exit_code);
   add_watch(app, exit_code);
   add_cancel(app, exit_code);
+  add_pause(app, exit_code);
+  add_set_priority(app, exit_code);
   add_fetch(app, exit_code);
   add_workers(app, exit_code);
   add_remove(app, exit_code);

@@ -12,6 +12,8 @@ void add_watch(CLI::App& app, int& exit_code);
 void add_status(CLI::App& app, int& exit_code);
 void add_list(CLI::App& app, int& exit_code);
 void add_cancel(CLI::App& app, int& exit_code);
+void add_pause(CLI::App& app, int& exit_code);  // pause and resume
+void add_set_priority(CLI::App& app, int& exit_code);
 void add_remove(CLI::App& app, int& exit_code);
 void add_retry(CLI::App& app, int& exit_code);
 // workers_fetch_commands.cpp

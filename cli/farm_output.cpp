@@ -72,6 +72,8 @@ nlohmann::json status_json(const wire::JobStatus& st) {
       {"name", st.name()},
       {"owner", st.owner()},
       {"state", protocol::job_state_name(st.state())},
+      {"paused", st.paused()},
+      {"priority", st.priority()},
       {"storage_error",
        st.storage_error().empty() ? nlohmann::json(nullptr) : nlohmann::json(st.storage_error())},
       {"error", st.error().empty() ? nlohmann::json(nullptr) : nlohmann::json(st.error())},
@@ -116,16 +118,20 @@ nlohmann::json status_json(const wire::JobStatus& st) {
       {"workers_total", st.workers_total()}};
 }
 
+std::string state_label(const wire::JobStatus& st) {
+  return st.paused() && !finished(st.state()) ? "paused" : protocol::job_state_name(st.state());
+}
+
 void print_json(const nlohmann::json& j) { std::cout << j.dump() << "\n" << std::flush; }
 
 std::string progress_line(const wire::JobStatus& st) {
-  std::string line = fmt::format(
-      "{} {:<9} pass {}/{}  {}/{} spp  {:5.1f}%", st.job_id(), protocol::job_state_name(st.state()),
-      st.passes_done(), st.passes_total(), st.spp_done(), st.settings().spp(), percent(st));
+  std::string line = fmt::format("{} {:<9} pass {}/{}  {}/{} spp  {:5.1f}%", st.job_id(),
+                                 state_label(st), st.passes_done(), st.passes_total(),
+                                 st.spp_done(), st.settings().spp(), percent(st));
   if (st.spp_mean() >= st.spp_done() + 1.0) line += fmt::format(" (mean {:.0f})", st.spp_mean());
   if (st.est_rel_mse() >= 0) line += fmt::format("  relMSE {:.3g}", st.est_rel_mse());
   if (st.ref_rel_mse() >= 0) line += fmt::format(" (measured {:.3g})", st.ref_rel_mse());
-  if (st.state() == wire::JOB_RUNNING) {
+  if (st.state() == wire::JOB_RUNNING && !st.paused()) {
     line += fmt::format("  {}  ETA {}  workers {} busy/{}", human_rate(st.samples_per_second()),
                         format_duration(st.eta_seconds()), st.workers_busy(), st.workers_total());
   } else if (st.state() == wire::JOB_DONE) {
@@ -137,7 +143,9 @@ std::string progress_line(const wire::JobStatus& st) {
 
 void print_status(const wire::JobStatus& st) {
   std::cout << fmt::format("job        {} ({})\n", st.job_id(), st.name());
-  std::cout << fmt::format("state      {}\n", protocol::job_state_name(st.state()));
+  std::cout << fmt::format(
+      "state      {}{}\n", state_label(st),
+      finished(st.state()) ? std::string() : fmt::format(", priority {}", st.priority()));
   if (!st.owner().empty()) std::cout << fmt::format("owner      key '{}'\n", st.owner());
   if (!st.storage_error().empty()) {
     // The master cannot write the job's image, checkpoint or record (a full disk): it says why.
@@ -186,14 +194,14 @@ void print_table(const wire::JobList& list) {
     std::cout << "no jobs\n";
     return;
   }
-  std::cout << fmt::format("{:<8} {:<24} {:<12} {:<9} {:>7} {:>11} {:>11} {:>10}\n", "JOB", "NAME",
-                           "OWNER", "STATE", "DONE", "SPP", "SIZE", "ELAPSED");
+  std::cout << fmt::format("{:<8} {:<24} {:<12} {:<9} {:>4} {:>7} {:>11} {:>11} {:>10}\n", "JOB",
+                           "NAME", "OWNER", "STATE", "PRI", "DONE", "SPP", "SIZE", "ELAPSED");
   for (const auto& st : list.jobs()) {
     std::cout << fmt::format(
-        "{:<8} {:<24} {:<12} {:<9} {:>6.1f}% {:>11} {:>11} {:>10}\n", st.job_id(),
+        "{:<8} {:<24} {:<12} {:<9} {:>4} {:>6.1f}% {:>11} {:>11} {:>10}\n", st.job_id(),
         st.name().substr(0, 24), st.owner().empty() ? "-" : st.owner().substr(0, 12),
-        protocol::job_state_name(st.state()), percent(st),
-        fmt::format("{}/{}", st.spp_done(), st.settings().spp()),
+        state_label(st), finished(st.state()) ? std::string("-") : std::to_string(st.priority()),
+        percent(st), fmt::format("{}/{}", st.spp_done(), st.settings().spp()),
         fmt::format("{}x{}", st.width(), st.height()), format_duration(st.elapsed_seconds()));
   }
   for (const auto& st : list.jobs()) {

@@ -13,6 +13,8 @@ namespace rayfarm::cli {
 std::string format_duration(double seconds);
 /// Whether a job in `state` has ended (done, failed, cancelled, or unknown to the master).
 bool finished(wire::JobState state);
+/// The job's state as people read it: "paused" for a paused queued or running job.
+std::string state_label(const wire::JobStatus& st);
 
 /// A job's status as one JSON object.
 nlohmann::json status_json(const wire::JobStatus& st);

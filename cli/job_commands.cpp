@@ -1,5 +1,8 @@
-// status, list, cancel, rm and retry: one request about one job (or all of them) and its answer.
+// status, list, cancel, pause, resume, set-priority, rm and retry: one request about one job (or
+// all of them) and its answer.
+#include <functional>
 #include <iostream>
+#include <memory>
 #include <optional>
 #include <string>
 
@@ -8,6 +11,7 @@
 #include "cli/farm_client.h"
 #include "cli/farm_commands.h"
 #include "cli/farm_output.h"
+#include "common/limits.h"
 #include "common/protocol/convert.h"
 
 namespace rayfarm::cli {
@@ -91,6 +95,69 @@ void add_cancel(CLI::App& app, int& exit_code) {
       [](const wire::CancelReply& reply) {
         return fmt::format("job {} {}\n", reply.job_id(), protocol::job_state_name(reply.state()));
       });
+}
+
+namespace {
+
+std::string say_change(const wire::ChangeJobReply& reply) {
+  return fmt::format("job {} {}{}, priority {}\n", reply.job_id(),
+                     protocol::job_state_name(reply.state()), reply.paused() ? ", paused" : "",
+                     reply.priority());
+}
+
+/// Sends one ChangeJob (its job id set here) and prints the reply.
+void add_change(int& exit_code, CLI::App* cmd, std::shared_ptr<ClientArgs> args,
+                std::shared_ptr<std::string> job, std::function<void(wire::ChangeJob&)> fill) {
+  const std::string name = cmd->get_name();
+  cmd->callback([args, job, name, fill, &exit_code] {
+    exit_code = guarded(name.c_str(), [&] {
+      FarmClient client(*args);
+      wire::ChangeJob request;
+      request.set_job_id(*job);
+      fill(request);
+      std::cout << say_change(client.call<wire::ChangeJobReply>(encode(std::move(request))));
+      return 0;
+    });
+  });
+}
+
+void add_pause_like(CLI::App& app, int& exit_code, const char* name, const std::string& help,
+                    bool paused) {
+  auto args = std::make_shared<ClientArgs>();
+  auto job = std::make_shared<std::string>();
+  CLI::App* cmd = app.add_subcommand(name, help);
+  cmd->add_option("job", *job, "Job id")->required();
+  add_client_options(cmd, *args);
+  add_change(exit_code, cmd, args, job,
+             [paused](wire::ChangeJob& request) { request.set_paused(paused); });
+}
+
+}  // namespace
+
+void add_pause(CLI::App& app, int& exit_code) {
+  add_pause_like(app, exit_code, "pause",
+                 "Pause a queued or running job: no more of its units go out (those out finish "
+                 "and count) and its clock stops, until `rayfarm resume JOB`",
+                 true);
+  add_pause_like(app, exit_code, "resume", "Resume a paused job", false);
+}
+
+void add_set_priority(CLI::App& app, int& exit_code) {
+  auto args = std::make_shared<ClientArgs>();
+  auto job = std::make_shared<std::string>();
+  auto priority = std::make_shared<int32_t>(0);
+  CLI::App* cmd = app.add_subcommand(
+      "set-priority",
+      "Change a queued or running job's priority: higher runs first; jobs of equal priority "
+      "share the workers");
+  cmd->add_option("job", *job, "Job id")->required();
+  cmd->add_option("priority", *priority,
+                  "From " + std::to_string(kMinPriority) + " to " + std::to_string(kMaxPriority))
+      ->required()
+      ->check(CLI::Range(kMinPriority, kMaxPriority));
+  add_client_options(cmd, *args);
+  add_change(exit_code, cmd, args, job,
+             [priority](wire::ChangeJob& request) { request.set_priority(*priority); });
 }
 
 void add_remove(CLI::App& app, int& exit_code) {

@@ -44,9 +44,11 @@ int watch_job(StatusPoller& poller, const std::string& job, bool json) {
     const wire::JobStatus st = poller.status(job);
     const auto now = std::chrono::steady_clock::now();
     if (json) {
-      // A line when the job moved (units, passes, state), not for the clock alone.
-      const std::string key = fmt::format("{}/{}/{}/{}", static_cast<int>(st.state()),
-                                          st.units_done(), st.passes_done(), st.units_leased());
+      // A line when the job moved (units, passes, state, paused, priority), not for the clock
+      // alone.
+      const std::string key =
+          fmt::format("{}/{}/{}/{}/{}/{}", static_cast<int>(st.state()), st.units_done(),
+                      st.passes_done(), st.units_leased(), st.paused(), st.priority());
       if (key != last_line) print_json(status_json(st));
       last_line = key;
     } else {
@@ -97,6 +99,8 @@ struct SubmitArgs {
   std::string name;
   bool wait = false;
   bool json = false;
+  int32_t priority = 0;
+  bool paused = false;
   float clamp = 0.f;
   std::string output;
   StopArgs stop;
@@ -119,6 +123,8 @@ int run_submit(const SubmitArgs& args) {
   const fs::path folder = fs::absolute(scene_file).parent_path().filename();
   request.set_name(!args.name.empty() ? args.name
                                       : (folder / scene_file.filename()).generic_string());
+  request.set_priority(args.priority);
+  request.set_paused(args.paused);
   wire::JobOverrides* o = request.mutable_overrides();
   if (args.spp) o->set_spp(*args.spp);
   if (args.sampling.max_depth) o->set_max_depth(*parse_depth(*args.sampling.max_depth));
@@ -213,6 +219,14 @@ void add_submit(CLI::App& app, int& exit_code) {
       cmd, args->stop,
       "Reference EXR sent with the job: the error against it is measured at every pass");
   cmd->add_option("--name", args->name, "Job name (default: the scene file's name)");
+  cmd->add_option("--priority", args->priority,
+                  "Higher runs first, from " + std::to_string(kMinPriority) + " to " +
+                      std::to_string(kMaxPriority) +
+                      " (default 0; jobs of equal priority share the workers; a master with keys "
+                      "may cap what a key that is not an admin can ask for)")
+      ->check(CLI::Range(kMinPriority, kMaxPriority));
+  cmd->add_flag("--paused", args->paused,
+                "Accept the job paused: no unit is handed out until `rayfarm resume JOB`");
   cmd->add_flag("--wait", args->wait,
                 "Show progress until the job ends, riding out master restarts within --timeout; "
                 "exit 0 only when it is done");

@@ -90,6 +90,11 @@ inline constexpr uint32_t kDefaultTileSize = 64;
 /// Largest tile side a job may choose.
 inline constexpr uint32_t kMaxTileSize = 4096;
 
+// ---- sharing the farm (docs/farm.md, "Sharing the farm: priorities, fair shares, pausing")
+/// A job's priority: higher runs first; jobs are submitted at 0 unless they say otherwise.
+inline constexpr int32_t kMinPriority = -100;
+inline constexpr int32_t kMaxPriority = 100;
+
 // ---- the master's limits on submissions (master/limits.h; each has a master option)
 // ---------------
 

@@ -3,6 +3,7 @@
 // pass planner (which units are released), its error record, its timers and its failures. The
 // job manager (job_manager.h) holds one exactly while the job is active; a finished job keeps
 // only its record.
+#include <algorithm>
 #include <chrono>
 #include <cstdint>
 #include <map>
@@ -42,9 +43,24 @@ struct ActiveJob {
   const UnitGrid& grid() const { return merger.grid(); }
   /// A unit has been handed out (the render's clock runs).
   bool started() const { return start_time.has_value(); }
-  /// Seconds of rendering so far: from the first unit handed out.
+  /// Seconds of rendering so far: from the first unit handed out, less the time the job spent
+  /// paused since (its time limit and rates leave the pauses out; units that finish during a
+  /// pause count on the stopped clock).
   double elapsed() const {
-    return start_time ? std::chrono::duration<double>(Clock::now() - *start_time).count() : 0.0;
+    if (!start_time) return 0.0;
+    const Clock::time_point now = Clock::now();
+    Clock::duration d = now - *start_time - paused_for;
+    if (paused_since) d -= now - std::max(*paused_since, *start_time);
+    return std::max(0.0, std::chrono::duration<double>(d).count());
+  }
+  /// The job's clock stops (pause) and runs again (resume); each is a no-op when repeated.
+  void pause(Clock::time_point now) {
+    if (!paused_since) paused_since = now;
+  }
+  void resume(Clock::time_point now) {
+    if (!paused_since) return;
+    if (start_time) paused_for += now - std::max(*paused_since, *start_time);
+    paused_since.reset();
   }
   /// Appends the error row of the film as it is now. Every merge updated its tile's estimate
   /// (update_tile), so the image's is a sum over tiles here; the row still counts samples, and
@@ -63,6 +79,8 @@ struct ActiveJob {
   uint64_t samples_recorded = 0;  // pixel samples behind the last error row
 
   std::optional<Clock::time_point> start_time;  // when the first unit was handed out
+  std::optional<Clock::time_point> paused_since;  // paused now, since then
+  Clock::duration paused_for{0};                  // paused after start_time, before now
   Clock::time_point last_write;                 // of the image
   bool dirty = false;                           // merged since the last image write
   bool checkpoint_due = false;                  // merged since the last checkpoint

@@ -109,6 +109,9 @@ class Broker {
   /// Whether client key `user` may cancel (may_manage) or see (may_see) a job of `owner`.
   bool may_manage(const std::string& owner, const std::string& user) const;
   bool may_see(const std::string& owner, const std::string& user) const;
+  /// Why client key `user` may not give a job `priority` (MasterSecurity::max_client_priority);
+  /// nullopt when it may.
+  std::optional<std::string> priority_refusal(int32_t priority, const std::string& user) const;
 };
 
 }  // namespace rayfarm::master

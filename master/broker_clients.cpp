@@ -3,6 +3,7 @@
 #include <optional>
 #include <string>
 
+#include "common/limits.h"
 #include "common/protocol/codec.h"
 #include "common/protocol/convert.h"
 #include "common/util/log.h"
@@ -62,6 +63,19 @@ bool Broker::may_manage(const std::string& owner, const std::string& user) const
 
 bool Broker::may_see(const std::string& owner, const std::string& user) const {
   return !options_.security.private_jobs || may_manage(owner, user);
+}
+
+std::optional<std::string> Broker::priority_refusal(int32_t priority,
+                                                    const std::string& user) const {
+  // Out of range: the job manager names it, for every key alike.
+  const bool trusted = user.empty() || options_.security.admin_clients.count(user) != 0;
+  const int32_t cap = options_.security.max_client_priority;
+  if (trusted || priority <= cap) return std::nullopt;
+  return fmt::format(
+      "priority {} is above what key '{}' may give a job (at most {}; an admin key "
+      "(rayfarm-master --admin-clients) may go to {}, and --max-client-priority raises the "
+      "limit)",
+      priority, protocol::printable(user), cap, kMaxPriority);
 }
 
 void Broker::handle_client(const net::Delivery& delivery) {
@@ -126,6 +140,7 @@ void Broker::handle_client(const net::Delivery& delivery) {
           check_queue(jobs_.active_jobs() + submissions_->in_flight(), options_.limits);
       wire::Error::Code code = wire::Error::REFUSED;
       if (!refusal) refusal = check_figures(figures, options_.limits);
+      if (!refusal) refusal = priority_refusal(submit->priority(), delivery.user);
       if (!refusal) {
         wire::SubmitJob job;
         job.Swap(submit);
@@ -176,6 +191,37 @@ void Broker::handle_client(const net::Delivery& delivery) {
         reply(peer, error_frames(wire::Error::NOT_FOUND,
                                  "unknown job '" + protocol::printable(cancel->job_id()) + "'",
                                  cancel->job_id()));
+      }
+    } else if (const auto* change = msg.as<wire::ChangeJob>()) {
+      if (refuse_unless_manager(change->job_id(), "change")) return;
+      if (change->has_priority() && jobs_.owner_of(change->job_id()) != nullptr) {
+        if (auto refusal = priority_refusal(change->priority(), delivery.user)) {
+          complain("client", delivery.user, fmt::format("{}: {}; refused", label, *refusal));
+          reply(peer, error_frames(wire::Error::FORBIDDEN, *refusal, change->job_id()));
+          return;
+        }
+      }
+      try {
+        const JobRecord* r = jobs_.change(
+            change->job_id(),
+            change->has_priority() ? std::optional<int32_t>(change->priority()) : std::nullopt,
+            change->has_paused() ? std::optional<bool>(change->paused()) : std::nullopt);
+        if (r == nullptr) {
+          reply(peer, error_frames(wire::Error::NOT_FOUND,
+                                   "unknown job '" + protocol::printable(change->job_id()) + "'",
+                                   change->job_id()));
+          return;
+        }
+        wire::ChangeJobReply out;
+        out.set_job_id(change->job_id());
+        out.set_state(r->state);
+        out.set_priority(r->priority);
+        out.set_paused(r->paused);
+        reply(peer, encode(std::move(out)));
+        dispatch();  // a job resumed or raised may serve the workers that wait
+      } catch (const JobRejected& e) {
+        reply(peer,
+              error_frames(wire::Error::REFUSED, jobs_.for_clients(e.what()), change->job_id()));
       }
     } else if (msg.as<wire::ListWorkers>()) {
       reply(peer, encode(worker_list()));

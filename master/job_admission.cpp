@@ -90,6 +90,10 @@ std::string JobManager::submit(const wire::SubmitJob& request, const std::string
 JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
                                             const std::string& owner,
                                             const SceneCheck& check) const {
+  if (request.priority() < kMinPriority || request.priority() > kMaxPriority) {
+    throw JobRejected(fmt::format("priority {} is out of range ({} to {})", request.priority(),
+                                  kMinPriority, kMaxPriority));
+  }
   // The bundle and the scene path.
   Bundle bundle;
   try {
@@ -227,6 +231,8 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
   }
   JobRecord record;
   record.spec = spec;
+  record.priority = request.priority();
+  record.paused = request.paused();
   try {
     wire::Bundle canonical;
     protocol::bundle_to_wire(bundle, &canonical);
@@ -239,6 +245,8 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
     throw JobRejected(storage_refusal(e, store_.root()));
   }
   prepared.spec = std::move(spec);
+  prepared.priority = record.priority;
+  prepared.paused = record.paused;
   prepared.warnings = scene.warnings;
   prepared.bundle_files = bundle.files.size();
   prepared.bundle_bytes = bundle.data_bytes();
@@ -251,6 +259,8 @@ std::string JobManager::admit(PreparedJob prepared) {
   const std::string& hash = spec.bundle_hash;
   Job job;
   job.record.spec = spec;
+  job.record.priority = prepared.priority;
+  job.record.paused = prepared.paused;
   bundle_owner_.emplace(hash, spec.id);
   try {
     activate(job, std::move(prepared.reference));
@@ -260,6 +270,7 @@ std::string JobManager::admit(PreparedJob prepared) {
     scheduler_.remove_job(spec.id);
     job.active.reset();
     job.record.state = wire::JOB_FAILED;
+    job.record.paused = false;
     job.record.error = std::string("the master cannot hold the job: ") + e.what();
     job.record.stop_reason = stop_reason_name(StopReason::kFailed);
     log_jobs()->error("job {}: {}", spec.id, job.record.error);

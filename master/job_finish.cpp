@@ -33,6 +33,7 @@ void JobManager::finish(Job& job, wire::JobState state, const std::string& error
   r.stop_reason = stop_reason_name(reason);
   r.elapsed_seconds = a.finishing ? a.finishing->elapsed : a.elapsed();
   r.state = state;
+  r.paused = false;  // an ended job is not paused, whatever it was
   r.error = error;
   r.units_done = a.merger.merged_count();
   r.spp_min = a.merger.min_spp();

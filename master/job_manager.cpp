@@ -46,6 +46,9 @@ void JobManager::schedule(Job& job) {
   const std::string& id = job.record.spec.id;
   ActiveJob& a = *job.active;
   scheduler_.add_job(id);
+  scheduler_.set_priority(id, job.record.priority);
+  scheduler_.set_paused(id, job.record.paused);
+  if (job.record.paused) a.pause(Clock::now());
   a.planner.take_released();  // handed over below, with every other released unit
   if (a.merger.merged_count() == 0 && !a.planner.gated()) {
     scheduler_.release_all(id, a.grid().size());
@@ -389,8 +392,10 @@ wire::JobState JobManager::retry(const std::string& id) {
   }
   JobRecord& r = job.record;
   const JobSpec spec = r.spec;
+  const int32_t priority = r.priority;
   r = JobRecord{};
   r.spec = spec;
+  r.priority = priority;  // a retried job keeps its place among the others, and runs
   job.storage_error.clear();
   job.record_unsaved = false;
   activate(job);

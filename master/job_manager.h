@@ -83,6 +83,8 @@ class JobManager {
     std::vector<std::string> warnings;
     size_t bundle_files = 0;
     uint64_t bundle_bytes = 0;
+    int32_t priority = 0;  ///< as submitted (checked) and stored
+    bool paused = false;
   };
   /// Validates a submission for `owner` (the submitting client key's name) and stores it in the
   /// data dir: the slow part of accepting a job (unpacking, loading the scene, reading the
@@ -127,6 +129,13 @@ class JobManager {
 
   /// Cancels a job; the state afterwards, or nullopt when the job is unknown.
   std::optional<wire::JobState> cancel(const std::string& id);
+  /// Changes how a queued or running job shares the farm: its priority (kMinPriority to
+  /// kMaxPriority) and whether it is paused (no new units; those out finish and count; its clock
+  /// stops). Saved in its record, so that a restart keeps it. Returns the record afterwards;
+  /// nullptr when the job is unknown. Throws JobRejected naming the cause: a finished or
+  /// unreadable job, a priority out of range.
+  const JobRecord* change(const std::string& id, std::optional<int32_t> priority,
+                          std::optional<bool> paused);
   /// Removes a finished (done, failed, cancelled) or unreadable job and its folder. Throws
   /// JobRejected naming the cause: an unknown job, or one still queued or running.
   void remove(const std::string& id);

@@ -21,6 +21,7 @@ size_t JobManager::recover() {
     if (is_active_state(job.record.state)) {
       if (!store_.load_bundle(id)) {
         job.record.state = wire::JOB_FAILED;
+        job.record.paused = false;
         job.record.error = "the job's bundle is missing from the data dir";
         log_jobs()->error("job {}: {}; marked failed", id, job.record.error);
         save(job);

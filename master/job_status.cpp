@@ -66,6 +66,8 @@ wire::JobStatus JobManager::make_status(const Job& job, uint32_t workers_total) 
   st.set_tiles_converged(job.record.tiles_converged);
   st.set_storage_error(for_clients(job.storage_error));
   st.set_error(for_clients(job.record.error));
+  st.set_priority(job.record.priority);
+  st.set_paused(job.record.paused);
   if (job.active) {
     const ActiveJob& a = *job.active;
     const Merger& m = a.merger;
@@ -87,9 +89,11 @@ wire::JobStatus JobManager::make_status(const Job& job, uint32_t workers_total) 
     if (seconds > 0 && m.samples_merged() > 0) {
       const double rate = static_cast<double>(m.samples_merged()) / seconds;
       st.set_samples_per_second(rate);
-      st.set_eta_seconds(
-          estimate_eta(s.stop, static_cast<double>(grid.samples_total() - m.samples_merged()), rate,
-                       seconds, a.rows));
+      // A paused job's end is the user's to say: no estimate.
+      if (!job.record.paused)
+        st.set_eta_seconds(
+            estimate_eta(s.stop, static_cast<double>(grid.samples_total() - m.samples_merged()),
+                         rate, seconds, a.rows));
     }
   } else {
     st.set_units_done(job.record.units_done);

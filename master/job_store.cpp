@@ -1,5 +1,6 @@
 #include "master/job_store.h"
 
+#include "common/limits.h"
 #include "common/util/atomic_file.h"
 
 #include <algorithm>
@@ -76,6 +77,8 @@ json to_json(const JobRecord& r) {
               {"submitted_unix_ms", s.submitted_unix_ms},
               {"owner", s.owner},
               {"state", protocol::job_state_name(r.state)},
+              {"priority", r.priority},
+              {"paused", r.paused},
               {"error", r.error},
               {"elapsed_seconds", finite_or(r.elapsed_seconds, 0.0)},
               {"stop_reason", r.stop_reason},
@@ -132,6 +135,21 @@ JobRecord from_json(const json& j) {
   const std::string state = j.at("state").get<std::string>();
   r.state = state_from_key(state);
   if (r.state == wire::JOB_STATE_UNSPECIFIED) throw std::runtime_error("unknown state \"" + state + "\"");
+  // Records from before priorities: 0, not paused. Read exactly: a value past int32's range must
+  // fail the check, not wrap into it.
+  if (const auto p = j.find("priority"); p != j.end()) {
+    if (!p->is_number_integer()) throw std::runtime_error("priority is not an integer");
+    const bool in_range = p->is_number_unsigned() ? p->get<uint64_t>() <= uint64_t{kMaxPriority}
+                                                  : p->get<int64_t>() >= kMinPriority &&
+                                                        p->get<int64_t>() <= kMaxPriority;
+    if (!in_range) throw std::runtime_error("priority out of range");
+    r.priority = p->get<int32_t>();
+  }
+  if (const auto p = j.find("paused"); p != j.end()) {
+    if (!p->is_boolean()) throw std::runtime_error("paused is not true or false");
+    // Only a queued or running job can be paused: an ended one reads as not paused.
+    r.paused = p->get<bool>() && (r.state == wire::JOB_QUEUED || r.state == wire::JOB_RUNNING);
+  }
   r.error = j.value("error", "");
   r.elapsed_seconds = number_or(j, "elapsed_seconds", 0.0);
   r.stop_reason = j.value("stop_reason", "");

@@ -58,6 +58,9 @@ struct JobRecord {
   uint32_t tiles_converged = 0;
   double est_rel_mse = -1.0;     ///< negative: unknown
   double ref_rel_mse = -1.0;     ///< negative: no reference
+  /// How the job shares the farm (Scheduler): changeable while it is queued or running.
+  int32_t priority = 0;
+  bool paused = false;
   /// The job's job.json could not be read: state is JOB_STATE_UNSPECIFIED, `error` says why, and
   /// only spec.id is known. Such a record is listed, never saved over.
   bool unreadable = false;

@@ -6,6 +6,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "common/limits.h"
 #include "common/net/keys.h"
 #include "common/protocol/version.h"
 #include "common/util/log.h"
@@ -95,6 +96,13 @@ int main(int argc, char** argv) {
       ->envname("RAYFARM_ADMIN_CLIENTS");
   app.add_flag("--private-jobs", options.security.private_jobs,
                "a client key sees (status, list, fetch) only its own jobs, unless it is an admin");
+  app.add_option("--max-client-priority", options.security.max_client_priority,
+                 "highest priority a client key that is not an admin may give a job; admins, and "
+                 "every client of a master without keys, may go to 100 "
+                 "[env RAYFARM_MAX_CLIENT_PRIORITY]")
+      ->check(CLI::Range(0, rayfarm::kMaxPriority))  // below 0 would refuse the default
+      ->envname("RAYFARM_MAX_CLIENT_PRIORITY")
+      ->capture_default_str();
   app.add_flag("--insecure", insecure,
                "plain sockets, no authentication or encryption: only on loopback endpoints");
 

@@ -26,6 +26,10 @@ struct MasterSecurity {
   std::set<std::string> admin_clients;
   /// Keys that are neither the owner nor an admin cannot see a job either (status, list, fetch).
   bool private_jobs = false;
+  /// Highest priority a client key that is not an admin may give a job (at submission or later),
+  /// so that one key cannot push every other job aside; admins (and every client of a master
+  /// without keys) may use the whole range, up to kMaxPriority.
+  int32_t max_client_priority = 0;
 };
 
 /// ZAP domains of the two sockets: a key admitted in one is not admitted in the other.

@@ -12,7 +12,9 @@ namespace rayfarm::protocol {
 // text; a version-2 peer would act on text that a version-3 master no longer promises.
 // 4: RenderSettings carries the sampler and the roulette rule, which a version-3 worker would
 // ignore, rendering other samples than the job's (the image would no longer be the local one).
-inline constexpr uint32_t kProtocolVersion = 4;
+// 5: SubmitJob carries a priority and may ask to be held paused, which a version-4 master would
+// ignore, starting a job its submitter asked to hold; ChangeJob pauses, resumes and reprioritises.
+inline constexpr uint32_t kProtocolVersion = 5;
 
 /// Software version of this build, sent in Hello and Welcome for the logs.
 inline constexpr const char* kBuildVersion = "rayfarm 0.2.0";

@@ -545,8 +545,13 @@ TEST_F(JobManagerTest, ACorruptCheckpointFallsBackToThePreviousOneOrToTheStart) 
 }
 
 TEST_F(JobManagerTest, ShutdownCheckpointsEveryRunningJob) {
-  const std::string a = jobs.submit(furnace_job(16, 8, 4));
-  const std::string b = jobs.submit(furnace_job(8, 8, 4));
+  // Priorities keep the jobs from sharing the workers: a first, then b, then c.
+  const auto with_priority = [](wire::SubmitJob request, int32_t priority) {
+    request.set_priority(priority);
+    return request;
+  };
+  const std::string a = jobs.submit(with_priority(furnace_job(16, 8, 4), 2));
+  const std::string b = jobs.submit(with_priority(furnace_job(8, 8, 4), 1));
   const std::string c = jobs.submit(furnace_job(8, 8, 4));  // queued: nothing to checkpoint
   merge_units(jobs, 70);  // all of a (64) and 6 of b
   EXPECT_EQ(jobs.status(a, 0)->state(), wire::JOB_DONE);

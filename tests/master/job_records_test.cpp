@@ -96,6 +96,8 @@ TEST(JobStoreRecords, EveryStateAndNonFiniteFiguresSurviveASaveAndALoad) {
     r.spec.settings.clamp = i % 2 ? 0.f : 2.5f;
     r.stop_reason = i ? "cancelled" : "";
     r.error = i == 3 ? "unit 0 failed" : "";
+    r.priority = static_cast<int32_t>(i % 2 ? -100 + i : 100 - i);
+    r.paused = i % 2 == 1;
     store.save_record(r);
     saved[r.spec.id] = r;
   }
@@ -109,6 +111,9 @@ TEST(JobStoreRecords, EveryStateAndNonFiniteFiguresSurviveASaveAndALoad) {
     EXPECT_EQ(r.error, s.error);
     EXPECT_EQ(r.stop_reason, s.stop_reason);
     EXPECT_EQ(r.passes_done, s.passes_done);
+    EXPECT_EQ(r.priority, s.priority);
+    // Only a queued or running job is paused; an ended one reads as not paused.
+    EXPECT_EQ(r.paused, s.paused && (s.state == wire::JOB_QUEUED || s.state == wire::JOB_RUNNING));
     EXPECT_EQ(r.elapsed_seconds, s.elapsed_seconds);
     EXPECT_EQ(r.spec.stop.target_error, s.spec.stop.target_error);
     EXPECT_EQ(r.spec.settings.clamp, s.spec.settings.clamp);
@@ -157,10 +162,23 @@ TEST(JobStoreRecords, ARecordThatCannotBeReadIsReturnedWithItsCause) {
   nlohmann::json text_figure = bad_state;
   text_figure["state"] = "done";
   text_figure["est_rel_mse"] = "small";
-  const std::vector<Bad> bad{{"{ \"id\": ", "parse"},
-                             {no_spp.dump(), "spp"},
-                             {bad_state.dump(), "sleeping"},
-                             {text_figure.dump(), "est_rel_mse"}};
+  std::vector<Bad> bad{{"{ \"id\": ", "parse"},
+                       {no_spp.dump(), "spp"},
+                       {bad_state.dump(), "sleeping"},
+                       {text_figure.dump(), "est_rel_mse"}};
+  // Priorities out of range, even past int32's or int64's range, and of the wrong type.
+  nlohmann::json good_json = text_figure;
+  good_json["est_rel_mse"] = 0.5;
+  for (const nlohmann::json& priority :
+       {nlohmann::json(101), nlohmann::json(-101), nlohmann::json(4294967297LL),
+        nlohmann::json(18446744073709551611ULL), nlohmann::json("high"), nlohmann::json(1.5)}) {
+    nlohmann::json with = good_json;
+    with["priority"] = priority;
+    bad.push_back({with.dump(), "priority"});
+  }
+  nlohmann::json text_paused = good_json;
+  text_paused["paused"] = "yes";
+  bad.push_back({text_paused.dump(), "paused"});
   std::vector<std::string> ids;
   for (const Bad& b : bad) {
     const std::string id = store.allocate_id();

@@ -1,0 +1,57 @@
+// How a job shares the farm once accepted: its priority and whether it is paused (the scheduler
+// acts on both; docs/farm.md, "Sharing the farm").
+#include "common/limits.h"
+#include "common/protocol/convert.h"
+#include "master/job_manager.h"
+#include "master/job_text.h"
+
+namespace rayfarm::master {
+using namespace detail;
+
+const JobRecord* JobManager::change(const std::string& id, std::optional<int32_t> priority,
+                                    std::optional<bool> paused) {
+  auto it = jobs_.find(id);
+  if (it == jobs_.end()) return nullptr;
+  Job& job = it->second;
+  JobRecord& r = job.record;
+  if (!job.active || job.active->finishing) {
+    throw JobRejected(r.unreadable ? "job " + id + " cannot be changed: " + r.error
+                      : job.active
+                          ? "job " + id +
+                                " has rendered all it will: only its final image is left to "
+                                "write"
+                          : fmt::format("job {} is {}: only a queued or running job can be paused, "
+                                        "resumed or given a priority",
+                                        id, protocol::job_state_name(r.state)));
+  }
+  if (priority && (*priority < kMinPriority || *priority > kMaxPriority)) {
+    throw JobRejected(fmt::format("priority {} is out of range ({} to {})", *priority, kMinPriority,
+                                  kMaxPriority));
+  }
+  const auto now = Clock::now();
+  if (priority && *priority != r.priority) {
+    log_jobs()->info("job {}: priority {} (was {})", id, *priority, r.priority);
+    r.priority = *priority;
+    scheduler_.set_priority(id, r.priority);
+  }
+  if (paused && *paused != r.paused) {
+    r.paused = *paused;
+    scheduler_.set_paused(id, r.paused);
+    if (r.paused) {
+      job.active->pause(now);
+    } else {
+      job.active->resume(now);
+    }
+    const auto counts = scheduler_.counts(id);
+    log_jobs()->info(
+        "job {} {}{}", id, r.paused ? "paused" : "resumed",
+        r.paused && counts.leased > 0
+            ? fmt::format(": the {} unit{} out finish{}", counts.leased,
+                          counts.leased == 1 ? "" : "s", counts.leased == 1 ? "es" : "")
+            : std::string());
+  }
+  save(job);  // a failure is noted on the job and retried; the change holds meanwhile
+  return &r;
+}
+
+}  // namespace rayfarm::master
