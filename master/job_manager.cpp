@@ -346,6 +346,9 @@ void JobManager::remove(const std::string& id) {
                                   protocol::job_state_name(job.record.state)));
   }
   writer_.flush();  // no image of it is still on its way to the folder
+  // Nor is the removal of its checkpoints, which ended the job: a file deleted under remove_all's
+  // feet made it fail (ENOENT) now and then.
+  checkpoints_.flush();
   std::error_code ec;
   fs::remove_all(store_.job_dir(id), ec);
   if (ec) {

@@ -313,12 +313,7 @@ TEST_F(JobManagerTest, ATimeLimitEndsTheJobWithWhatIsMerged) {
   EXPECT_EQ(jobs.on_result("w1", result_for(*unit)), MergeOutcome::kMerged);
   jobs.tick();
   EXPECT_EQ(jobs.status(id, 1)->state(), wire::JOB_RUNNING);
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-  while (jobs.status(id, 1)->state() == wire::JOB_RUNNING &&
-         std::chrono::steady_clock::now() < deadline) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    jobs.tick();
-  }
+  test_jobs::tick_while_running(jobs, id);
   const auto st = jobs.status(id, 1);
   EXPECT_EQ(st->state(), wire::JOB_DONE);
   EXPECT_EQ(st->stop_reason(), "time limit");

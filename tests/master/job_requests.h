@@ -1,12 +1,16 @@
 #pragma once
-// Requests and results for tests of the master's jobs: a submission of the bundled furnace and a
-// result of the right shape for a unit.
+// Requests and results for tests of the master's jobs: a submission of the bundled furnace, a
+// result of the right shape for a unit, and a wait for a job's time limit.
+#include <chrono>
 #include <filesystem>
+#include <string>
+#include <thread>
 
 #include "common/bundle/bundle.h"
 #include "common/image/film.h"
 #include "common/image/fixed.h"
 #include "common/protocol/convert.h"
+#include "master/job_manager.h"
 #include "proto/rayfarm.pb.h"
 
 namespace rayfarm::master::test_jobs {
@@ -33,6 +37,16 @@ inline wire::UnitResult result_for(const wire::WorkUnit& unit, double value = 0.
   for (auto& s : r.sum) s = to_fixed(value * n);
   for (auto& s : r.sum_sq) s = to_fixed(value * value * n);
   return protocol::result_to_wire(unit.job_id(), unit.unit_id(), r, 0.01);
+}
+
+/// Ticks `jobs` until job `id` is no longer running, for at most 30 s (a time limit to pass).
+inline void tick_while_running(JobManager& jobs, const std::string& id) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (jobs.status(id, 1)->state() == wire::JOB_RUNNING &&
+         std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    jobs.tick();
+  }
 }
 
 }  // namespace rayfarm::master::test_jobs

@@ -244,17 +244,21 @@ TEST(Scheduler, ABlockedWorkerGetsOnlyOtherJobsUnits) {
 
 using namespace std::chrono_literals;
 
-TEST(Scheduler, AStragglerIsLeasedTwiceAndTheFirstResultEndsBothLeases) {
-  Scheduler s;
-  add_job(s, "a", 6);
-  const StragglerPolicy policy{4.0, 5000ms, 3};
-  const auto t0 = Scheduler::Clock::now();
-  // Three units of 1 s each give a median of 1 s.
+/// Units 0-2 of `job` leased at t0 and done by w1 at t0 + 1 s: a median of 1 s.
+void three_units_of_one_second(Scheduler& s, Scheduler::Clock::time_point t0) {
   for (int i = 0; i < 3; ++i) {
     const auto u = s.lease("w1", t0);
     ASSERT_TRUE(u);
     EXPECT_TRUE(s.complete(*u, WorkerId("w1"), t0 + 1s));
   }
+}
+
+TEST(Scheduler, AStragglerIsLeasedTwiceAndTheFirstResultEndsBothLeases) {
+  Scheduler s;
+  add_job(s, "a", 6);
+  const StragglerPolicy policy{4.0, 5000ms, 3};
+  const auto t0 = Scheduler::Clock::now();
+  three_units_of_one_second(s, t0);
   ASSERT_TRUE(s.lease("slow", t0 + 1s));  // unit 3
   ASSERT_TRUE(s.lease("w1", t0 + 1s));    // unit 4
   ASSERT_TRUE(s.lease("w2", t0 + 1s));    // unit 5
@@ -298,11 +302,7 @@ TEST(Scheduler, APausedJobsStragglerIsNotLeasedAgain) {
   add_job(s, "a", 4);
   const StragglerPolicy policy{4.0, 5000ms, 3};
   const auto t0 = Scheduler::Clock::now();
-  for (int i = 0; i < 3; ++i) {
-    const auto u = s.lease("w1", t0);
-    ASSERT_TRUE(u);
-    EXPECT_TRUE(s.complete(*u, WorkerId("w1"), t0 + 1s));
-  }
+  three_units_of_one_second(s, t0);
   ASSERT_TRUE(s.lease("slow", t0 + 1s));  // unit 3
   ASSERT_TRUE(s.has_straggler(policy, t0 + 60s));
   s.set_paused("a", true);
