@@ -187,7 +187,13 @@ void bench_broker(int workers, uint32_t size, uint32_t tile, uint32_t spp, uint3
   stop_all();
   if (!error.empty()) throw std::runtime_error(error);
   const double s = status.elapsed_seconds();
-  const double unit_kb = static_cast<double>(tile) * tile * 3 * 32 / 1e3;
+  // What the fake workers send: the packed sums of a full tile, twice (sum and sum_sq).
+  const double unit_kb =
+      2.0 *
+      static_cast<double>(
+          protocol::pack_fixed(fake_result(rayfarm::TileRect{0, 0, tile, tile}, {0, pass_spp}).sum)
+              .size()) /
+      1e3;
   std::cout << fmt::format(
       "through the broker ({} fake workers on loopback): {} units of {}x{} px ({:.1f} KB each) in "
       "{:.3f} s: "

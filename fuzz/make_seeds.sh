@@ -50,7 +50,8 @@ python3 "$here/make_ply_seeds.py" "$c/ply"
 enc() {  # enc NAME TYPE TEXT
   { printf 'rayfarm.wire.%s\n' "$2"; printf '%s' "$3" | protoc --encode="rayfarm.wire.$2" -I "$root/proto" "$root/proto/rayfarm.proto"; } > "$c/wire/$1.bin"
 }
-sum16=$(printf 'sum: "%s"' "$(printf '\\000%.0s' $(seq 1 48))")
+# A 1x1 tile's sums: 3 values, each a one-byte varint 0 (protocol::pack_fixed).
+sum3=$(printf 'sum: "%s"' "$(printf '\\000%.0s' $(seq 1 3))")
 enc hello Hello 'protocol_version: 1 role: ROLE_WORKER name: "w1" threads: 4 build: "0.1"'
 enc welcome Welcome 'protocol_version: 1 heartbeat_interval_ms: 1000 liveness: 3'
 enc refusal Refusal 'protocol_version: 1 reason: "old" master_version: 1 peer_version: 0'
@@ -59,7 +60,7 @@ enc error Error 'protocol_version: 1 message: "boom" job_id: "j1" code: UNKNOWN_
 enc goodbye Goodbye 'protocol_version: 1 reason: "SIGTERM"'
 enc work-request WorkRequest 'protocol_version: 1'
 enc work-unit WorkUnit 'protocol_version: 1 job_id: "j1" unit_id: 7 tile { x0: 0 y0: 0 x1: 1 y1: 1 } sample_begin: 0 sample_end: 4 settings { spp: 4 max_depth: 8 integrator: INTEGRATOR_MIS seed: 1 } bundle_hash: "0000000000000000000000000000000000000000000000000000000000000000" scene_path: "scene.json" pass: 0'
-enc unit-result UnitResult "protocol_version: 1 job_id: \"j1\" unit_id: 7 tile { x0: 0 y0: 0 x1: 1 y1: 1 } sample_begin: 0 sample_end: 4 $sum16 ${sum16/sum:/sum_sq:} nonfinite: 1 rays: 10 render_seconds: 0.5"
+enc unit-result UnitResult "protocol_version: 1 job_id: \"j1\" unit_id: 7 tile { x0: 0 y0: 0 x1: 1 y1: 1 } sample_begin: 0 sample_end: 4 $sum3 ${sum3/sum:/sum_sq:} nonfinite: 1 rays: 10 render_seconds: 0.5"
 enc unit-failed UnitFailed 'protocol_version: 1 job_id: "j1" unit_id: 7 reason: "bad scene"'
 enc bundle-request BundleRequest 'protocol_version: 1 hash: "ab"'
 enc bundle-reply BundleReply 'protocol_version: 1 hash: "ab" bundle { files { path: "scene.json" data: "{}" } files { path: "m/m.obj" data: "v 0 0 0" } }'

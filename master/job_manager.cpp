@@ -173,6 +173,23 @@ MergeOutcome JobManager::on_result(const WorkerId& worker, const wire::UnitResul
   if (!a.planner.is_released(result.unit_id())) {
     return reject("the unit was never handed out (the job's stopping rules have not released it)");
   }
+  {
+    // The tile sizes the decoding of the sums (packed, a value may take one byte): it must be the
+    // unit's before anything is decoded, or a small message claiming a huge tile would make the
+    // master allocate many times its size.
+    const UnitGrid::Unit expected = a.grid().unit(result.unit_id());
+    const wire::Rect& r = result.tile();
+    if (r.x0() != expected.rect.x0 || r.y0() != expected.rect.y0 || r.x1() != expected.rect.x1 ||
+        r.y1() != expected.rect.y1 || result.sample_begin() != expected.samples.begin ||
+        result.sample_end() != expected.samples.end) {
+      return reject(fmt::format(
+          "unit {} is tile [{},{})x[{},{}), samples [{},{}); the result claims [{},{})x[{},{}), "
+          "samples [{},{})",
+          result.unit_id(), expected.rect.x0, expected.rect.x1, expected.rect.y0, expected.rect.y1,
+          expected.samples.begin, expected.samples.end, r.x0(), r.x1(), r.y0(), r.y1(),
+          result.sample_begin(), result.sample_end()));
+    }
+  }
   TileResult tile;
   try {
     tile = protocol::result_from_wire(result);

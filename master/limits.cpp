@@ -4,6 +4,7 @@
 
 #include <fmt/format.h>
 
+#include "common/protocol/convert.h"
 #include "common/util/text.h"
 
 namespace rayfarm::master {
@@ -15,7 +16,8 @@ constexpr uint64_t kResultOverheadBytes = 4096;
 }  // namespace
 
 uint64_t unit_result_bytes(uint64_t tile_width, uint64_t tile_height) {
-  return 2 * tile_width * tile_height * 3 * 16 + kResultOverheadBytes;
+  // Packed sums are usually 6 to 8 bytes a value; a peer may need up to the most one can take.
+  return 2 * tile_width * tile_height * 3 * protocol::kMaxFixedWireBytes + kResultOverheadBytes;
 }
 
 SubmissionFigures bundle_figures(const wire::SubmitJob& request) {

@@ -57,8 +57,8 @@ std::optional<std::string> check_queue(size_t jobs_waiting, const Limits& limits
 /// Refusal for a bundle, an image, an spp or a unit result over the limits.
 std::optional<std::string> check_figures(const SubmissionFigures& figures, const Limits& limits);
 
-/// Bytes a unit result of a w x h tile takes on the wire (the sums and squared sums, 16 bytes
-/// per value and channel), for comparing with the message size limit.
+/// Most bytes a unit result of a w x h tile can take on the wire (the sums and squared sums, up
+/// to kMaxFixedWireBytes per value and channel), for comparing with the message size limit.
 uint64_t unit_result_bytes(uint64_t tile_width, uint64_t tile_height);
 
 }  // namespace rayfarm::master

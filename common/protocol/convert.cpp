@@ -1,6 +1,8 @@
 #include "common/protocol/convert.h"
 
+#include <bit>
 #include <cmath>
+#include <cstring>
 
 namespace rayfarm::protocol {
 
@@ -109,31 +111,88 @@ TileRect rect_from_wire(const wire::Rect& rect) {
 }
 
 std::string pack_fixed(const std::vector<Fixed>& values) {
-  std::string out(values.size() * kFixedWireBytes, '\0');
-  char* p = out.data();
+  std::string out;
+  out.reserve(values.size() * 8);
   for (const Fixed v : values) {
-    const uint64_t lo = fixed_lo(v);
-    const uint64_t hi = static_cast<uint64_t>(fixed_hi(v));
-    for (int i = 0; i < 8; ++i) p[i] = static_cast<char>((lo >> (8 * i)) & 0xff);
-    for (int i = 0; i < 8; ++i) p[8 + i] = static_cast<char>((hi >> (8 * i)) & 0xff);
-    p += kFixedWireBytes;
+    // Zigzag: the sign into bit 0, so that small negative values stay short too.
+    UFixed z = (static_cast<UFixed>(v) << 1) ^ static_cast<UFixed>(v >> 127);
+    while (z >= 0x80) {
+      out.push_back(static_cast<char>(static_cast<uint8_t>(z & 0x7f) | 0x80));
+      z >>= 7;
+    }
+    out.push_back(static_cast<char>(static_cast<uint8_t>(z)));
   }
   return out;
 }
 
 std::vector<Fixed> unpack_fixed(std::string_view bytes, size_t count) {
-  if (bytes.size() != count * kFixedWireBytes) {
+  // Each value takes at least one byte: a claim of more values than bytes allocates nothing.
+  if (bytes.size() < count || bytes.size() > count * kMaxFixedWireBytes) {
     throw ProtocolError("expected " + std::to_string(count) + " fixed-point values (" +
-                        std::to_string(count * kFixedWireBytes) + " bytes), got " +
+                        std::to_string(count) + " to " +
+                        std::to_string(count * kMaxFixedWireBytes) + " bytes), got " +
                         std::to_string(bytes.size()) + " bytes");
   }
   std::vector<Fixed> out(count);
   const auto* p = reinterpret_cast<const unsigned char*>(bytes.data());
-  for (size_t k = 0; k < count; ++k, p += kFixedWireBytes) {
-    uint64_t lo = 0, hi = 0;
-    for (int i = 0; i < 8; ++i) lo |= uint64_t{p[i]} << (8 * i);
-    for (int i = 0; i < 8; ++i) hi |= uint64_t{p[8 + i]} << (8 * i);
-    out[k] = fixed_from_parts(lo, static_cast<int64_t>(hi));
+  const auto* const end = p + bytes.size();
+  for (size_t k = 0; k < count; ++k) {
+    // Most values take at most 8 bytes (56 bits): read 8 at once, find the last byte by its
+    // clear top bit and squeeze out the flag bits, without a branch per byte.
+    if constexpr (std::endian::native == std::endian::little) {
+      if (end - p >= 8) {
+        uint64_t w;
+        std::memcpy(&w, p, 8);
+        const uint64_t stops = ~w & 0x8080808080808080ull;
+        if (stops != 0) {
+          const int length = (std::countr_zero(stops) >> 3) + 1;  // 1 to 8 bytes
+          uint64_t v =
+              (length == 8 ? w : w & ((uint64_t{1} << (8 * length)) - 1)) & 0x7f7f7f7f7f7f7f7full;
+          v = (v & 0x007f007f007f007full) | ((v & 0x7f007f007f007f00ull) >> 1);
+          v = (v & 0x00003fff00003fffull) | ((v & 0x3fff00003fff0000ull) >> 2);
+          v = (v & 0x000000000fffffffull) | ((v & 0x0fffffff00000000ull) >> 4);
+          p += length;
+          out[k] = static_cast<Fixed>(static_cast<int64_t>((v >> 1) ^ (uint64_t{0} - (v & 1))));
+          continue;
+        }
+      }
+    }
+    // Longer values, or the last few bytes: the first 9 bytes (63 bits) in 64-bit arithmetic, the
+    // rest in 128.
+    uint64_t low = 0;
+    UFixed z = 0;
+    bool done = false;
+    int shift = 0;
+    for (; shift < 63; shift += 7) {
+      if (p == end) break;
+      const unsigned char b = *p++;
+      low |= uint64_t{b & 0x7fu} << shift;
+      if ((b & 0x80) == 0) {
+        done = true;
+        break;
+      }
+    }
+    z = low;
+    if (!done) {
+      for (shift = 63;; shift += 7) {
+        if (p == end) {
+          throw ProtocolError("fixed-point value " + std::to_string(k) + " of " +
+                              std::to_string(count) + " is cut short");
+        }
+        const unsigned char b = *p++;
+        // The 19th byte holds bits 126 and 127 only, and ends the value.
+        if (shift == 126 && b > 0x03) {
+          throw ProtocolError("fixed-point value " + std::to_string(k) + " is wider than 128 bits");
+        }
+        z |= static_cast<UFixed>(b & 0x7f) << shift;
+        if ((b & 0x80) == 0) break;
+      }
+    }
+    out[k] = static_cast<Fixed>((z >> 1) ^ (UFixed{0} - (z & 1)));
+  }
+  if (p != end) {
+    throw ProtocolError(std::to_string(end - p) + " bytes after the " + std::to_string(count) +
+                        " fixed-point values");
   }
   return out;
 }

@@ -21,8 +21,8 @@ class ProtocolError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-/// Bytes per fixed-point value on the wire: low 64 bits then high 64 bits, little-endian.
-inline constexpr size_t kFixedWireBytes = 16;
+/// Most bytes one fixed-point value takes on the wire (pack_fixed): 128 bits, 7 a byte.
+inline constexpr size_t kMaxFixedWireBytes = 19;
 
 wire::Integrator integrator_to_wire(IntegratorType type);
 /// Throws ProtocolError on INTEGRATOR_UNSPECIFIED or an unknown value.
@@ -42,9 +42,17 @@ wire::Rect rect_to_wire(const TileRect& rect);
 /// Throws ProtocolError on an empty rectangle or one wider or taller than 65536 pixels.
 TileRect rect_from_wire(const wire::Rect& rect);
 
-/// Packs fixed-point values, kFixedWireBytes each.
+/// Packs fixed-point values for the wire, each as a variable-length integer: the value's sign
+/// folded into its lowest bit (zigzag: 0, -1, 1, -2 ... become 0, 1, 2, 3 ...), then 7 bits a
+/// byte, least significant first, the top bit of each byte set while more follow (LEB128). A sum
+/// of a few hundred samples of moderate value takes 7 or 8 bytes instead of 16; any value at most
+/// kMaxFixedWireBytes. Exact: unpack_fixed gives back the same bits.
 std::string pack_fixed(const std::vector<Fixed>& values);
-/// Unpacks exactly `count` values; throws ProtocolError when `bytes` has another size.
+/// Unpacks exactly `count` values that take all of `bytes`; throws ProtocolError naming the
+/// fault (too few or too many bytes, a value cut short or wider than 128 bits). Allocates only
+/// once `bytes` could hold `count` values (one byte each at least): up to 16 bytes of values for
+/// each byte read, so a caller that takes `count` from a peer checks it first (the master checks
+/// a result's tile against its unit before decoding).
 std::vector<Fixed> unpack_fixed(std::string_view bytes, size_t count);
 
 /// The wire form of a rendered unit.

@@ -14,6 +14,7 @@ namespace rayfarm::protocol {
 // ignore, rendering other samples than the job's (the image would no longer be the local one).
 // 5: SubmitJob carries a priority and may ask to be held paused, which a version-4 master would
 // ignore, starting a job its submitter asked to hold; ChangeJob pauses, resumes and reprioritises.
+// UnitResult's sums are variable-length integers (pack_fixed) instead of 16 bytes each.
 inline constexpr uint32_t kProtocolVersion = 5;
 
 /// Software version of this build, sent in Hello and Welcome for the logs.

@@ -5,6 +5,7 @@
 
 #include <google/protobuf/descriptor.h>
 
+#include <algorithm>
 #include <limits>
 #include <random>
 #include <set>
@@ -125,6 +126,19 @@ TEST(Codec, WorkUnitAndResultRoundTrip) {
   EXPECT_EQ(s.seed, 42u);
 }
 
+/// The packed size of `values`, counted independently of pack_fixed: 7 bits a byte of the
+/// zigzag form, at least one byte.
+size_t packed_size(const std::vector<Fixed>& values) {
+  size_t bytes = 0;
+  for (const Fixed v : values) {
+    const UFixed z = v < 0 ? (static_cast<UFixed>(-(v + 1)) << 1) | 1 : static_cast<UFixed>(v) << 1;
+    int bits = 0;
+    for (UFixed x = z; x != 0; x >>= 1) ++bits;
+    bytes += std::max(1, (bits + 6) / 7);
+  }
+  return bytes;
+}
+
 TEST(Codec, FixedPointSumsSurviveTheWireBitForBit) {
   TileResult r({0, 0, 3, 2}, {0, 4});
   std::mt19937_64 rng(1);
@@ -140,7 +154,7 @@ TEST(Codec, FixedPointSumsSurviveTheWireBitForBit) {
   const Decoded d = decode(encode(result_to_wire("j0002", 7, r, 0.25)));
   const auto* wire_result = d.as<wire::UnitResult>();
   ASSERT_NE(wire_result, nullptr);
-  EXPECT_EQ(wire_result->sum().size(), r.sum.size() * kFixedWireBytes);
+  EXPECT_EQ(wire_result->sum().size(), packed_size(r.sum));
   const TileResult back = result_from_wire(*wire_result);
   EXPECT_TRUE(back.well_formed());
   EXPECT_EQ(back.rect, r.rect);
@@ -151,12 +165,62 @@ TEST(Codec, FixedPointSumsSurviveTheWireBitForBit) {
   EXPECT_EQ(back.rays, 99u);
 }
 
-TEST(Codec, FixedPointLayoutIsLowThenHighLittleEndian) {
-  const std::string bytes =
-      pack_fixed({fixed_from_parts(0x0807060504030201ull, 0x100f0e0d0c0b0a09ll)});
-  ASSERT_EQ(bytes.size(), 16u);
-  for (int i = 0; i < 16; ++i) EXPECT_EQ(static_cast<unsigned char>(bytes[i]), i + 1) << i;
-  EXPECT_THROW(unpack_fixed(bytes, 2), ProtocolError);
+TEST(Codec, FixedPointValuesAreZigzagVarints) {
+  // 0, -1, 1, -2, 63, -64 fit one byte; 64 takes two (zigzag 128 = 0x80 0x01).
+  EXPECT_EQ(pack_fixed({0, -1, 1, -2, 63, -64}), std::string("\x00\x01\x02\x03\x7e\x7f", 6));
+  EXPECT_EQ(pack_fixed({64}), std::string("\x80\x01", 2));
+  // The extremes take all 19 bytes, the last holding bits 126 and 127.
+  const std::string max = pack_fixed({std::numeric_limits<Fixed>::max()});
+  ASSERT_EQ(max.size(), kMaxFixedWireBytes);
+  EXPECT_EQ(static_cast<unsigned char>(max.back()), 0x03);
+  EXPECT_EQ(pack_fixed({std::numeric_limits<Fixed>::min()}).size(), kMaxFixedWireBytes);
+  // A typical sum: 256 samples of about 0.5 is 2^47, 7 bytes instead of 16.
+  EXPECT_EQ(pack_fixed({to_fixed(128.3)}).size(), 7u);
+}
+
+TEST(Codec, FixedPointValuesOfEveryWidthAndSignComeBackExactly) {
+  // Magnitudes of every width from 0 to 126 bits (and the extremes), both signs, in one run of
+  // bytes (the 8-byte fast path and the byte-by-byte one both read them), then each alone (a value
+  // of 8 bytes or more then has exactly its own bytes left).
+  std::mt19937_64 rng(7);
+  std::vector<Fixed> values;
+  for (int bits = 0; bits < 128; ++bits) {
+    for (int rep = 0; rep < 4; ++rep) {
+      UFixed x = (static_cast<UFixed>(rng()) << 64) | rng();
+      x = bits == 0 ? 0 : (x >> (128 - bits)) | (UFixed{1} << (bits - 1));
+      const Fixed v = static_cast<Fixed>(x >> 1);  // fits a positive Fixed
+      values.push_back(rep % 2 ? -v : v);
+      values.push_back(rep % 2 ? -v - 1 : v + 1);
+    }
+  }
+  values.push_back(std::numeric_limits<Fixed>::min());
+  values.push_back(std::numeric_limits<Fixed>::max());
+  const std::string bytes = pack_fixed(values);
+  EXPECT_EQ(bytes.size(), packed_size(values));
+  EXPECT_TRUE(unpack_fixed(bytes, values.size()) == values);
+  for (const Fixed v : values) {
+    ASSERT_TRUE(unpack_fixed(pack_fixed({v}), 1) == std::vector<Fixed>{v});
+  }
+}
+
+TEST(Codec, MalformedFixedPointBytesAreProtocolErrorsNamingTheFault) {
+  const auto fails_with = [](std::string_view bytes, size_t count, const std::string& words) {
+    try {
+      unpack_fixed(bytes, count);
+      ADD_FAILURE() << "accepted " << bytes.size() << " bytes as " << count << " values";
+    } catch (const ProtocolError& e) {
+      EXPECT_NE(std::string(e.what()).find(words), std::string::npos) << e.what();
+    }
+  };
+  const std::string two = pack_fixed({5, to_fixed(1e6)});
+  EXPECT_EQ(unpack_fixed(two, 2), (std::vector<Fixed>{5, to_fixed(1e6)}));
+  fails_with(two, 3, "cut short");               // the third value is missing
+  fails_with(two + "\x01", 2, "1 bytes after");  // trailing garbage
+  fails_with(two.substr(0, two.size() - 1), 2, "cut short");
+  fails_with(std::string(18, '\xff') + "\x04", 1, "wider than 128 bits");
+  fails_with(std::string(20, '\x00'), 1, "got 20 bytes");  // more than any value takes
+  // A claim of a huge tile with a few bytes allocates nothing.
+  fails_with(std::string_view("\x00", 1), size_t{1} << 40, "got 1 bytes");
 }
 
 TEST(Codec, InconsistentResultsAreProtocolErrors) {

@@ -144,6 +144,13 @@ TEST_F(JobManagerTest, InconsistentResultsAreRejectedAndTheUnitRequeued) {
   bad = result_for(*unit);
   bad.set_sample_end(bad.sample_end() + 1);
   EXPECT_EQ(jobs.on_result("w1", bad), MergeOutcome::kRejected);
+  // A huge tile claimed with a few bytes of sums (a value may pack into one byte) is refused
+  // before its sums are decoded: the master allocates nothing for it.
+  bad = result_for(*unit);
+  bad.mutable_tile()->set_x1(65536);
+  bad.mutable_tile()->set_y1(65536);
+  bad.set_sum(std::string(size_t{1} << 20, '\0'));
+  EXPECT_EQ(jobs.on_result("w1", bad), MergeOutcome::kRejected);
   const auto again = jobs.next_unit("w2");
   ASSERT_TRUE(again);
   EXPECT_EQ(again->unit_id(), unit->unit_id());

@@ -128,7 +128,7 @@ TEST(Limits, EachRefusalNamesTheLimitTheValueAndTheOption) {
 
 TEST(Limits, ATileWhoseResultsWouldNotFitInAMessageIsRefused) {
   Limits limits;
-  limits.max_message_bytes = 1 << 20;  // 1 MiB: about 100x100 pixels of sums
+  limits.max_message_bytes = 1 << 20;  // 1 MiB: about 96x96 pixels of sums at their largest
   wire::SubmitJob request = job(scene(4096, 4096));
   request.mutable_overrides()->set_tile_size(512);
   const auto refusal = check_submission(request, 0, limits);
