@@ -173,30 +173,20 @@ MergeOutcome JobManager::on_result(const WorkerId& worker, const wire::UnitResul
   if (!a.planner.is_released(result.unit_id())) {
     return reject("the unit was never handed out (the job's stopping rules have not released it)");
   }
-  {
-    // The tile sizes the decoding of the sums (packed, a value may take one byte): it must be the
+  TileResult tile;
+  std::string why;
+  try {
+    // The tile sizes the decoding of the sums (a packed value may take one byte): it must be the
     // unit's before anything is decoded, or a small message claiming a huge tile would make the
     // master allocate many times its size.
-    const UnitGrid::Unit expected = a.grid().unit(result.unit_id());
-    const wire::Rect& r = result.tile();
-    if (r.x0() != expected.rect.x0 || r.y0() != expected.rect.y0 || r.x1() != expected.rect.x1 ||
-        r.y1() != expected.rect.y1 || result.sample_begin() != expected.samples.begin ||
-        result.sample_end() != expected.samples.end) {
-      return reject(fmt::format(
-          "unit {} is tile [{},{})x[{},{}), samples [{},{}); the result claims [{},{})x[{},{}), "
-          "samples [{},{})",
-          result.unit_id(), expected.rect.x0, expected.rect.x1, expected.rect.y0, expected.rect.y1,
-          expected.samples.begin, expected.samples.end, r.x0(), r.x1(), r.y0(), r.y1(),
-          result.sample_begin(), result.sample_end()));
+    if (!a.merger.covers(result.unit_id(), protocol::rect_from_wire(result.tile()),
+                         SampleRange{result.sample_begin(), result.sample_end()}, &why)) {
+      return reject(why);
     }
-  }
-  TileResult tile;
-  try {
     tile = protocol::result_from_wire(result);
   } catch (const protocol::ProtocolError& e) {
     return reject(e.what());
   }
-  std::string why;
   const MergeOutcome outcome = a.merger.add(result.unit_id(), tile, &why);
   if (outcome == MergeOutcome::kRejected) return reject(why);
   if (outcome == MergeOutcome::kDuplicate) return outcome;  // checked above; kept for clarity

@@ -20,22 +20,31 @@ Merger::Merger(UnitGrid grid)
       merged_(grid_),
       tile_spp_(grid_.tile_count(), 0) {}
 
+bool Merger::covers(uint64_t unit, const TileRect& rect, const SampleRange& samples,
+                    std::string* why) const {
+  std::string reason;
+  if (unit >= grid_.size()) {
+    reason = "unit " + std::to_string(unit) + " does not exist (the job has " +
+             std::to_string(grid_.size()) + " units)";
+  } else if (const UnitGrid::Unit expected = grid_.unit(unit);
+             !(rect == expected.rect) || !(samples == expected.samples)) {
+    reason = "unit " + std::to_string(unit) + " is " + describe(expected.rect, expected.samples) +
+             ", the result covers " + describe(rect, samples);
+  } else {
+    return true;
+  }
+  if (why) *why = reason;
+  return false;
+}
+
 MergeOutcome Merger::add(uint64_t unit, const TileResult& result, std::string* why) {
   auto reject = [&](const std::string& reason) {
     if (why) *why = reason;
     return MergeOutcome::kRejected;
   };
-  if (unit >= grid_.size()) {
-    return reject("unit " + std::to_string(unit) + " does not exist (the job has " +
-                  std::to_string(grid_.size()) + " units)");
-  }
-  if (merged_.contains(unit)) return MergeOutcome::kDuplicate;
+  if (unit < grid_.size() && merged_.contains(unit)) return MergeOutcome::kDuplicate;
+  if (!covers(unit, result.rect, result.samples, why)) return MergeOutcome::kRejected;
   const UnitGrid::Unit expected = grid_.unit(unit);
-  if (!(result.rect == expected.rect) || !(result.samples == expected.samples)) {
-    return reject("unit " + std::to_string(unit) + " is " +
-                  describe(expected.rect, expected.samples) + ", the result covers " +
-                  describe(result.rect, result.samples));
-  }
   if (!result.well_formed() || !film_.fits(result)) {
     return reject("unit " + std::to_string(unit) + ": malformed sums (" +
                   std::to_string(result.sum.size()) + " and " +

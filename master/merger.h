@@ -25,6 +25,11 @@ class Merger {
  public:
   explicit Merger(UnitGrid grid);
 
+  /// Whether `rect` and `samples` are exactly unit `unit`'s (an existing one); when not, `why`
+  /// (when given) names the mismatch. A result's tile sizes the decoding of its sums, so the
+  /// master checks it with this before decoding; add() checks it again.
+  bool covers(uint64_t unit, const TileRect& rect, const SampleRange& samples,
+              std::string* why = nullptr) const;
   /// Merges `result` as unit `unit`. On kRejected, `why` (when given) names the mismatch.
   MergeOutcome add(uint64_t unit, const TileResult& result, std::string* why = nullptr);
 

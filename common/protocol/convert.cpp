@@ -157,36 +157,20 @@ std::vector<Fixed> unpack_fixed(std::string_view bytes, size_t count) {
         }
       }
     }
-    // Longer values, or the last few bytes: the first 9 bytes (63 bits) in 64-bit arithmetic, the
-    // rest in 128.
-    uint64_t low = 0;
+    // Longer values, or the last few bytes: a byte at a time.
     UFixed z = 0;
-    bool done = false;
-    int shift = 0;
-    for (; shift < 63; shift += 7) {
-      if (p == end) break;
+    for (int shift = 0;; shift += 7) {
+      if (p == end) {
+        throw ProtocolError("fixed-point value " + std::to_string(k) + " of " +
+                            std::to_string(count) + " is cut short");
+      }
       const unsigned char b = *p++;
-      low |= uint64_t{b & 0x7fu} << shift;
-      if ((b & 0x80) == 0) {
-        done = true;
-        break;
+      // The 19th byte holds bits 126 and 127 only, and ends the value.
+      if (shift == 126 && b > 0x03) {
+        throw ProtocolError("fixed-point value " + std::to_string(k) + " is wider than 128 bits");
       }
-    }
-    z = low;
-    if (!done) {
-      for (shift = 63;; shift += 7) {
-        if (p == end) {
-          throw ProtocolError("fixed-point value " + std::to_string(k) + " of " +
-                              std::to_string(count) + " is cut short");
-        }
-        const unsigned char b = *p++;
-        // The 19th byte holds bits 126 and 127 only, and ends the value.
-        if (shift == 126 && b > 0x03) {
-          throw ProtocolError("fixed-point value " + std::to_string(k) + " is wider than 128 bits");
-        }
-        z |= static_cast<UFixed>(b & 0x7f) << shift;
-        if ((b & 0x80) == 0) break;
-      }
+      z |= static_cast<UFixed>(b & 0x7f) << shift;
+      if ((b & 0x80) == 0) break;
     }
     out[k] = static_cast<Fixed>((z >> 1) ^ (UFixed{0} - (z & 1)));
   }

@@ -48,13 +48,7 @@ class CliTest : public FarmFixture {
  protected:
   void SetUp() override {
     FarmFixture::SetUp();
-    net::write_key_pair(keys(), "master", net::generate_key_pair());
-    for (const auto& [name, list] : {std::pair<std::string, std::string>{"cli", "clients"},
-                                     {"w1", "workers"}}) {
-      net::write_key_pair(keys() / "own", name, net::generate_key_pair());
-      fs::create_directories(keys() / list);
-      fs::copy_file(keys() / "own" / (name + ".key"), keys() / list / (name + ".key"));
-    }
+    make_keys(keys(), {{"cli", "clients"}, {"w1", "workers"}});
     client_keys_ = net::read_key_pair(keys() / "own" / "cli.key_secret");
     master_public_ = net::read_key_pair(keys() / "master.key_secret").public_key;
   }

@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common/image/exr.h"
+#include "common/net/keys.h"
 #include "common/net/socket.h"
 #include "common/protocol/codec.h"
 #include "common/protocol/convert.h"
@@ -44,6 +45,19 @@ inline bool has_line(const std::string& text, const std::string& first, const st
     start = end + 1;
   }
   return false;
+}
+
+/// CURVE keys for a test farm in `keys`: the master's pair (master.key, master.key_secret), each
+/// peer's pair in own/ (NAME.key, NAME.key_secret), and each peer's public key in the allow-list
+/// folder named beside it ("clients" or "workers").
+inline void make_keys(const fs::path& keys,
+                      const std::vector<std::pair<std::string, std::string>>& peers) {
+  net::write_key_pair(keys, "master", net::generate_key_pair());
+  for (const auto& [name, list] : peers) {
+    net::write_key_pair(keys / "own", name, net::generate_key_pair());
+    fs::create_directories(keys / list);
+    fs::copy_file(keys / "own" / (name + ".key"), keys / list / (name + ".key"));
+  }
 }
 
 /// Two images hold the same float bits in the same layout, and some light.

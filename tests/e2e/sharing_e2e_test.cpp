@@ -17,14 +17,7 @@ class SharingTest : public FarmFixture {
  protected:
   void SetUp() override {
     FarmFixture::SetUp();
-    net::write_key_pair(keys(), "master", net::generate_key_pair());
-    for (const auto& [name, list] : {std::pair<std::string, std::string>{"admin", "clients"},
-                                     {"bob", "clients"},
-                                     {"w1", "workers"}}) {
-      net::write_key_pair(keys() / "own", name, net::generate_key_pair());
-      fs::create_directories(keys() / list);
-      fs::copy_file(keys() / "own" / (name + ".key"), keys() / list / (name + ".key"));
-    }
+    make_keys(keys(), {{"admin", "clients"}, {"bob", "clients"}, {"w1", "workers"}});
     admin_keys_ = net::read_key_pair(keys() / "own" / "admin.key_secret");
     master_public_ = net::read_key_pair(keys() / "master.key_secret").public_key;
   }

@@ -244,7 +244,7 @@ TEST(Scheduler, ABlockedWorkerGetsOnlyOtherJobsUnits) {
 
 using namespace std::chrono_literals;
 
-/// Units 0-2 of `job` leased at t0 and done by w1 at t0 + 1 s: a median of 1 s.
+/// Three units leased by w1 at t0 and done at t0 + 1 s: their job's median becomes 1 s.
 void three_units_of_one_second(Scheduler& s, Scheduler::Clock::time_point t0) {
   for (int i = 0; i < 3; ++i) {
     const auto u = s.lease("w1", t0);
