@@ -74,6 +74,7 @@ nlohmann::json status_json(const wire::JobStatus& st) {
       {"state", protocol::job_state_name(st.state())},
       {"paused", st.paused()},
       {"priority", st.priority()},
+      {"frame", st.has_frame() ? nlohmann::json(st.frame()) : nlohmann::json(nullptr)},
       {"storage_error",
        st.storage_error().empty() ? nlohmann::json(nullptr) : nlohmann::json(st.storage_error())},
       {"error", st.error().empty() ? nlohmann::json(nullptr) : nlohmann::json(st.error())},
@@ -143,6 +144,7 @@ std::string progress_line(const wire::JobStatus& st) {
 
 void print_status(const wire::JobStatus& st) {
   std::cout << fmt::format("job        {} ({})\n", st.job_id(), st.name());
+  if (st.has_frame()) std::cout << fmt::format("frame      {}\n", st.frame());
   std::cout << fmt::format(
       "state      {}{}\n", state_label(st),
       finished(st.state()) ? std::string() : fmt::format(", priority {}", st.priority()));

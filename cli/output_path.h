@@ -6,6 +6,8 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cstdint>
+#include <cstdio>
 #include <filesystem>
 #include <stdexcept>
 #include <string>
@@ -50,6 +52,42 @@ inline OutputFormat check_output_path(const std::filesystem::path& path) {
     throw std::invalid_argument("output " + path.string() + " is a folder");
   }
   return format;
+}
+
+/// The image of frame `frame` of a sequence rendered to `path`: a run of '#' in the file name
+/// becomes the frame number padded with zeros to its length ("shot.####.exr" -> "shot.0012.exr"),
+/// as does a printf "%d" or "%0Nd"; a name with neither gets ".NNNN" before its extension
+/// ("out.exr" -> "out.0012.exr").
+inline std::filesystem::path frame_output_path(const std::filesystem::path& path, int64_t frame) {
+  const auto padded = [frame](size_t width) {
+    char digits[32];
+    std::snprintf(digits, sizeof digits, "%0*lld", int(std::min<size_t>(width, 12)),
+                  static_cast<long long>(frame));
+    return std::string(digits);
+  };
+  std::string name = path.filename().string();
+  if (const size_t hash = name.find('#'); hash != std::string::npos) {
+    size_t end = hash;
+    while (end < name.size() && name[end] == '#') ++end;
+    name.replace(hash, end - hash, padded(end - hash));
+  } else if (const size_t pct = name.find('%'); pct != std::string::npos) {
+    size_t at = pct + 1, width = 0;
+    while (at < name.size() && std::isdigit(static_cast<unsigned char>(name[at])) != 0) {
+      width = width * 10 + size_t(name[at] - '0');
+      if (width > 12) width = 12;
+      ++at;
+    }
+    if (at < name.size() && name[at] == 'd') {
+      name.replace(pct, at + 1 - pct, padded(width));
+    } else {
+      throw std::invalid_argument("output " + path.string() +
+                                  ": a '%' in the name must be a frame number, %d or %04d");
+    }
+  } else {
+    const std::string ext = path.extension().string();
+    name = name.substr(0, name.size() - ext.size()) + "." + padded(4) + ext;
+  }
+  return path.parent_path() / name;
 }
 
 }  // namespace rayfarm::cli

@@ -18,6 +18,7 @@
 #include "common/limits.h"
 #include "common/protocol/version.h"
 #include "common/report/error_tracker.h"
+#include "common/scene/animation.h"
 #include "common/scene/parser.h"
 #include "common/util/log.h"
 #include "worker/renderer.h"
@@ -36,6 +37,8 @@ struct RenderArgs {
   uint32_t threads = 0;
   StopArgs stop;
   FilmArgs film;
+  std::optional<int64_t> frame;       // --frame N
+  std::optional<std::string> frames;  // --frames A-B[:STEP]
 };
 
 /// "out.exr" -> "out.error.csv" and "out.error.png": the error record beside the image.
@@ -78,11 +81,12 @@ class ProgressReporter {
   std::string error_ = "relMSE unknown";
 };
 
-int run_render(const RenderArgs& args) {
+/// Renders the scene (at `frame` when given) to `output`, whose format is checked.
+void render_one(const RenderArgs& args, std::optional<int64_t> frame,
+                const std::filesystem::path& output_path, OutputFormat format) {
   auto log = get_logger("render");
-  const OutputFormat format = check_output_path(args.output);  // before any work
-  log->info("{}", protocol::kBuildVersion);
-  Scene scene = args.source.load(SceneImages::kKeep);
+  const std::string output = output_path.string();
+  Scene scene = args.source.load(SceneImages::kKeep, frame);
   for (const std::string& w : scene.warnings) log->warn("{}", w);
   if (args.film.given()) check_uncropped(scene);
   if (const auto film = args.film.resolve(scene.film)) scene.film = *film;
@@ -109,7 +113,8 @@ int run_render(const RenderArgs& args) {
 
   Renderer renderer(scene, settings);
   drop_images(scene);  // the renderer holds its own texels
-  log->info("{}: {}x{}, {} spp, seed {}; {}", args.source.scene, scene.film.width,
+  log->info("{}{}: {}x{}, {} spp, seed {}; {}", args.source.scene,
+            scene.frame ? fmt::format(" frame {}", *scene.frame) : "", scene.film.width,
             scene.film.height, settings.spp, settings.seed, renderer.plan());
   if (options.stop.target_error > 0 || options.stop.time_limit_s > 0) {
     log->info("stopping rules: {} spp{}{}", settings.spp,
@@ -160,16 +165,17 @@ int run_render(const RenderArgs& args) {
       {"rayfarm:stop", stop_reason_name(final_progress.reason)},
       {"rayfarm:est_rel_mse", fmt::format("{:.6g}", last.est_rel_mse)}};
   if (settings.clamp > 0) attributes["rayfarm:clamp"] = fmt::format("{:g}", settings.clamp);
-  std::string wrote = args.output;
+  if (scene.frame) attributes["rayfarm:frame"] = std::to_string(*scene.frame);
+  std::string wrote = output;
   if (format == OutputFormat::kExr) {
-    write_film(args.output, film, attributes);
-    wrote += " and " + preview_path(args.output).string();
+    write_film(output, film, attributes);
+    wrote += " and " + preview_path(output).string();
   } else {
-    write_png_preview(args.output, film_to_image(film, attributes));
+    write_png_preview(output, film_to_image(film, attributes));
   }
-  write_error_csv(error_csv_path(args.output), rows);
+  write_error_csv(error_csv_path(output), rows);
   write_error_plot(
-      error_plot_path(args.output), rows,
+      error_plot_path(output), rows,
       fmt::format("{} ({}, {})", std::filesystem::path(args.source.scene).filename().string(),
                   integrator_name(settings.integrator),
                   tracker.has_reference() ? "estimated and measured" : "estimated"));
@@ -177,8 +183,7 @@ int run_render(const RenderArgs& args) {
   const double samples = static_cast<double>(film.pixel_samples());
   const double spp_mean = samples / (double(scene.film.width) * scene.film.height);
   std::cout << fmt::format("wrote {}; error record {} and {}\n", wrote,
-                           error_csv_path(args.output).string(),
-                           error_plot_path(args.output).string());
+                           error_csv_path(output).string(), error_plot_path(output).string());
   std::cout << fmt::format("time {:.3f} s, {:.3f} Msamples/s, {:.3f} Mrays/s, {:.2f} spp/s at {}x{}\n",
                            seconds, samples / seconds * 1e-6, double(film.rays()) / seconds * 1e-6,
                            spp_mean / seconds, scene.film.width, scene.film.height);
@@ -201,6 +206,50 @@ int run_render(const RenderArgs& args) {
   if (film.nonfinite() > 0) {
     log->warn("{} samples were NaN, infinite or out of range and were dropped", film.nonfinite());
   }
+}
+
+int run_render(const RenderArgs& args) {
+  const OutputFormat format = check_output_path(args.output);  // before any work
+  get_logger("render")->info("{}", protocol::kBuildVersion);
+  if (!args.frames) {
+    // One image: a '#' or '%d' in the name takes the frame number.
+    const bool pattern = args.frame && (args.output.find('#') != std::string::npos ||
+                                        args.output.find('%') != std::string::npos);
+    render_one(
+        args, args.frame,
+        pattern ? frame_output_path(args.output, *args.frame) : std::filesystem::path(args.output),
+        format);
+    return 0;
+  }
+  // A sequence: every check before the first frame renders.
+  std::string why;
+  const auto frames = parse_frame_list(*args.frames, &why);
+  if (!frames) throw std::invalid_argument("--frames: " + why);
+  (void)frame_output_path(args.output, frames->first);  // a malformed '%' is refused now
+  if (args.stop.reference) {
+    throw std::invalid_argument(
+        "--reference is one image; it cannot measure a sequence (render a frame with --frame N "
+        "and its reference)");
+  }
+  const std::optional<FrameRange> animation = load_scene_animation(args.source.scene);
+  if (!animation) {
+    throw std::invalid_argument("--frames " + *args.frames + ": " + args.source.scene +
+                                " is a still scene (it has no \"animation\" block)");
+  }
+  if (!animation->contains(frames->first) || !animation->contains(frames->last)) {
+    throw std::invalid_argument(
+        fmt::format("--frames {}: beyond the scene's animation, frames {}-{}", *args.frames,
+                    animation->first, animation->last));
+  }
+  const auto start = std::chrono::steady_clock::now();
+  for (int64_t i = 0; i < frames->count(); ++i) {
+    const int64_t frame = frames->at(i);
+    std::cout << fmt::format("frame {} ({} of {})\n", frame, i + 1, frames->count());
+    render_one(args, frame, frame_output_path(args.output, frame), format);
+  }
+  std::cout << fmt::format(
+      "rendered {} frames ({}) in {:.3f} s\n", frames->count(), frame_list_name(*frames),
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
   return 0;
 }
 
@@ -230,6 +279,14 @@ void add_render_command(CLI::App& app, int& exit_code) {
   cmd->add_option("--pass-spp", args->pass_spp, "Samples per pass (default: automatic); does not change the image");
   add_film_options(cmd, args->film);
   add_stop_options(cmd, args->stop, "Reference EXR: the error against it is measured at every pass");
+  CLI::Option* frame =
+      cmd->add_option("--frame", args->frame,
+                      "Animated scenes: the frame to render (default: the first); a '#' run or "
+                      "%04d in the output's name takes its number");
+  cmd->add_option("--frames", args->frames,
+                  "Animated scenes: frames A-B[:STEP], one image each; the output's '#' run or "
+                  "%04d takes the frame number (default: .NNNN before the extension)")
+      ->excludes(frame);
   cmd->callback([args, &exit_code] {
     try {
       exit_code = run_render(*args);

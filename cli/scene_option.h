@@ -1,7 +1,9 @@
 #pragma once
 // --camera, --scene-root and -D: how `rayfarm render` and `rayfarm submit` read a scene file
 // (docs/gltf.md for cameras, docs/mitsuba.md for Mitsuba XML's root and $name parameters).
+#include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -51,12 +53,16 @@ struct SceneArgs {
       throw std::invalid_argument("--scene-root and -D apply to Mitsuba XML scenes (.xml)");
   }
 
-  Scene load(SceneImages images) const {
+  /// The scene at `frame` (an animated scene's first when nullopt). A frame of a still scene, or
+  /// one outside an animated scene's frames, is a SceneError naming the scene.
+  Scene load(SceneImages images, std::optional<int64_t> at = std::nullopt) const {
     check();
-    if (is_mitsuba_path(scene)) return load_mitsuba_scene(scene, {}, images, root, parameters());
+    if (is_mitsuba_path(scene) && !at) {
+      return load_mitsuba_scene(scene, {}, images, root, parameters());
+    }
     GltfOptions gltf;
     gltf.camera = camera;
-    return load_scene(scene, {}, images, gltf);
+    return load_scene(scene, {}, images, gltf, {}, at);
   }
 
   PackedScene pack() const {

@@ -105,6 +105,7 @@ struct SubmitArgs {
   std::string output;
   StopArgs stop;
   FilmArgs film;
+  std::optional<int64_t> frame;
 };
 
 int run_submit(const SubmitArgs& args) {
@@ -121,8 +122,10 @@ int run_submit(const SubmitArgs& args) {
   // Default name: the scene's folder and file, e.g. "cornell-box/scene.json".
   const fs::path scene_file(args.source.scene);
   const fs::path folder = fs::absolute(scene_file).parent_path().filename();
-  request.set_name(!args.name.empty() ? args.name
-                                      : (folder / scene_file.filename()).generic_string());
+  std::string name = (folder / scene_file.filename()).generic_string();
+  if (args.frame) name += fmt::format(" frame {}", *args.frame);
+  request.set_name(!args.name.empty() ? args.name : name);
+  if (args.frame) request.set_frame(*args.frame);
   request.set_priority(args.priority);
   request.set_paused(args.paused);
   wire::JobOverrides* o = request.mutable_overrides();
@@ -140,7 +143,7 @@ int run_submit(const SubmitArgs& args) {
   if (args.pass_spp) o->set_pass_spp(*args.pass_spp);
   o->set_clamp(args.clamp);
   if (args.film.given()) {
-    const Scene scene = args.source.load(SceneImages::kCheckOnly);
+    const Scene scene = args.source.load(SceneImages::kCheckOnly, args.frame);
     check_uncropped(scene);
     const auto film = args.film.resolve(scene.film);
     o->set_width(film->width);
@@ -219,6 +222,8 @@ void add_submit(CLI::App& app, int& exit_code) {
       cmd, args->stop,
       "Reference EXR sent with the job: the error against it is measured at every pass");
   cmd->add_option("--name", args->name, "Job name (default: the scene file's name)");
+  cmd->add_option("--frame", args->frame,
+                  "Animated scenes: the frame to render (default: the scene's first)");
   cmd->add_option("--priority", args->priority,
                   "Higher runs first, from " + std::to_string(kMinPriority) + " to " +
                       std::to_string(kMaxPriority) +

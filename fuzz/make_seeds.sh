@@ -16,7 +16,7 @@ fi
 rm -rf "$c" && mkdir -p "$c"/{scene,obj,ply,wire,bundle,image,gltf}
 
 # Scenes: the bundled ones, one with a mesh and every shape and material, and broken ones.
-for s in cornell-box phong furnace; do cp "$root/scenes/$s/scene.json" "$c/scene/$s.json"; done
+for s in cornell-box phong furnace animated-box; do cp "$root/scenes/$s/scene.json" "$c/scene/$s.json"; done
 cat > "$c/scene/everything.json" <<'JSON'
 {"format": 1,
  "camera": {"type": "perspective", "eye": [0, 1, -4], "look_at": [0, 1, 0], "up": [0, 1, 0],

@@ -119,7 +119,10 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
   try {
     const fs::path dir = unpack_bundle(bundle, scratch, hash);
     try {
-      scene = load_scene(dir / request.scene_path(), check, SceneImages::kCheckOnly, {}, dir);
+      const std::optional<int64_t> frame =
+          request.has_frame() ? std::optional<int64_t>(request.frame()) : std::nullopt;
+      scene =
+          load_scene(dir / request.scene_path(), check, SceneImages::kCheckOnly, {}, dir, frame);
     } catch (const std::exception& e) {
       throw JobRejected(replace_all(e.what(), dir.string() + "/", ""));
     }
@@ -147,6 +150,7 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
       protocol::printable(request.name().empty() ? request.scene_path() : request.name(), 128);
   spec.bundle_hash = hash;
   spec.scene_path = request.scene_path();
+  spec.frame = scene.frame;  // an animated scene's first frame when none was asked for
   spec.film = scene.film;
   spec.settings = scene.render;
   const wire::JobOverrides& o = request.overrides();

@@ -37,6 +37,7 @@ wire::JobStatus JobManager::make_status(const Job& job, uint32_t workers_total) 
   st.set_job_id(s.id);
   st.set_name(s.name);
   st.set_owner(s.owner);
+  if (s.frame) st.set_frame(*s.frame);
   st.set_state(job.record.state);
   if (job.record.unreadable) {  // only its id and what is wrong are known
     st.set_error(job.record.error);

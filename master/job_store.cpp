@@ -88,7 +88,8 @@ json to_json(const JobRecord& r) {
               {"spp_mean", finite_or(r.spp_mean, 0.0)},
               {"tiles_converged", r.tiles_converged},
               {"est_rel_mse", finite_or(r.est_rel_mse, -1.0)},
-              {"ref_rel_mse", finite_or(r.ref_rel_mse, -1.0)}};
+              {"ref_rel_mse", finite_or(r.ref_rel_mse, -1.0)},
+              {"frame", s.frame ? json(*s.frame) : json(nullptr)}};
 }
 
 JobRecord from_json(const json& j) {
@@ -132,6 +133,15 @@ JobRecord from_json(const json& j) {
   s.has_reference = j.value("has_reference", false);
   s.submitted_unix_ms = j.at("submitted_unix_ms").get<int64_t>();
   s.owner = j.value("owner", "");
+  // Records from before animation have no frame: a still.
+  if (const auto f = j.find("frame"); f != j.end() && !f->is_null()) {
+    if (!f->is_number_integer()) throw std::runtime_error("frame is not an integer");
+    const bool in_range = f->is_number_unsigned() ? f->get<uint64_t>() <= uint64_t(kMaxFrameNumber)
+                                                  : f->get<int64_t>() >= -kMaxFrameNumber &&
+                                                        f->get<int64_t>() <= kMaxFrameNumber;
+    if (!in_range) throw std::runtime_error("frame out of range");
+    s.frame = f->get<int64_t>();
+  }
   const std::string state = j.at("state").get<std::string>();
   r.state = state_from_key(state);
   if (r.state == wire::JOB_STATE_UNSPECIFIED) throw std::runtime_error("unknown state \"" + state + "\"");

@@ -31,6 +31,9 @@ struct JobSpec {
   std::string name;
   std::string bundle_hash;
   std::string scene_path;  ///< the scene file inside the bundle
+  /// The frame of an animated scene the job renders; nullopt for a still scene. An animated
+  /// scene submitted without a frame renders its first, named here.
+  std::optional<int64_t> frame;
   RenderSettings settings;
   FilmSize film;
   uint32_t tile_size = kDefaultTileSize;

@@ -22,7 +22,8 @@ double seconds_since(Clock::time_point t) {
 std::string unit_key(const wire::WorkUnit& unit) {
   return unit.job_id() + '\0' + unit.bundle_hash() + '\0' + unit.scene_path() + '\0' +
          unit.settings().SerializeAsString() + '\0' + std::to_string(unit.film_width()) + 'x' +
-         std::to_string(unit.film_height());
+         std::to_string(unit.film_height()) + '\0' +
+         (unit.has_frame() ? std::to_string(unit.frame()) : std::string("still"));
 }
 
 }  // namespace
@@ -120,8 +121,10 @@ std::shared_ptr<const UnitRunner::Prepared> UnitRunner::prepare(const wire::Work
   p->key = key;
   p->job_id = unit.job_id();
   const std::filesystem::path bundle = cache_dir_ / unit.bundle_hash();
+  const std::optional<int64_t> frame =
+      unit.has_frame() ? std::optional<int64_t>(unit.frame()) : std::nullopt;
   p->scene = std::make_unique<Scene>(
-      load_scene(bundle / unit.scene_path(), {}, SceneImages::kKeep, {}, bundle));
+      load_scene(bundle / unit.scene_path(), {}, SceneImages::kKeep, {}, bundle, frame));
   if (unit.film_width() != 0 && unit.film_height() != 0) {  // the job's film
     p->scene->film = {unit.film_width(), unit.film_height()};
   }
@@ -129,9 +132,10 @@ std::shared_ptr<const UnitRunner::Prepared> UnitRunner::prepare(const wire::Work
   arena_.execute([&] { p->renderer = std::make_unique<Renderer>(*p->scene, settings); });
   drop_images(*p->scene);  // the renderer holds its own texels
   log()->info(
-      "job {}: {} {}x{}, {} spp, {}, seed {}; renderer ready in {:.2f} s ({} threads, {} units "
+      "job {}: {}{} {}x{}, {} spp, {}, seed {}; renderer ready in {:.2f} s ({} threads, {} units "
       "at once): {}",
-      unit.job_id(), unit.scene_path(), p->scene->film.width, p->scene->film.height, settings.spp,
+      unit.job_id(), unit.scene_path(), frame ? fmt::format(" frame {}", *frame) : "",
+      p->scene->film.width, p->scene->film.height, settings.spp,
       integrator_name(settings.integrator), settings.seed, seconds_since(start), threads(),
       capacity_, p->renderer->plan());
   std::lock_guard lock(mutex_);

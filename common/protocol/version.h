@@ -15,7 +15,9 @@ namespace rayfarm::protocol {
 // 5: SubmitJob carries a priority and may ask to be held paused, which a version-4 master would
 // ignore, starting a job its submitter asked to hold; ChangeJob pauses, resumes and reprioritises.
 // UnitResult's sums are variable-length integers (pack_fixed) instead of 16 bytes each.
-inline constexpr uint32_t kProtocolVersion = 5;
+// 6: WorkUnit carries the frame of an animated scene, which a version-5 worker would ignore,
+// rendering the first frame instead.
+inline constexpr uint32_t kProtocolVersion = 6;
 
 /// Software version of this build, sent in Hello and Welcome for the logs.
 inline constexpr const char* kBuildVersion = "rayfarm 0.2.0";

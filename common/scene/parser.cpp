@@ -10,6 +10,7 @@
 
 #include "common/limits.h"
 #include "common/math/wide.h"
+#include "common/scene/animation.h"
 #include "common/scene/instances.h"
 #include "common/scene/json_reader.h"
 #include "common/scene/light_reader.h"
@@ -48,7 +49,7 @@ class SceneReader {
 
   void read(const Node& root) {
     root.allow_keys({"format", "gltf", "camera", "film", "textures", "materials", "groups",
-                     "shapes", "lights", "background", "render"});
+                     "shapes", "lights", "background", "render", "animation"});
     if (auto n = root.find("format")) read_format(*n);
     // The film and the render settings first: the caller's limits on them come before the rest.
     // A scene built on a glTF file may leave the film to the glTF camera's aspect ratio.
@@ -458,17 +459,35 @@ Scene load_gltf_scene(const fs::path& file, const SceneCheck& check, SceneImages
 }  // namespace
 
 Scene load_scene(const fs::path& file, const SceneCheck& check, SceneImages images,
-                 const GltfOptions& gltf, const fs::path& scene_root) {
-  if (is_gltf_path(file)) return load_gltf_scene(file, check, images, gltf);
-  if (is_mitsuba_path(file)) return load_mitsuba_scene(file, check, images, scene_root);
+                 const GltfOptions& gltf, const fs::path& scene_root,
+                 std::optional<int64_t> frame) {
   const std::string name = file.string();
-  const Json root = parse_json(read_text_file(file, kMaxSceneFileBytes, name), name);
+  if (is_gltf_path(file) || is_mitsuba_path(file)) {
+    check_frame(name, std::nullopt, frame);
+    if (is_gltf_path(file)) return load_gltf_scene(file, check, images, gltf);
+    return load_mitsuba_scene(file, check, images, scene_root);
+  }
+  const Json parsed = parse_json(read_text_file(file, kMaxSceneFileBytes, name), name);
   Scene scene;
   scene.source = file;
   const Context context{name, &scene.warnings};
-  const Node top(root, context, "");
-  top.object();
-  SceneReader(&scene, context, file.parent_path(), check, images).read(top);
+  const Node parsed_top(parsed, context, "");
+  parsed_top.object();
+  scene.animation = read_animation(parsed_top);
+  check_frame(name, scene.animation, frame);
+  if (scene.animation) scene.frame = frame ? *frame : scene.animation->first;
+  const std::optional<Json> resolved =
+      resolve_keyframes(parsed_top, scene.animation, double(scene.frame.value_or(0)));
+  const Node top(resolved ? *resolved : parsed, context, "");
+  try {
+    SceneReader(&scene, context, file.parent_path(), check, images).read(top);
+  } catch (const SceneRefused&) {
+    throw;
+  } catch (const SceneError& e) {
+    if (!resolved) throw;
+    // A keyframed value may be wrong at this frame alone: say which.
+    throw SceneError("frame " + std::to_string(*scene.frame) + " of " + e.what());
+  }
   return scene;
 }
 

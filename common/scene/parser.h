@@ -16,11 +16,14 @@ namespace rayfarm {
 /// texture image (kept, or dropped once checked: `images`). A ".gltf" or ".glb" file is read as
 /// glTF 2.0 (docs/gltf.md), through the camera `gltf` names; a JSON scene names its glTF file
 /// itself. A ".xml" file is read as a Mitsuba 3 scene (docs/mitsuba.md), which may read files
-/// anywhere under `root` (empty: its own folder). Throws SceneError (SceneRefused when `check`
+/// anywhere under `root` (empty: its own folder). An animated JSON scene (common/scene/animation.h)
+/// is read at `frame`, by default its first; asking a still scene for a frame, or an animated one
+/// for a frame outside its range, is a SceneError. Throws SceneError (SceneRefused when `check`
 /// refuses it).
 Scene load_scene(const std::filesystem::path& file, const SceneCheck& check = {},
                  SceneImages images = SceneImages::kKeep, const GltfOptions& gltf = {},
-                 const std::filesystem::path& root = {});
+                 const std::filesystem::path& root = {},
+                 std::optional<int64_t> frame = std::nullopt);
 
 /// Film of a glTF file rendered directly: 540 rows, as wide as its camera's aspect ratio says
 /// (16:9 when it says none).

@@ -13,6 +13,7 @@
 #include "common/math/vec2.h"
 #include "common/math/vec3.h"
 #include "common/math/vec4.h"
+#include "common/scene/frames.h"
 #include "common/scene/textures.h"
 
 namespace rayfarm {
@@ -369,6 +370,10 @@ struct Scene {
   std::optional<EnvironmentMap> environment;  ///< at most one per scene
   Vec3 background{0.f};  ///< radiance of rays that escape
   RenderSettings render;
+  /// An animated scene's frames (its "animation" block), and the frame this Scene is of; both
+  /// nullopt for a still scene.
+  std::optional<FrameRange> animation;
+  std::optional<int64_t> frame;
 
   std::filesystem::path source;                      ///< the scene file
   std::vector<std::filesystem::path> referenced;     ///< files it uses, relative to its folder

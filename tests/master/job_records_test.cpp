@@ -98,6 +98,7 @@ TEST(JobStoreRecords, EveryStateAndNonFiniteFiguresSurviveASaveAndALoad) {
     r.error = i == 3 ? "unit 0 failed" : "";
     r.priority = static_cast<int32_t>(i % 2 ? -100 + i : 100 - i);
     r.paused = i % 2 == 1;
+    if (i % 2 == 0) r.spec.frame = int64_t(i) * 7 - 10;  // negative frames too
     store.save_record(r);
     saved[r.spec.id] = r;
   }
@@ -112,6 +113,7 @@ TEST(JobStoreRecords, EveryStateAndNonFiniteFiguresSurviveASaveAndALoad) {
     EXPECT_EQ(r.stop_reason, s.stop_reason);
     EXPECT_EQ(r.passes_done, s.passes_done);
     EXPECT_EQ(r.priority, s.priority);
+    EXPECT_EQ(r.spec.frame, s.spec.frame);
     // Only a queued or running job is paused; an ended one reads as not paused.
     EXPECT_EQ(r.paused, s.paused && (s.state == wire::JOB_QUEUED || s.state == wire::JOB_RUNNING));
     EXPECT_EQ(r.elapsed_seconds, s.elapsed_seconds);
@@ -175,6 +177,14 @@ TEST(JobStoreRecords, ARecordThatCannotBeReadIsReturnedWithItsCause) {
     nlohmann::json with = good_json;
     with["priority"] = priority;
     bad.push_back({with.dump(), "priority"});
+  }
+  // Frames beyond +-1e9, or not integers.
+  for (const nlohmann::json& frame :
+       {nlohmann::json(1000000001), nlohmann::json(-1000000001), nlohmann::json(1.5),
+        nlohmann::json(18446744073709551611ULL), nlohmann::json("12")}) {
+    nlohmann::json with = good_json;
+    with["frame"] = frame;
+    bad.push_back({with.dump(), "frame"});
   }
   nlohmann::json text_paused = good_json;
   text_paused["paused"] = "yes";

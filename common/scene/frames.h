@@ -1,0 +1,38 @@
+#pragma once
+// Frames: the range an animated scene defines (common/scene/animation.h), and the frame lists
+// that the command line and jobs take ("1-240:2").
+#include <cstdint>
+#include <optional>
+#include <string>
+
+namespace rayfarm {
+
+/// The frames of an animated scene: first to last, both included, played at fps frames a second.
+struct FrameRange {
+  int64_t first = 1;
+  int64_t last = 1;
+  double fps = 24.0;
+  int64_t count() const { return last - first + 1; }
+  bool contains(int64_t frame) const { return frame >= first && frame <= last; }
+};
+
+/// Frame numbers (of animation blocks and of --frame options) are within +-kMaxFrameNumber.
+inline constexpr int64_t kMaxFrameNumber = 1'000'000'000;
+
+/// A frame range written "A-B" or "A-B:STEP" (or a single frame "A"), as the command line and
+/// jobs take it.
+struct FrameList {
+  int64_t first = 1;
+  int64_t last = 1;
+  int64_t step = 1;
+  int64_t count() const { return (last - first) / step + 1; }
+  int64_t at(int64_t index) const { return first + index * step; }
+};
+
+/// Parses "A", "A-B" or "A-B:STEP" (A <= B, STEP >= 1, |A|, |B| <= kMaxFrameNumber; negative
+/// frames are written "-5--1"); nullopt with `why` set when malformed.
+std::optional<FrameList> parse_frame_list(const std::string& text, std::string* why);
+/// "A-B:STEP", "A-B" when the step is 1, "A" for one frame.
+std::string frame_list_name(const FrameList& frames);
+
+}  // namespace rayfarm
