@@ -5,9 +5,6 @@
 #include <string_view>
 #include <vector>
 
-#include "common/limits.h"
-#include "common/scene/gltf_loader.h"
-#include "common/scene/mitsuba_xml.h"
 #include "common/scene/scene_files.h"
 
 namespace rayfarm {
@@ -240,18 +237,6 @@ void check_frame(const std::string& file, const std::optional<FrameRange>& anima
                      " is outside the scene's frames " + std::to_string(animation->first) + "-" +
                      std::to_string(animation->last));
   }
-}
-
-std::optional<FrameRange> load_scene_animation(const std::filesystem::path& file) {
-  if (is_gltf_path(file) || is_mitsuba_path(file)) return std::nullopt;
-  const std::string name = file.string();
-  const scene_json::Json parsed =
-      scene_json::parse_json(read_text_file(file, kMaxSceneFileBytes, name), name);
-  std::vector<std::string> warnings;
-  const scene_json::Context context{name, &warnings};
-  const scene_json::Node top(parsed, context, "");
-  top.object();
-  return scene_json::read_animation(top);
 }
 
 }  // namespace rayfarm

@@ -8,7 +8,6 @@
 //
 // Loading the scene at a frame replaces every keyframed value by its value at that frame, before
 // the scene is read as a still one: the rest of the reader (and its checks) sees plain values.
-#include <filesystem>
 #include <optional>
 
 #include "common/scene/frames.h"
@@ -35,9 +34,5 @@ std::optional<Json> resolve_keyframes(const Node& root, const std::optional<Fram
 /// nullopt) or the frame is outside its animation.
 void check_frame(const std::string& file, const std::optional<FrameRange>& animation,
                  std::optional<int64_t> frame);
-
-/// The frames of the scene in `file` (its "animation" block), reading nothing else; nullopt for a
-/// still scene (and for glTF and Mitsuba files). Throws SceneError as load_scene() does.
-std::optional<FrameRange> load_scene_animation(const std::filesystem::path& file);
 
 }  // namespace rayfarm

@@ -19,6 +19,9 @@ struct FrameRange {
 /// Frame numbers (of animation blocks and of --frame options) are within +-kMaxFrameNumber.
 inline constexpr int64_t kMaxFrameNumber = 1'000'000'000;
 
+/// Frames a second of a glTF file's animation: its frame 1 is time 0.
+inline constexpr double kGltfFps = 24.0;
+
 /// A frame range written "A-B" or "A-B:STEP" (or a single frame "A"), as the command line and
 /// jobs take it.
 struct FrameList {

@@ -10,6 +10,7 @@
 
 #include "common/limits.h"
 #include "common/scene/gltf_accessors.h"
+#include "common/scene/gltf_animation.h"
 #include "common/scene/gltf_materials.h"
 #include "common/scene/gltf_nodes.h"
 #include "common/util/read_file.h"
@@ -256,8 +257,12 @@ GltfResult load_gltf(const fs::path& folder, const fs::path& relative, const Glt
   add_referenced(relative.lexically_normal());
   for (const fs::path& file : access.read) add_referenced(file);
 
+  const double duration = gltf::animation_duration(src);
+  if (options.time) gltf::apply_animations(src, model, *options.time);
   gltf::Materials materials(src, scene, image_bytes, images, relative.lexically_normal());
-  return gltf::read_nodes(src, materials, options, scene);
+  GltfResult result = gltf::read_nodes(src, materials, options, scene);
+  result.duration = duration;
+  return result;
 }
 
 }  // namespace rayfarm

@@ -1,5 +1,6 @@
 #pragma once
 // What a caller chooses about a glTF file, and what reading one found besides the scene.
+#include <optional>
 #include <set>
 #include <string>
 
@@ -13,6 +14,9 @@ struct GltfOptions {
   /// Names of the file's materials that the JSON scene replaces: their meshes keep texture
   /// coordinates and tangents even where the file's own material would not read them.
   std::set<std::string> replaced_materials;
+  /// The time in seconds at which the file's animations pose its nodes; nullopt: the nodes as
+  /// written.
+  std::optional<double> time;
 };
 
 /// What load_gltf() found besides what it added to the scene.
@@ -20,6 +24,8 @@ struct GltfResult {
   bool has_camera = false;  ///< a camera was found and set in Scene::camera
   /// The camera's aspect ratio (width / height) when the file states one, else 0.
   double aspect = 0.0;
+  /// The time of the file's last animation key in seconds; 0 when it has no animation.
+  double duration = 0.0;
 };
 
 }  // namespace rayfarm

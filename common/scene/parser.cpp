@@ -171,6 +171,10 @@ class SceneReader {
     if (!is_gltf_path(relative)) file.fail("expected a .gltf or .glb file");
     GltfOptions options;
     if (auto c = n.find("camera")) options.camera = read_string(*c);
+    // An animated scene poses the file's nodes at its frame's time, its first frame at time 0.
+    if (scene_.frame) {
+      options.time = double(*scene_.frame - scene_.animation->first) / scene_.animation->fps;
+    }
     if (materials)
       for (const auto& [name, value] : materials->object().items())
         options.replaced_materials.insert(name);
@@ -413,58 +417,26 @@ class SceneReader {
 
 }  // namespace
 
-FilmSize default_gltf_film(double aspect) {
-  if (!(aspect > 0.0)) aspect = 16.0 / 9.0;
-  aspect = std::clamp(aspect, 1.0 / 16.0, 16.0);
-  const auto width = static_cast<uint32_t>(std::max(1.0, std::round(540.0 * aspect)));
-  return {width, 540};
+std::optional<FrameRange> load_scene_animation(const std::filesystem::path& file) {
+  if (is_mitsuba_path(file)) return std::nullopt;
+  // A glTF file's frames come from its animations' keys: the file is read.
+  if (is_gltf_path(file)) return load_scene(file, {}, SceneImages::kCheckOnly).animation;
+  const std::string name = file.string();
+  const Json parsed = parse_json(read_text_file(file, kMaxSceneFileBytes, name), name);
+  std::vector<std::string> warnings;
+  const Context context{name, &warnings};
+  const Node top(parsed, context, "");
+  top.object();
+  return read_animation(top);
 }
-
-namespace {
-
-/// A camera for a glTF file that has none: looking down -z at the middle of its meshes' bounds,
-/// from far enough that they fit the view.
-Camera default_camera(const Scene& scene) {
-  WideVec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
-  extend_bounds(scene, lo, hi);
-  Camera c;
-  if (!(lo.x <= hi.x)) return c;  // no meshes: whatever lights there are, seen from the origin
-  const WideVec3 mid{(lo.x + hi.x) / 2, (lo.y + hi.y) / 2, (lo.z + hi.z) / 2};
-  const double radius = std::max(length(hi - lo) / 2, 1e-6);
-  const double distance = radius / std::sin(c.fov_y_deg * 3.14159265358979323846 / 360.0);
-  c.eye = Vec3(float(mid.x), float(mid.y), float(std::min(mid.z + distance, kMaxCoordinate)));
-  c.look_at = Vec3(float(mid.x), float(mid.y), float(mid.z));
-  if (c.eye == c.look_at) c.look_at.z -= 1.f;
-  return c;
-}
-
-Scene load_gltf_scene(const fs::path& file, const SceneCheck& check, SceneImages images,
-                      const GltfOptions& options) {
-  Scene scene;
-  scene.source = file;
-  const GltfResult result = load_gltf(file.parent_path(), file.filename(), options, images, scene);
-  scene.film = default_gltf_film(result.aspect);
-  if (check) {
-    if (auto refusal = check(scene.film, scene.render)) throw SceneRefused(*refusal);
-  }
-  if (!result.has_camera) {
-    scene.camera = default_camera(scene);
-    scene.warnings.push_back(file.string() +
-                             ": the file has no camera; a default one looks down -z at the "
-                             "middle of the meshes");
-  }
-  return scene;
-}
-
-}  // namespace
 
 Scene load_scene(const fs::path& file, const SceneCheck& check, SceneImages images,
                  const GltfOptions& gltf, const fs::path& scene_root,
                  std::optional<int64_t> frame) {
   const std::string name = file.string();
-  if (is_gltf_path(file) || is_mitsuba_path(file)) {
+  if (is_gltf_path(file)) return load_gltf_scene(file, check, images, gltf, frame);
+  if (is_mitsuba_path(file)) {
     check_frame(name, std::nullopt, frame);
-    if (is_gltf_path(file)) return load_gltf_scene(file, check, images, gltf);
     return load_mitsuba_scene(file, check, images, scene_root);
   }
   const Json parsed = parse_json(read_text_file(file, kMaxSceneFileBytes, name), name);

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "common/scene/gltf_loader.h"
+#include "common/scene/gltf_scene.h"
 #include "common/scene/scene.h"
 #include "common/scene/scene_files.h"
 #include "common/scene/texture_reader.h"
@@ -25,8 +26,9 @@ Scene load_scene(const std::filesystem::path& file, const SceneCheck& check = {}
                  const std::filesystem::path& root = {},
                  std::optional<int64_t> frame = std::nullopt);
 
-/// Film of a glTF file rendered directly: 540 rows, as wide as its camera's aspect ratio says
-/// (16:9 when it says none).
-FilmSize default_gltf_film(double aspect);
+/// The frames of the scene in `file` (its "animation" block, or a glTF file's animations),
+/// reading no more than that needs; nullopt for a still scene. Throws SceneError as load_scene()
+/// does.
+std::optional<FrameRange> load_scene_animation(const std::filesystem::path& file);
 
 }  // namespace rayfarm

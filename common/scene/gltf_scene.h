@@ -1,0 +1,24 @@
+#pragma once
+// A glTF 2.0 file loaded as a whole scene (`rayfarm render model.glb`): its film, a default camera
+// when it has none, and its animation's frames (docs/gltf.md).
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+
+#include "common/scene/gltf_options.h"
+#include "common/scene/scene.h"
+#include "common/scene/scene_files.h"
+#include "common/scene/texture_reader.h"
+
+namespace rayfarm {
+
+/// Film of a glTF file rendered directly: 540 rows, as wide as its camera's aspect ratio says
+/// (16:9 when it says none).
+FilmSize default_gltf_film(double aspect);
+
+/// The glTF file `file` as a scene, at `frame` of its animation (frame 1, time 0, when nullopt;
+/// kGltfFps frames a second). Throws SceneError (SceneRefused when `check` refuses its film).
+Scene load_gltf_scene(const std::filesystem::path& file, const SceneCheck& check,
+                      SceneImages images, GltfOptions options, std::optional<int64_t> frame);
+
+}  // namespace rayfarm
