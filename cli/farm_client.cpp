@@ -125,6 +125,25 @@ std::string fetch_image(FarmClient& client, const std::string& job, const fs::pa
                      protocol::job_state_name(image.state()), image.spp_done());
 }
 
+std::vector<std::string> fetch_frames(FarmClient& client, const std::string& job,
+                                      const fs::path& pattern, OutputFormat format,
+                                      std::optional<int64_t> only) {
+  const wire::JobStatus st = query_status(client, job);
+  if (st.frames_size() == 0) {
+    throw MasterError("job " + job + " is not a sequence: fetch it without --frame or --all");
+  }
+  std::vector<std::string> out;
+  for (const wire::SequenceFrame& f : st.frames()) {
+    if (only ? f.frame() != *only : f.state() != wire::JOB_DONE) continue;
+    out.push_back(fetch_image(client, f.job_id(), frame_output_path(pattern, f.frame()), format));
+  }
+  if (out.empty()) {
+    throw MasterError(only ? fmt::format("sequence {} has no frame {}", job, *only)
+                           : fmt::format("sequence {} has no frame done yet", job));
+  }
+  return out;
+}
+
 wire::JobStatus query_status(FarmClient& client, const std::string& job) {
   wire::StatusRequest request;
   request.set_job_id(job);

@@ -144,8 +144,15 @@ int guarded(const char* command, Body&& body) {
 
 /// The job's status now.
 wire::JobStatus query_status(FarmClient& client, const std::string& job);
+/// Fetches frames of sequence `job` to `pattern` (frame_output_path: '#' or %04d take the frame
+/// number): frame `only`, or every frame that is done when nullopt. Returns a line per image
+/// written. Throws MasterError when the job is not a sequence, has no such frame, or has no frame
+/// done.
 
 /// Fetches the job's image into `output` (checked by check_output_path); returns what it wrote.
+std::vector<std::string> fetch_frames(FarmClient& client, const std::string& job,
+                                      const std::filesystem::path& pattern, OutputFormat format,
+                                      std::optional<int64_t> only);
 std::string fetch_image(FarmClient& client, const std::string& job,
                         const std::filesystem::path& output, OutputFormat format);
 

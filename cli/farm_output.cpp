@@ -14,6 +14,20 @@ namespace protocol = rayfarm::protocol;
 
 namespace {
 
+/// A sequence's frames (status of a sequence only): frame, job, state, percent.
+nlohmann::json frames_json(const wire::JobStatus& st) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const wire::SequenceFrame& f : st.frames()) {
+    out.push_back(
+        {{"frame", f.frame()},
+         {"job", f.job_id()},
+         {"state", f.paused() && f.state() != wire::JOB_DONE ? "paused"
+                                                             : protocol::job_state_name(f.state())},
+         {"percent", f.percent()}});
+  }
+  return out;
+}
+
 double percent(const wire::JobStatus& st) {
   return st.units_total()
              ? 100.0 * static_cast<double>(st.units_done()) / static_cast<double>(st.units_total())
@@ -75,6 +89,10 @@ nlohmann::json status_json(const wire::JobStatus& st) {
       {"paused", st.paused()},
       {"priority", st.priority()},
       {"frame", st.has_frame() ? nlohmann::json(st.frame()) : nlohmann::json(nullptr)},
+      {"sequence", st.sequence().empty() ? nlohmann::json(nullptr) : nlohmann::json(st.sequence())},
+      {"frames_total", st.frames_total()},
+      {"frames_done", st.frames_done()},
+      {"frames", frames_json(st)},
       {"storage_error",
        st.storage_error().empty() ? nlohmann::json(nullptr) : nlohmann::json(st.storage_error())},
       {"error", st.error().empty() ? nlohmann::json(nullptr) : nlohmann::json(st.error())},
@@ -126,9 +144,16 @@ std::string state_label(const wire::JobStatus& st) {
 void print_json(const nlohmann::json& j) { std::cout << j.dump() << "\n" << std::flush; }
 
 std::string progress_line(const wire::JobStatus& st) {
-  std::string line = fmt::format("{} {:<9} pass {}/{}  {}/{} spp  {:5.1f}%", st.job_id(),
-                                 state_label(st), st.passes_done(), st.passes_total(),
-                                 st.spp_done(), st.settings().spp(), percent(st));
+  std::string line = st.frames_total() > 0
+                         ? fmt::format("{} {:<9} frames {}/{}{}  {:5.1f}%", st.job_id(),
+                                       state_label(st), st.frames_done(), st.frames_total(),
+                                       st.has_frame() && !finished(st.state())
+                                           ? fmt::format(" (frame {})", st.frame())
+                                           : std::string(),
+                                       percent(st))
+                         : fmt::format("{} {:<9} pass {}/{}  {}/{} spp  {:5.1f}%", st.job_id(),
+                                       state_label(st), st.passes_done(), st.passes_total(),
+                                       st.spp_done(), st.settings().spp(), percent(st));
   if (st.spp_mean() >= st.spp_done() + 1.0) line += fmt::format(" (mean {:.0f})", st.spp_mean());
   if (st.est_rel_mse() >= 0) line += fmt::format("  relMSE {:.3g}", st.est_rel_mse());
   if (st.ref_rel_mse() >= 0) line += fmt::format(" (measured {:.3g})", st.ref_rel_mse());
@@ -144,7 +169,13 @@ std::string progress_line(const wire::JobStatus& st) {
 
 void print_status(const wire::JobStatus& st) {
   std::cout << fmt::format("job        {} ({})\n", st.job_id(), st.name());
-  if (st.has_frame()) std::cout << fmt::format("frame      {}\n", st.frame());
+  if (st.frames_total() > 0) {
+    std::cout << fmt::format("frames     {}/{} done{}\n", st.frames_done(), st.frames_total(),
+                             st.has_frame() ? fmt::format(", frame {} next", st.frame()) : "");
+  } else if (st.has_frame()) {
+    std::cout << fmt::format("frame      {}{}\n", st.frame(),
+                             st.sequence().empty() ? "" : " of sequence " + st.sequence());
+  }
   std::cout << fmt::format(
       "state      {}{}\n", state_label(st),
       finished(st.state()) ? std::string() : fmt::format(", priority {}", st.priority()));
@@ -189,6 +220,16 @@ void print_status(const wire::JobStatus& st) {
                            human_rate(st.samples_per_second()));
   std::cout << fmt::format("workers    {} busy on this job, {} connected\n", st.workers_busy(),
                            st.workers_total());
+  if (st.frames_size() > 0) {
+    std::cout << fmt::format("\n{:>8} {:<16} {:<9} {:>7}\n", "FRAME", "JOB", "STATE", "DONE");
+    for (const wire::SequenceFrame& f : st.frames()) {
+      std::cout << fmt::format("{:>8} {:<16} {:<9} {:>6.1f}%\n", f.frame(), f.job_id(),
+                               f.paused() && f.state() != wire::JOB_DONE
+                                   ? "paused"
+                                   : protocol::job_state_name(f.state()),
+                               f.percent());
+    }
+  }
 }
 
 void print_table(const wire::JobList& list) {
@@ -203,7 +244,9 @@ void print_table(const wire::JobList& list) {
         "{:<8} {:<24} {:<12} {:<9} {:>4} {:>6.1f}% {:>11} {:>11} {:>10}\n", st.job_id(),
         st.name().substr(0, 24), st.owner().empty() ? "-" : st.owner().substr(0, 12),
         state_label(st), finished(st.state()) ? std::string("-") : std::to_string(st.priority()),
-        percent(st), fmt::format("{}/{}", st.spp_done(), st.settings().spp()),
+        percent(st),
+        st.frames_total() > 0 ? fmt::format("{}/{} fr", st.frames_done(), st.frames_total())
+                              : fmt::format("{}/{}", st.spp_done(), st.settings().spp()),
         fmt::format("{}x{}", st.width(), st.height()), format_duration(st.elapsed_seconds()));
   }
   for (const auto& st : list.jobs()) {

@@ -21,6 +21,7 @@
 #include "common/bundle/bundle.h"
 #include "common/limits.h"
 #include "common/protocol/convert.h"
+#include "common/scene/frames.h"
 #include "common/scene/parser.h"
 #include "common/util/read_file.h"
 
@@ -106,6 +107,7 @@ struct SubmitArgs {
   StopArgs stop;
   FilmArgs film;
   std::optional<int64_t> frame;
+  std::optional<std::string> frames;  // --frames A-B[:STEP]
 };
 
 int run_submit(const SubmitArgs& args) {
@@ -126,6 +128,26 @@ int run_submit(const SubmitArgs& args) {
   if (args.frame) name += fmt::format(" frame {}", *args.frame);
   request.set_name(!args.name.empty() ? args.name : name);
   if (args.frame) request.set_frame(*args.frame);
+  if (args.frames) {
+    std::string why;
+    const auto frames = parse_frame_list(*args.frames, &why);
+    if (!frames) throw std::invalid_argument("--frames: " + why);
+    if (args.stop.reference) {
+      throw std::invalid_argument("--reference is one image; it cannot measure a sequence");
+    }
+    // The range is checked here against the scene's animation, before anything is sent.
+    const std::optional<FrameRange> animation = load_scene_animation(args.source.scene);
+    if (!animation) {
+      throw std::invalid_argument("--frames " + *args.frames + ": " + args.source.scene +
+                                  " is a still scene (it has no animation)");
+    }
+    if (!animation->contains(frames->first) || !animation->contains(frames->last)) {
+      throw std::invalid_argument(
+          fmt::format("--frames {}: beyond the scene's animation, frames {}-{}", *args.frames,
+                      animation->first, animation->last));
+    }
+    *request.mutable_frames() = protocol::frames_to_wire(*frames);
+  }
   request.set_priority(args.priority);
   request.set_paused(args.paused);
   wire::JobOverrides* o = request.mutable_overrides();
@@ -187,6 +209,13 @@ int run_submit(const SubmitArgs& args) {
   StatusPoller poller(args.client, "submit");
   const int code = watch_job(poller, job, args.json);
   if (code != 0 || !format) return code;
+  if (args.frames) {
+    const auto wrote = poller.with_retry([&](FarmClient& client) {
+      return fetch_frames(client, job, args.output, *format, std::nullopt);
+    });
+    for (const std::string& line : wrote) std::cerr << line << "\n";
+    return 0;
+  }
   const std::string wrote = poller.with_retry(
       [&](FarmClient& client) { return fetch_image(client, job, args.output, *format); });
   std::cerr << wrote << "\n";
@@ -222,8 +251,12 @@ void add_submit(CLI::App& app, int& exit_code) {
       cmd, args->stop,
       "Reference EXR sent with the job: the error against it is measured at every pass");
   cmd->add_option("--name", args->name, "Job name (default: the scene file's name)");
-  cmd->add_option("--frame", args->frame,
-                  "Animated scenes: the frame to render (default: the scene's first)");
+  CLI::Option* frame = cmd->add_option(
+      "--frame", args->frame, "Animated scenes: the frame to render (default: the scene's first)");
+  cmd->add_option("--frames", args->frames,
+                  "Animated scenes: a sequence of frames A-B[:STEP], one job each, rendered in "
+                  "order; with --wait -o, every frame is fetched ('#' or %04d in the name)")
+      ->excludes(frame);
   cmd->add_option("--priority", args->priority,
                   "Higher runs first, from " + std::to_string(kMinPriority) + " to " +
                       std::to_string(kMaxPriority) +

@@ -54,18 +54,46 @@ void add_fetch(CLI::App& app, int& exit_code) {
   auto args = std::make_shared<ClientArgs>();
   auto job = std::make_shared<std::string>();
   auto output = std::make_shared<std::string>();
+  auto frame = std::make_shared<std::optional<int64_t>>();
+  auto all = std::make_shared<bool>(false);
   CLI::App* cmd = app.add_subcommand(
       "fetch", "Download a job's current or final EXR (and a PNG preview beside it)");
-  cmd->add_option("job", *job, "Job id")->required();
+  cmd->add_option("job", *job, "Job id (or a sequence's, with --frame or --all)")->required();
   cmd->add_option(
          "-o,--output", *output,
-         "Output: x.exr (and its PNG preview x.png beside it) or x.png (the preview alone)")
+         "Output: x.exr (and its PNG preview x.png beside it) or x.png (the preview alone); for a "
+         "sequence's frames a '#' run or %04d in the name takes the frame number (default: "
+         ".NNNN before the extension)")
       ->required();
+  CLI::Option* one =
+      cmd->add_option("--frame", *frame, "A sequence: the image of this frame (done or not)");
+  cmd->add_flag("--all", *all, "A sequence: the image of every frame that is done")->excludes(one);
   add_client_options(cmd, *args);
-  cmd->callback([args, job, output, &exit_code] {
+  cmd->callback([args, job, output, frame, all, &exit_code] {
     exit_code = guarded("fetch", [&] {
       const OutputFormat format = check_output_path(*output);
       FarmClient client(*args);
+      if (*all || frame->has_value()) {
+        // A frame's own name when --frame is given without a pattern in the name.
+        const bool pattern =
+            output->find('#') != std::string::npos || output->find('%') != std::string::npos;
+        if (frame->has_value() && !pattern) {
+          const wire::JobStatus st = query_status(client, *job);
+          for (const wire::SequenceFrame& f : st.frames()) {
+            if (f.frame() == **frame) {
+              std::cout << fetch_image(client, f.job_id(), *output, format) << "\n";
+              return 0;
+            }
+          }
+          throw MasterError(st.frames_size() == 0
+                                ? "job " + *job + " is not a sequence: fetch it without --frame"
+                                : fmt::format("sequence {} has no frame {}", *job, **frame));
+        }
+        for (const std::string& line : fetch_frames(client, *job, *output, format, *frame)) {
+          std::cout << line << "\n";
+        }
+        return 0;
+      }
       std::cout << fetch_image(client, *job, *output, format) << "\n";
       return 0;
     });

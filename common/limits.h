@@ -109,6 +109,6 @@ inline constexpr uint64_t kDefaultMaxImagePixels = uint64_t{1} << 25;
 /// Most samples per pixel of a job. --max-spp
 inline constexpr uint32_t kDefaultMaxJobSpp = 1u << 16;
 /// Most jobs queued or running at once. --max-queued-jobs
-inline constexpr size_t kDefaultMaxQueuedJobs = 100;
+inline constexpr size_t kDefaultMaxQueuedJobs = 1000;
 
 }  // namespace rayfarm

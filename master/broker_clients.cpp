@@ -137,7 +137,8 @@ void Broker::handle_client(const net::Delivery& delivery) {
       // queued; the scene's figures on the thread.
       const SubmissionFigures figures = bundle_figures(*submit);
       std::optional<std::string> refusal =
-          check_queue(jobs_.active_jobs() + submissions_->in_flight(), options_.limits);
+          check_queue(jobs_.active_jobs() + submissions_->in_flight(), options_.limits,
+                      protocol::frame_count(submit->frames()));
       wire::Error::Code code = wire::Error::REFUSED;
       if (!refusal) refusal = check_figures(figures, options_.limits);
       if (!refusal) refusal = priority_refusal(submit->priority(), delivery.user);

@@ -79,6 +79,12 @@ Image JobManager::check_reference_bytes(const std::string& exr, FilmSize film) c
 }
 
 const std::string* JobManager::owner_of(const std::string& id) const {
+  if (const auto* frames = sequence_frames(id)) {
+    for (const std::string& f : *frames) {
+      if (auto it = jobs_.find(f); it != jobs_.end()) return &it->second.record.spec.owner;
+    }
+    return nullptr;
+  }
   auto it = jobs_.find(id);
   return it == jobs_.end() ? nullptr : &it->second.record.spec.owner;
 }
@@ -93,6 +99,19 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
   if (request.priority() < kMinPriority || request.priority() > kMaxPriority) {
     throw JobRejected(fmt::format("priority {} is out of range ({} to {})", request.priority(),
                                   kMinPriority, kMaxPriority));
+  }
+  // A sequence's frames.
+  std::optional<FrameList> frames;
+  try {
+    frames = protocol::frames_from_wire(request.frames());
+  } catch (const protocol::ProtocolError& e) {
+    throw JobRejected(e.what());
+  }
+  if (frames && request.has_frame()) {
+    throw JobRejected("a job is one frame or a sequence of frames, not both");
+  }
+  if (frames && !request.reference_exr().empty()) {
+    throw JobRejected("a reference image measures one frame; a sequence cannot have one");
   }
   // The bundle and the scene path.
   Bundle bundle;
@@ -119,10 +138,16 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
   try {
     const fs::path dir = unpack_bundle(bundle, scratch, hash);
     try {
-      const std::optional<int64_t> frame =
+      std::optional<int64_t> frame =
           request.has_frame() ? std::optional<int64_t>(request.frame()) : std::nullopt;
+      if (frames) frame = frames->first;
       scene =
           load_scene(dir / request.scene_path(), check, SceneImages::kCheckOnly, {}, dir, frame);
+      // A sequence: its last frame loads too (every frame between is checked by the workers).
+      if (frames && frames->count() > 1) {
+        (void)load_scene(dir / request.scene_path(), check, SceneImages::kCheckOnly, {}, dir,
+                         frames->last);
+      }
     } catch (const std::exception& e) {
       throw JobRejected(replace_all(e.what(), dir.string() + "/", ""));
     }
@@ -242,7 +267,11 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
     protocol::bundle_to_wire(bundle, &canonical);
     store_.save_bundle(spec.id, canonical);
     if (spec.has_reference) store_.save_reference(spec.id, request.reference_exr());
-    store_.save_record(record);  // throws: a job is accepted only once it is on disk
+    if (frames) {
+      prepared.frames = store_frames(spec, *frames, record);
+    } else {
+      store_.save_record(record);  // throws: a job is accepted only once it is on disk
+    }
     store_.sync_job_dir(spec.id);
   } catch (const std::exception& e) {
     fs::remove_all(store_.job_dir(spec.id), ec);
@@ -257,17 +286,67 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
   return prepared;
 }
 
+std::vector<JobSpec> JobManager::store_frames(const JobSpec& spec, const FrameList& frames,
+                                              const JobRecord& shared) const {
+  std::vector<JobSpec> out;
+  try {
+    for (int64_t i = 0; i < frames.count(); ++i) {
+      JobRecord record = shared;
+      JobSpec& f = record.spec;
+      f.frame = frames.at(i);
+      f.sequence = spec.id;
+      f.id = JobStore::frame_id(spec.id, *f.frame);
+      f.name = fmt::format("{} frame {}", spec.name, *f.frame);
+      store_.create_job_dir(f.id);
+      out.push_back(f);
+      store_.share_bundle(spec.id, f.id);
+      store_.save_record(record);
+    }
+    for (const JobSpec& f : out) store_.sync_job_dir(f.id);
+  } catch (...) {
+    std::error_code ec;
+    for (const JobSpec& f : out) fs::remove_all(store_.job_dir(f.id), ec);
+    throw;
+  }
+  return out;
+}
+
 std::string JobManager::admit(PreparedJob prepared) {
-  const JobSpec& spec = prepared.spec;
+  if (prepared.frames.empty()) {
+    return admit_one(prepared.spec, std::move(prepared.reference), prepared.priority,
+                     prepared.paused, prepared.warnings, prepared.bundle_files,
+                     prepared.bundle_bytes);
+  }
+  // A sequence: a job per frame, in the scheduler's group of the sequence.
+  const std::string& id = prepared.spec.id;
+  std::vector<std::string>& frames = sequences_[id];
+  for (const JobSpec& f : prepared.frames) {
+    try {
+      frames.push_back(admit_one(f, std::nullopt, prepared.priority, prepared.paused,
+                                 frames.empty() ? prepared.warnings : std::vector<std::string>{},
+                                 prepared.bundle_files, prepared.bundle_bytes));
+    } catch (const JobRejected&) {
+      frames.push_back(f.id);  // recorded as failed, and listed with the sequence
+    }
+  }
+  log_jobs()->info("sequence {} accepted: '{}', {} frames ({} to {})", id, prepared.spec.name,
+                   frames.size(), *prepared.frames.front().frame, *prepared.frames.back().frame);
+  return id;
+}
+
+std::string JobManager::admit_one(const JobSpec& spec, std::optional<Image> reference,
+                                  int32_t priority, bool paused,
+                                  const std::vector<std::string>& warnings, size_t bundle_files,
+                                  uint64_t bundle_bytes) {
   const UnitGrid grid(spec.film, spec.tile_size, spec.settings.spp, spec.pass_spp);
   const std::string& hash = spec.bundle_hash;
   Job job;
   job.record.spec = spec;
-  job.record.priority = prepared.priority;
-  job.record.paused = prepared.paused;
+  job.record.priority = priority;
+  job.record.paused = paused;
   bundle_owner_.emplace(hash, spec.id);
   try {
-    activate(job, std::move(prepared.reference));
+    activate(job, std::move(reference));
   } catch (const std::exception& e) {
     // E.g. no memory for the job's film: it is on disk, so it is recorded as failed (and listed)
     // rather than tried again at every start.
@@ -289,10 +368,9 @@ std::string JobManager::admit(PreparedJob prepared) {
       spec.id, spec.name, spec.scene_path, spec.film.width, spec.film.height,
       describe_stop(spec.stop, spec.settings.spp), integrator_name(spec.settings.integrator),
       spec.settings.max_depth, spec.settings.seed, grid.tile_count(), spec.tile_size,
-      grid.pass_count(), spec.pass_spp, grid.size(), prepared.bundle_files,
-      human_bytes(prepared.bundle_bytes), hash.substr(0, 12),
-      spec.has_reference ? "; error measured against its reference image" : "");
-  for (const auto& w : prepared.warnings) log_jobs()->warn("job {}: {}", spec.id, w);
+      grid.pass_count(), spec.pass_spp, grid.size(), bundle_files, human_bytes(bundle_bytes),
+      hash.substr(0, 12), spec.has_reference ? "; error measured against its reference image" : "");
+  for (const auto& w : warnings) log_jobs()->warn("job {}: {}", spec.id, w);
   const std::string id = spec.id;
   jobs_.emplace(id, std::move(job));
   return id;

@@ -45,7 +45,7 @@ void JobManager::activate(Job& job, std::optional<Image> reference) {
 void JobManager::schedule(Job& job) {
   const std::string& id = job.record.spec.id;
   ActiveJob& a = *job.active;
-  scheduler_.add_job(id);
+  scheduler_.add_job(id, job.record.spec.sequence, job.record.spec.frame.value_or(0));
   scheduler_.set_priority(id, job.record.priority);
   scheduler_.set_paused(id, job.record.paused);
   if (job.record.paused) a.pause(Clock::now());
@@ -339,6 +339,7 @@ size_t JobManager::release_worker(const WorkerId& worker) {
 }
 
 std::optional<wire::JobState> JobManager::cancel(const std::string& id) {
+  if (const auto* frames = sequence_frames(id)) return cancel_sequence(*frames);
   auto it = jobs_.find(id);
   if (it == jobs_.end()) return std::nullopt;
   if (it->second.active) finish(it->second, wire::JOB_CANCELLED, "cancelled by a client");
@@ -346,6 +347,7 @@ std::optional<wire::JobState> JobManager::cancel(const std::string& id) {
 }
 
 void JobManager::remove(const std::string& id) {
+  if (sequence_frames(id)) return remove_sequence(id);
   auto it = jobs_.find(id);
   if (it == jobs_.end()) throw JobRejected("unknown job '" + id + "'");
   Job& job = it->second;
@@ -353,6 +355,16 @@ void JobManager::remove(const std::string& id) {
     throw JobRejected(fmt::format("job {} is {}: cancel it first", id,
                                   protocol::job_state_name(job.record.state)));
   }
+  if (sequence_frames(job.record.spec.sequence)) {
+    throw JobRejected(fmt::format("job {} is frame {} of sequence {}: remove the sequence", id,
+                                  job.record.spec.frame.value_or(0), job.record.spec.sequence));
+  }
+  remove_job(id);
+}
+
+void JobManager::remove_job(const std::string& id) {
+  auto it = jobs_.find(id);
+  Job& job = it->second;
   writer_.flush();  // no image of it is still on its way to the folder
   // Nor is the removal of its checkpoints, which ended the job: a file deleted under remove_all's
   // feet made it fail (ENOENT) now and then.
@@ -380,6 +392,7 @@ void JobManager::remove(const std::string& id) {
 }
 
 wire::JobState JobManager::retry(const std::string& id) {
+  if (const auto* frames = sequence_frames(id)) return retry_sequence(id, *frames);
   auto it = jobs_.find(id);
   if (it == jobs_.end()) throw JobRejected("unknown job '" + id + "'");
   Job& job = it->second;

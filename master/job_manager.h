@@ -85,6 +85,8 @@ class JobManager {
     uint64_t bundle_bytes = 0;
     int32_t priority = 0;  ///< as submitted (checked) and stored
     bool paused = false;
+    /// A sequence: the spec of each frame's job (spec is then the sequence's: its id, no frame).
+    std::vector<JobSpec> frames;
   };
   /// Validates a submission for `owner` (the submitting client key's name) and stores it in the
   /// data dir: the slow part of accepting a job (unpacking, loading the scene, reading the
@@ -94,7 +96,7 @@ class JobManager {
   /// cause.
   PreparedJob prepare(const wire::SubmitJob& request, const std::string& owner,
                       const SceneCheck& check = {}) const;
-  /// Schedules a prepared job; returns its id.
+  /// Schedules a prepared job (a sequence: every frame's job); returns its id.
   std::string admit(PreparedJob prepared);
   /// prepare() then admit(): validates and accepts a job; returns its id. Throws JobRejected.
   std::string submit(const wire::SubmitJob& request, const std::string& owner = {});
@@ -183,7 +185,28 @@ class JobManager {
   Scheduler scheduler_;
   std::map<std::string, Job> jobs_;
   std::map<std::string, std::string> bundle_owner_;  // bundle hash -> a job that has it
+  std::map<std::string, std::vector<std::string>> sequences_;  // id -> its frames' jobs, in order
 
+  // Sequences (job_sequences.cpp): the public requests above fan out to a sequence's frames.
+  const std::vector<std::string>* sequence_frames(const std::string& id) const;
+  wire::JobState sequence_state(const std::vector<std::string>& frames) const;
+  wire::JobStatus sequence_status(const std::string& id, const std::vector<std::string>& frames,
+                                  uint32_t workers_total, bool with_frames) const;
+  wire::JobState cancel_sequence(const std::vector<std::string>& frames);
+  const JobRecord* change_sequence(const std::string& id, const std::vector<std::string>& frames,
+                                   std::optional<int32_t> priority, std::optional<bool> paused);
+  void remove_sequence(const std::string& id);
+  wire::JobState retry_sequence(const std::string& id, const std::vector<std::string>& frames);
+  /// Removes a finished job and its folder (remove() has checked it may go).
+  void remove_job(const std::string& id);
+  /// Stores the job of every frame of a sequence whose bundle is in `spec`'s folder; throws
+  /// std::runtime_error (the frames stored so far are removed).
+  std::vector<JobSpec> store_frames(const JobSpec& spec, const FrameList& frames,
+                                    const JobRecord& shared) const;
+  /// Admits one job (of its own, or a frame of a sequence); returns its id.
+  std::string admit_one(const JobSpec& spec, std::optional<Image> reference, int32_t priority,
+                        bool paused, const std::vector<std::string>& warnings, size_t bundle_files,
+                        uint64_t bundle_bytes);
   /// Makes the job active (queued, nothing merged) and hands its released units to the
   /// scheduler; `reference` when already read.
   void activate(Job& job, std::optional<Image> reference = std::nullopt);

@@ -1,5 +1,7 @@
 // Recovery: checkpoints of running jobs, and what a starting master does with the jobs of its
 // data dir (resume each unfinished one from its newest usable checkpoint, or start it over).
+#include <algorithm>
+
 #include "common/util/log.h"
 #include "master/job_manager.h"
 #include "master/job_text.h"
@@ -18,6 +20,7 @@ size_t JobManager::recover() {
       continue;
     }
     bundle_owner_.emplace(job.record.spec.bundle_hash, id);
+    if (!job.record.spec.sequence.empty()) sequences_[job.record.spec.sequence].push_back(id);
     if (is_active_state(job.record.state)) {
       if (!store_.load_bundle(id)) {
         job.record.state = wire::JOB_FAILED;
@@ -66,6 +69,12 @@ size_t JobManager::recover() {
     if (inserted && it->second.active && it->second.active->planner.finished()) {
       finish(it->second, wire::JOB_DONE, "", it->second.active->planner.reason());
     }
+  }
+  // A sequence's frames in frame order (their folders sort by name: "j0007.-001" after "0001").
+  for (auto& [sequence, frames] : sequences_) {
+    std::sort(frames.begin(), frames.end(), [&](const std::string& a, const std::string& b) {
+      return jobs_.at(a).record.spec.frame.value_or(0) < jobs_.at(b).record.spec.frame.value_or(0);
+    });
   }
   return restarted;
 }

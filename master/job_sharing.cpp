@@ -10,6 +10,9 @@ using namespace detail;
 
 const JobRecord* JobManager::change(const std::string& id, std::optional<int32_t> priority,
                                     std::optional<bool> paused) {
+  if (const auto* frames = sequence_frames(id)) {
+    return change_sequence(id, *frames, priority, paused);
+  }
   auto it = jobs_.find(id);
   if (it == jobs_.end()) return nullptr;
   Job& job = it->second;

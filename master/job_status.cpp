@@ -38,6 +38,7 @@ wire::JobStatus JobManager::make_status(const Job& job, uint32_t workers_total) 
   st.set_name(s.name);
   st.set_owner(s.owner);
   if (s.frame) st.set_frame(*s.frame);
+  st.set_sequence(s.sequence);
   st.set_state(job.record.state);
   if (job.record.unreadable) {  // only its id and what is wrong are known
     st.set_error(job.record.error);
@@ -116,18 +117,36 @@ wire::JobStatus JobManager::make_status(const Job& job, uint32_t workers_total) 
 
 std::optional<wire::JobStatus> JobManager::status(const std::string& id,
                                                   uint32_t workers_total) const {
+  if (const auto* frames = sequence_frames(id)) {
+    return sequence_status(id, *frames, workers_total, /*with_frames=*/true);
+  }
   auto it = jobs_.find(id);
   if (it == jobs_.end()) return std::nullopt;
   return make_status(it->second, workers_total);
 }
 
 std::vector<wire::JobStatus> JobManager::list(uint32_t workers_total) const {
+  // A sequence is one line, where its first frame would be.
   std::vector<wire::JobStatus> out;
-  for (const auto& [id, job] : jobs_) out.push_back(make_status(job, workers_total));
+  for (const auto& [id, job] : jobs_) {
+    const std::string& sequence = job.record.spec.sequence;
+    const auto* frames = sequence.empty() ? nullptr : sequence_frames(sequence);
+    if (frames == nullptr) {
+      out.push_back(make_status(job, workers_total));
+    } else if (frames->front() == id) {
+      out.push_back(sequence_status(sequence, *frames, workers_total, /*with_frames=*/false));
+    }
+  }
   return out;
 }
 
 wire::ImageData JobManager::image(const std::string& id) const {
+  if (const auto* frames = sequence_frames(id)) {
+    throw JobRejected(
+        fmt::format("{} is a sequence of {} frames: fetch one frame (--frame N) or "
+                    "all of them (--all)",
+                    id, frames->size()));
+  }
   auto it = jobs_.find(id);
   if (it == jobs_.end()) throw JobRejected("unknown job '" + id + "'");
   auto exr = store_.read_file(id, "image.exr");

@@ -89,7 +89,8 @@ json to_json(const JobRecord& r) {
               {"tiles_converged", r.tiles_converged},
               {"est_rel_mse", finite_or(r.est_rel_mse, -1.0)},
               {"ref_rel_mse", finite_or(r.ref_rel_mse, -1.0)},
-              {"frame", s.frame ? json(*s.frame) : json(nullptr)}};
+              {"frame", s.frame ? json(*s.frame) : json(nullptr)},
+              {"sequence", s.sequence}};
 }
 
 JobRecord from_json(const json& j) {
@@ -142,6 +143,10 @@ JobRecord from_json(const json& j) {
     if (!in_range) throw std::runtime_error("frame out of range");
     s.frame = f->get<int64_t>();
   }
+  s.sequence = j.value("sequence", "");
+  if (!s.sequence.empty() && (!s.frame || s.id != JobStore::frame_id(s.sequence, *s.frame))) {
+    throw std::runtime_error("sequence does not match the id and frame");
+  }
   const std::string state = j.at("state").get<std::string>();
   r.state = state_from_key(state);
   if (r.state == wire::JOB_STATE_UNSPECIFIED) throw std::runtime_error("unknown state \"" + state + "\"");
@@ -191,11 +196,12 @@ JobRecord unreadable_record(const std::string& id, const fs::path& file, const s
   return r;
 }
 
-/// The number in a job id "j0042", or 0 when it is not one.
+/// The number in a job id "j0042" (or a frame's "j0042.0012"), or 0 when it is not one.
 uint64_t id_number(const std::string& id) {
   if (id.size() < 2 || id[0] != 'j') return 0;
   uint64_t n = 0;
   for (size_t i = 1; i < id.size(); ++i) {
+    if (id[i] == '.' && i > 1) break;
     if (id[i] < '0' || id[i] > '9' || n > (uint64_t{1} << 40)) return 0;
     n = n * 10 + static_cast<uint64_t>(id[i] - '0');
   }
@@ -233,6 +239,29 @@ std::string JobStore::allocate_id() {
     }
     if (ec)
       throw std::runtime_error("cannot create " + job_dir(buf).string() + ": " + ec.message());
+  }
+}
+
+std::string JobStore::frame_id(const std::string& sequence, int64_t frame) {
+  return fmt::format("{}.{:04d}", sequence, frame);
+}
+
+void JobStore::create_job_dir(const std::string& id) {
+  std::error_code ec;
+  if (!fs::create_directory(job_dir(id), ec) || ec) {
+    throw std::runtime_error("cannot create " + job_dir(id).string() + ": " +
+                             (ec ? ec.message() : std::string("it exists")));
+  }
+}
+
+void JobStore::share_bundle(const std::string& from, const std::string& to) {
+  std::error_code ec;
+  fs::create_hard_link(job_dir(from) / "bundle.pb", job_dir(to) / "bundle.pb", ec);
+  if (!ec) return;
+  fs::copy_file(job_dir(from) / "bundle.pb", job_dir(to) / "bundle.pb", ec);
+  if (ec) {
+    throw std::runtime_error("cannot give " + job_dir(to).string() +
+                             " its bundle: " + ec.message());
   }
 }
 

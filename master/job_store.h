@@ -11,6 +11,8 @@
 //   <data>/jobs/<id>/error.png   its log-log plot
 //   <data>/jobs/<id>/checkpoint-0.bin, checkpoint-1.bin  a running job's merged state, two
 //                                generations (checkpoint.h); removed when the job ends
+//   <data>/jobs/<seq>/bundle.pb  a sequence's bundle, shared (hard-linked) by its frames' jobs,
+//                                whose folders are <data>/jobs/<seq>.<frame>/
 //   <data>/tmp/                  scratch space (scene validation), emptied at start
 #include <cstdint>
 #include <filesystem>
@@ -34,6 +36,9 @@ struct JobSpec {
   /// The frame of an animated scene the job renders; nullopt for a still scene. An animated
   /// scene submitted without a frame renders its first, named here.
   std::optional<int64_t> frame;
+  /// The sequence the job is a frame of (its id, e.g. "j0007"; the frame's own id is
+  /// "j0007.0012"); empty for a job of its own.
+  std::string sequence;
   RenderSettings settings;
   FilmSize film;
   uint32_t tile_size = kDefaultTileSize;
@@ -79,6 +84,13 @@ class JobStore {
   /// A new job id ("j0001", "j0002", ...), never one in use in the data dir. Thread-safe, as are
   /// make_scratch_dir and the writers of one job's files.
   std::string allocate_id();
+  /// The id of frame `frame` of sequence `sequence` ("j0007.0012": four digits at least).
+  static std::string frame_id(const std::string& sequence, int64_t frame);
+  /// Creates the folder of a frame's job (its id from frame_id()). Throws std::runtime_error.
+  void create_job_dir(const std::string& id);
+  /// Gives job `to` the bundle.pb of job `from` (a hard link, or a copy where links fail). Throws
+  /// std::runtime_error.
+  void share_bundle(const std::string& from, const std::string& to);
   /// A fresh empty folder under tmp/.
   std::filesystem::path make_scratch_dir();
 

@@ -50,8 +50,15 @@ SceneCheck scene_check(const wire::SubmitJob& request, const Limits& limits) {
   };
 }
 
-std::optional<std::string> check_queue(size_t jobs_waiting, const Limits& limits) {
-  if (jobs_waiting < limits.max_queued_jobs) return std::nullopt;
+std::optional<std::string> check_queue(size_t jobs_waiting, const Limits& limits, uint64_t frames) {
+  if (frames > 1 && frames > limits.max_queued_jobs) {
+    return fmt::format(
+        "a sequence of {} frames is more than the master queues at once (--max-queued-jobs {}, "
+        "each frame a job); submit it in parts",
+        frames, limits.max_queued_jobs);
+  }
+  if (frames > 1 && jobs_waiting + frames <= limits.max_queued_jobs) return std::nullopt;
+  if (frames <= 1 && jobs_waiting < limits.max_queued_jobs) return std::nullopt;
   return fmt::format(
       "the master's queue is full: {} jobs are queued or running, the limit is {} "
       "(--max-queued-jobs); submit again when some have finished",

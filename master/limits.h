@@ -53,7 +53,10 @@ SubmissionFigures figures_of(const wire::SubmitJob& request, const FilmSize& fil
 SceneCheck scene_check(const wire::SubmitJob& request, const Limits& limits);
 
 /// Refusal when `jobs_waiting` (queued or running) have reached the limit.
-std::optional<std::string> check_queue(size_t jobs_waiting, const Limits& limits);
+/// A submission of `frames` jobs (a sequence's frames, 1 for a single job) when `jobs_waiting`
+/// are queued or running: nullopt when the queue has room for all of them, else why not.
+std::optional<std::string> check_queue(size_t jobs_waiting, const Limits& limits,
+                                       uint64_t frames = 1);
 /// Refusal for a bundle, an image, an spp or a unit result over the limits.
 std::optional<std::string> check_figures(const SubmissionFigures& figures, const Limits& limits);
 

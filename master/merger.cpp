@@ -15,10 +15,12 @@ std::string describe(const TileRect& r, const SampleRange& s) {
 }  // namespace
 
 Merger::Merger(UnitGrid grid)
-    : grid_(std::move(grid)),
-      film_(grid_.film().width, grid_.film().height),
-      merged_(grid_),
-      tile_spp_(grid_.tile_count(), 0) {}
+    : grid_(std::move(grid)), merged_(grid_), tile_spp_(grid_.tile_count(), 0) {}
+
+const Film& Merger::film() const {
+  if (!film_) film_.emplace(grid_.film().width, grid_.film().height);
+  return *film_;
+}
 
 bool Merger::covers(uint64_t unit, const TileRect& rect, const SampleRange& samples,
                     std::string* why) const {
@@ -45,7 +47,7 @@ MergeOutcome Merger::add(uint64_t unit, const TileResult& result, std::string* w
   if (unit < grid_.size() && merged_.contains(unit)) return MergeOutcome::kDuplicate;
   if (!covers(unit, result.rect, result.samples, why)) return MergeOutcome::kRejected;
   const UnitGrid::Unit expected = grid_.unit(unit);
-  if (!result.well_formed() || !film_.fits(result)) {
+  if (!result.well_formed() || !film().fits(result)) {
     return reject("unit " + std::to_string(unit) + ": malformed sums (" +
                   std::to_string(result.sum.size()) + " and " +
                   std::to_string(result.sum_sq.size()) + " values for " +
@@ -54,7 +56,7 @@ MergeOutcome Merger::add(uint64_t unit, const TileResult& result, std::string* w
   if (const std::string problem = implausible(result); !problem.empty()) {
     return reject("unit " + std::to_string(unit) + ": impossible sums: " + problem);
   }
-  film_.add(result);
+  film_->add(result);
   merged_.add(unit);
   tile_spp_[expected.tile] += expected.samples.count();
   samples_merged_ += uint64_t{expected.rect.pixel_count()} * expected.samples.count();
@@ -106,7 +108,7 @@ void Merger::restore(const std::vector<uint8_t>& merged, const std::vector<Fixed
     film.add(r);
   }
   if (!totals_added && (nonfinite != 0 || rays != 0)) fail("rays counted but no unit merged");
-  film_ = std::move(film);
+  film_.emplace(std::move(film));
   merged_ = std::move(units);
   tile_spp_ = std::move(tile_spp);
   samples_merged_ = samples;

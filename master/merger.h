@@ -5,6 +5,7 @@
 // (merged_units()): the planner and the job manager read it from here. The film's fixed-point sums
 // make the image independent of the order of arrival (common/image/film.h).
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -43,7 +44,8 @@ class Merger {
   /// Fewest samples of any pixel: the film's min_spp(), from the tiles (O(tiles), not O(pixels);
   /// every pixel of a tile has the tile's samples).
   uint32_t min_spp() const;
-  const Film& film() const { return film_; }
+  /// The film, allocated on first use: a queued job (a sequence's later frames) holds no pixels.
+  const Film& film() const;
   const UnitGrid& grid() const { return grid_; }
   /// Replaces what is merged with a checkpoint's state: the merged units (one byte per unit,
   /// MergedUnits::to_bytes) and the film's sums. The film is rebuilt tile by tile, each pixel
@@ -54,7 +56,7 @@ class Merger {
 
  private:
   UnitGrid grid_;
-  Film film_;
+  mutable std::optional<Film> film_;  // film()
   MergedUnits merged_;
   std::vector<uint32_t> tile_spp_;  // samples per pixel merged in each tile
   uint64_t samples_merged_ = 0;

@@ -12,9 +12,12 @@ constexpr size_t kDurationWindow = 64;
 
 }  // namespace
 
-void Scheduler::add_job(const std::string& job) {
+void Scheduler::add_job(const std::string& job, const std::string& group, int64_t rank) {
   RAYFARM_CHECK(jobs_.count(job) == 0, "job added twice to the scheduler");
-  jobs_.emplace(job, Job{});
+  Job j;
+  j.group = group;
+  j.rank = rank;
+  jobs_.emplace(job, std::move(j));
   order_.push_back(job);
 }
 
@@ -72,31 +75,54 @@ bool Scheduler::has_pending(const Job& j) {
   return !j.requeued.empty() || !j.ready.empty() || j.next_fresh < j.fresh_end;
 }
 
-bool Scheduler::served_before(const Job& a, const Job& b) {
+bool Scheduler::served_before(const Standing& a, const Standing& b) {
   if (a.priority != b.priority) return a.priority > b.priority;
-  if (a.leased.size() != b.leased.size()) return a.leased.size() < b.leased.size();
+  if (a.leases != b.leases) return a.leases < b.leases;
   return a.served < b.served;
 }
 
 std::optional<UnitRef> Scheduler::lease(const WorkerId& worker, Clock::time_point now,
                                         const std::string& key) {
   const std::string& who = key.empty() ? worker : key;
+  // A group (a sequence's frames) competes as one job: its leases and its latest service are its
+  // jobs' together, and it offers its lowest-ranked job that this worker may take.
+  std::map<std::string, Standing> groups;
+  for (const auto& [name, j] : jobs_) {
+    if (j.group.empty()) continue;
+    Standing& g = groups[j.group];
+    g.leases += j.leased.size();
+    g.served = std::max(g.served, j.served);
+  }
+  std::map<std::string, const std::string*> offered;  // group -> its job on offer
+  for (const auto& name : order_) {
+    const Job& j = jobs_.at(name);
+    if (j.group.empty() || j.paused || j.blocked.count(who) || !has_pending(j)) continue;
+    const std::string*& pick = offered[j.group];
+    if (pick == nullptr || j.rank < jobs_.at(*pick).rank) pick = &name;
+  }
   // The first best in the order of addition: ties go to the older job.
   const std::string* best = nullptr;
-  Job* best_job = nullptr;
+  Standing best_standing;
   for (const auto& name : order_) {
-    Job& j = jobs_.at(name);
+    const Job& j = jobs_.at(name);
     if (j.paused || j.blocked.count(who) || !has_pending(j)) continue;
-    if (best_job == nullptr || served_before(j, *best_job)) {
+    Standing standing{j.priority, j.leased.size(), j.served};
+    if (!j.group.empty()) {
+      if (offered.at(j.group) != &name) continue;
+      standing = groups.at(j.group);
+      standing.priority = j.priority;
+    }
+    if (best == nullptr || served_before(standing, best_standing)) {
       best = &name;
-      best_job = &j;
+      best_standing = standing;
     }
   }
-  if (best_job == nullptr) return std::nullopt;
-  const std::optional<uint64_t> unit = take_pending(*best_job);
+  if (best == nullptr) return std::nullopt;
+  Job& best_job = jobs_.at(*best);
+  const std::optional<uint64_t> unit = take_pending(best_job);
   RAYFARM_CHECK(unit.has_value(), "a job with units pending gave none");
-  best_job->leased[*unit] = {Job::Holder{worker, now}};
-  best_job->served = ++lease_serial_;
+  best_job.leased[*unit] = {Job::Holder{worker, now}};
+  best_job.served = ++lease_serial_;
   by_worker_[worker].insert(UnitRef{*best, *unit});
   return UnitRef{*best, *unit};
 }

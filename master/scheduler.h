@@ -9,7 +9,9 @@
 // that the worker is not blocked from), one of the highest priority; among those, the job that
 // holds the fewest leases now, then the one served longest ago, then the oldest, so that jobs of
 // equal priority share the workers evenly and a job submitted behind a long one gets the next
-// worker that frees up. A job of higher priority takes every worker it can use first. Within a
+// worker that frees up. A job of higher priority takes every worker it can use first. The jobs of
+// a group (the frames of a sequence) count as one job in that choice, and the group serves its
+// lowest-ranked job with a unit pending first: frames finish in order. Within a
 // job the lowest-numbered pending unit goes first (pass-major, common/schedule/unit_grid.h). A
 // worker's leases go back to the queue when it is lost, ahead of units never handed out. Pausing a
 // job stops new leases of it (second leases too); the leases it holds run to their end.
@@ -67,8 +69,9 @@ class Scheduler {
   };
 
   /// Adds a job with no unit pending yet, of priority 0, not paused. A job id already present is
-  /// a CHECK.
-  void add_job(const std::string& job);
+  /// a CHECK. Jobs of one `group` (a sequence's frames) share the workers as one job, and within
+  /// it the lowest `rank` (the frame number) that has a unit pending goes first.
+  void add_job(const std::string& job, const std::string& group = {}, int64_t rank = 0);
   /// Higher priorities are served first (see the top of this file). Unknown jobs are ignored.
   void set_priority(const std::string& job, int priority);
   /// A paused job gets no new leases (nor second leases of its stragglers) until resumed.
@@ -137,6 +140,14 @@ class Scheduler {
     int priority = 0;
     bool paused = false;
     uint64_t served = 0;  // lease_serial_ at its latest lease; 0: never leased
+    std::string group;    // "" or the group it shares the farm with
+    int64_t rank = 0;     // its order in the group
+  };
+  /// How a job (or a group of jobs) stands for the next lease.
+  struct Standing {
+    int priority = 0;
+    size_t leases = 0;
+    uint64_t served = 0;
   };
   std::map<std::string, Job> jobs_;
   std::vector<std::string> order_;                   // jobs in the order they were added
@@ -150,7 +161,7 @@ class Scheduler {
   static bool has_pending(const Job& j);
   /// Whether `a` is served before `b` (both with units pending): priority, then fewer leases now,
   /// then served longer ago.
-  static bool served_before(const Job& a, const Job& b);
+  static bool served_before(const Standing& a, const Standing& b);
   static double median(const std::deque<double>& values);
   /// The threshold past which a lease of `j` is a straggler; nullopt when the policy is off or
   /// the median is not trusted yet.

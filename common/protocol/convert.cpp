@@ -90,6 +90,36 @@ RenderSettings settings_from_wire(const wire::RenderSettings& settings) {
   return out;
 }
 
+wire::FrameList frames_to_wire(const FrameList& frames) {
+  wire::FrameList out;
+  out.set_first(frames.first);
+  out.set_last(frames.last);
+  out.set_step(frames.step);
+  return out;
+}
+
+std::optional<FrameList> frames_from_wire(const wire::FrameList& frames) {
+  if (frames.step() == 0) return std::nullopt;
+  const auto in_range = [](int64_t f) { return f >= -kMaxFrameNumber && f <= kMaxFrameNumber; };
+  if (frames.step() < 0) throw ProtocolError("the frames' step must be at least 1");
+  if (!in_range(frames.first()) || !in_range(frames.last())) {
+    throw ProtocolError("frame numbers must be within +-1000000000");
+  }
+  if (frames.last() < frames.first()) {
+    throw ProtocolError("the frames " + std::to_string(frames.first()) + "-" +
+                        std::to_string(frames.last()) + " are reversed");
+  }
+  FrameList out{frames.first(), frames.last(), frames.step()};
+  out.last = out.first + (out.last - out.first) / out.step * out.step;
+  return out;
+}
+
+uint64_t frame_count(const wire::FrameList& frames) {
+  if (frames.step() <= 0 || frames.last() < frames.first()) return 1;
+  const uint64_t span = uint64_t(frames.last()) - uint64_t(frames.first());
+  return span / uint64_t(frames.step()) + 1;
+}
+
 wire::Rect rect_to_wire(const TileRect& rect) {
   wire::Rect out;
   out.set_x0(rect.x0);

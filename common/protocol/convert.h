@@ -1,6 +1,7 @@
 #pragma once
 // Conversions between rayfarm's types and the wire messages. Conversions from the wire check what
 // they read and throw ProtocolError (a well-formed message with impossible content) naming it.
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -37,6 +38,15 @@ RouletteType roulette_from_wire(wire::Roulette value);
 wire::RenderSettings settings_to_wire(const RenderSettings& settings);
 /// Throws ProtocolError on an unknown integrator or zero spp.
 RenderSettings settings_from_wire(const wire::RenderSettings& settings);
+
+/// A frame list on the wire (step 0: none).
+wire::FrameList frames_to_wire(const FrameList& frames);
+/// nullopt for step 0 (a single job); throws ProtocolError naming the fault of a list that is
+/// reversed, has a negative step or frames beyond +-kMaxFrameNumber.
+std::optional<FrameList> frames_from_wire(const wire::FrameList& frames);
+/// How many frames a list on the wire holds (1 for none, the count of a malformed one's first and
+/// last as they are, never 0): what a submission adds to the master's queue.
+uint64_t frame_count(const wire::FrameList& frames);
 
 wire::Rect rect_to_wire(const TileRect& rect);
 /// Throws ProtocolError on an empty rectangle or one wider or taller than 65536 pixels.

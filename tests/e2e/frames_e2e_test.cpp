@@ -4,6 +4,7 @@
 // N` does. Every wait is bounded; every process is killed by PID at the end.
 #include <gtest/gtest.h>
 
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "common/net/keys.h"
@@ -115,6 +116,97 @@ TEST_F(FramesTest, AFarmJobOfOneFrameEqualsTheLocalRenderOfThatFrame) {
   // A still job has no frame.
   const std::string plain = submit(small_scene("furnace", 8), settings);
   EXPECT_TRUE(nlohmann::json::parse(cli({"status", plain, "--json"}).out)["frame"].is_null());
+}
+
+TEST_F(FramesTest, ASequenceRendersEveryFrameAsTheLocalRenderOfThatFrame) {
+  start_farm();
+  const fs::path scene = small_scene("animated-box", 16);
+  const std::vector<std::string> settings{"--spp", "4", "--seed", "5"};
+  std::vector<std::string> args = settings;
+  args.insert(args.end(), {"--frames", "1-7:3", "--name", "shot"});
+  const std::string seq = submit(scene, args);
+  wait_for_state(seq, wire::JOB_DONE);
+
+  const auto shown = nlohmann::json::parse(cli({"status", seq, "--json"}).out);
+  EXPECT_EQ(shown["name"], "shot");
+  EXPECT_EQ(shown["frames_total"], 3);
+  EXPECT_EQ(shown["frames_done"], 3);
+  ASSERT_EQ(shown["frames"].size(), 3u) << shown;
+  EXPECT_EQ(shown["frames"][1]["frame"], 4);
+  EXPECT_EQ(shown["frames"][1]["job"], seq + ".0004");
+  EXPECT_EQ(shown["frames"][1]["state"], "done");
+  const auto frame_job = nlohmann::json::parse(cli({"status", seq + ".0004", "--json"}).out);
+  EXPECT_EQ(frame_job["sequence"], seq);
+  EXPECT_EQ(frame_job["frame"], 4);
+  EXPECT_TRUE(has_line(cli({"list"}).out, seq, "3/3 fr"));
+
+  // Every frame, fetched at once, is the local render of that frame bit for bit.
+  const fs::path out = dir() / "farm-frames";
+  fs::create_directories(out);
+  const RunResult all = cli({"fetch", seq, "--all", "-o", (out / "shot.####.exr").string()});
+  ASSERT_EQ(all.code, 0) << all.err;
+  for (int frame : {1, 4, 7}) {
+    std::vector<std::string> local = settings;
+    local.insert(local.end(), {"--frame", std::to_string(frame)});
+    EXPECT_TRUE(
+        bit_identical(out / fmt::format("shot.{:04d}.exr", frame), local_render(scene, local)))
+        << "frame " << frame;
+  }
+  EXPECT_FALSE(fs::exists(out / "shot.0002.exr"));
+  const RunResult one = cli({"fetch", seq, "--frame", "7", "-o", (out / "seven.exr").string()});
+  ASSERT_EQ(one.code, 0) << one.err;
+  EXPECT_TRUE(bit_identical(out / "seven.exr", out / "shot.0007.exr"));
+  const RunResult whole = cli({"fetch", seq, "-o", (out / "whole.exr").string()});
+  EXPECT_EQ(whole.code, 1);
+  EXPECT_NE(whole.err.find("is a sequence of 3 frames"), std::string::npos) << whole.err;
+  const RunResult missing = cli({"fetch", seq, "--frame", "2", "-o", (out / "two.exr").string()});
+  EXPECT_EQ(missing.code, 1);
+  EXPECT_NE(missing.err.find("has no frame 2"), std::string::npos) << missing.err;
+
+  // A frame is removed with its sequence only; the sequence goes with every frame's folder.
+  const RunResult frame_rm = cli({"rm", seq + ".0004"});
+  EXPECT_EQ(frame_rm.code, 1);
+  EXPECT_NE(frame_rm.err.find("remove the sequence"), std::string::npos) << frame_rm.err;
+  ASSERT_EQ(cli({"rm", seq}).code, 0);
+  EXPECT_EQ(cli({"status", seq}).code, 1);
+  EXPECT_EQ(cli({"status", seq + ".0001"}).code, 1);
+
+  // Refused before anything is sent: beyond the animation, on a still scene, with a reference.
+  const RunResult beyond = cli({"submit", scene.string(), "--frames", "40-60"});
+  EXPECT_EQ(beyond.code, 1);
+  EXPECT_NE(beyond.err.find("beyond the scene's animation, frames 1-48"), std::string::npos)
+      << beyond.err;
+}
+
+TEST_F(FramesTest, ASequenceIsCancelledPausedAndRetriedAsOne) {
+  start_farm();
+  const fs::path scene = small_scene("animated-box", 32);
+  const std::string seq = submit(scene, {"--spp", "256", "--frames", "1-48", "--paused"});
+  wire::JobStatus st = status(seq);
+  EXPECT_EQ(st.state(), wire::JOB_QUEUED);
+  EXPECT_TRUE(st.paused());
+  EXPECT_EQ(st.frames_total(), 48u);
+  EXPECT_EQ(st.units_leased(), 0u);
+  const RunResult priority = cli({"set-priority", seq, "-3"});
+  ASSERT_EQ(priority.code, 0) << priority.err;
+  EXPECT_EQ(nlohmann::json::parse(cli({"status", seq + ".0030", "--json"}).out)["priority"], -3);
+  ASSERT_EQ(cli({"resume", seq}).code, 0);
+  wait_for_units(seq, 1);
+  const RunResult cancel = cli({"cancel", seq});
+  ASSERT_EQ(cancel.code, 0) << cancel.err;
+  wait_for_state(seq, wire::JOB_CANCELLED);
+  st = status(seq);
+  EXPECT_LT(st.frames_done(), 48u);
+  for (const auto& f : st.frames()) {
+    EXPECT_TRUE(f.state() == wire::JOB_CANCELLED || f.state() == wire::JOB_DONE) << f.frame();
+  }
+  // Retried, the cancelled frames are queued again (and cancelled again here).
+  const RunResult retry = cli({"retry", seq});
+  ASSERT_EQ(retry.code, 0) << retry.err;
+  EXPECT_NE(status(seq).state(), wire::JOB_CANCELLED);
+  ASSERT_EQ(cli({"cancel", seq}).code, 0);
+  wait_for_state(seq, wire::JOB_CANCELLED);
+  ASSERT_EQ(cli({"rm", seq}).code, 0) << cli({"rm", seq}).err;
 }
 
 }  // namespace

@@ -60,6 +60,55 @@ TEST(Scheduler, AJobSubmittedBehindALongOneGetsTheNextFreeWorker) {
   EXPECT_EQ(s.lease("w7"), (UnitRef{"long", 8})) << "the short job has nothing left";
 }
 
+TEST(Scheduler, ASequencesFramesGoInOrderAndShareTheFarmAsOneJob) {
+  Scheduler s;
+  // Frames added out of order (a restart lists folders by name): rank decides.
+  for (const int frame : {3, 1, 2}) {
+    s.add_job("seq." + std::to_string(frame), "seq", frame);
+    s.release_all("seq." + std::to_string(frame), 2);
+  }
+  add_job(s, "other", 100);
+  // One worker at a time: the sequence and the other job take turns, and the sequence's turns
+  // take frame 1's units, then frame 2's, then frame 3's.
+  std::string sequence_order;
+  size_t other = 0;
+  for (int i = 0; i < 12; ++i) {
+    const auto ref = s.lease("w");
+    ASSERT_TRUE(ref);
+    if (ref->job == "other") {
+      ++other;
+    } else {
+      sequence_order += ref->job.substr(4) + ",";
+    }
+    ASSERT_TRUE(s.complete(*ref, std::string("w")));
+  }
+  EXPECT_EQ(sequence_order, "1,1,2,2,3,3,");
+  EXPECT_EQ(other, 6u);
+  // Eight workers: the sequence holds four leases at most (its share, counted over its frames),
+  // the other job four.
+  Scheduler wide;
+  for (int frame = 1; frame <= 4; ++frame) {
+    wide.add_job("f" + std::to_string(frame), "seq", frame);
+    wide.release_all("f" + std::to_string(frame), 3);
+  }
+  add_job(wide, "other", 100);
+  std::string sequence_jobs;
+  for (int w = 0; w < 8; ++w) {
+    const auto ref = wide.lease("w" + std::to_string(w));
+    ASSERT_TRUE(ref);
+    if (ref->job != "other") sequence_jobs += ref->job + ",";
+  }
+  EXPECT_EQ(sequence_jobs, "f1,f1,f1,f2,") << "frame 1 has 3 units, then frame 2";
+  // A paused frame is skipped; the next one is offered.
+  Scheduler paused;
+  for (int frame = 1; frame <= 2; ++frame) {
+    paused.add_job("f" + std::to_string(frame), "seq", frame);
+    paused.release_all("f" + std::to_string(frame), 1);
+  }
+  paused.set_paused("f1", true);
+  EXPECT_EQ(paused.lease("w"), (UnitRef{"f2", 0}));
+}
+
 TEST(Scheduler, EqualJobsAlternateOnOneWorker) {
   // One worker taking one unit at a time: the jobs take turns (each holds none when it asks), so
   // neither waits for the other to finish.

@@ -1,0 +1,134 @@
+// Sequences in the job manager, without sockets: a sequence's frames are jobs handed out in frame
+// order, its status sums theirs, it survives a restart whole, and what cannot be a sequence is
+// refused by name at submission (or by the queue's limit).
+#include <gtest/gtest.h>
+
+#include "common/bundle/bundle.h"
+#include "common/protocol/convert.h"
+#include "master/job_manager.h"
+#include "master/limits.h"
+#include "tests/master/job_requests.h"
+#include "tests/support/temp_dir.h"
+
+namespace rayfarm::master {
+namespace {
+
+using test_jobs::result_for;
+using testing::TempDir;
+
+/// The bundled animation at 16x16, one unit per frame (2 spp in one pass of one tile).
+wire::SubmitJob animation_job(int64_t first, int64_t last, int64_t step) {
+  const PackedScene packed = pack_scene(std::filesystem::path(RAYFARM_SOURCE_DIR) / "scenes" /
+                                        "animated-box" / "scene.json");
+  wire::SubmitJob request;
+  protocol::bundle_to_wire(packed.bundle, request.mutable_bundle());
+  request.set_scene_path(packed.scene_path);
+  request.set_name("shot");
+  wire::JobOverrides* o = request.mutable_overrides();
+  o->set_spp(2);
+  o->set_tile_size(16);
+  o->set_pass_spp(2);
+  o->set_width(16);
+  o->set_height(16);
+  *request.mutable_frames() = protocol::frames_to_wire({first, last, step});
+  return request;
+}
+
+TEST(JobSequences, FramesGoOutInOrderAndTheSequenceSurvivesARestart) {
+  TempDir dir;
+  std::string seq;
+  {
+    JobStore store(dir.path() / "data");
+    JobManager jobs(store);
+    seq = jobs.submit(animation_job(2, 7, 2), "alice");  // frames 2, 4, 6
+    ASSERT_NE(jobs.owner_of(seq), nullptr);
+    EXPECT_EQ(*jobs.owner_of(seq), "alice");
+    const auto st = jobs.status(seq, 1);
+    ASSERT_TRUE(st);
+    EXPECT_EQ(st->name(), "shot");
+    EXPECT_EQ(st->frames_total(), 3u);
+    EXPECT_EQ(st->state(), wire::JOB_QUEUED);
+    ASSERT_EQ(st->frames_size(), 3);
+    EXPECT_EQ(st->frames(2).frame(), 6);
+    EXPECT_EQ(st->frames(2).job_id(), seq + ".0006");
+    // list(): the sequence is one line.
+    const auto list = jobs.list(1);
+    ASSERT_EQ(list.size(), 1u);
+    EXPECT_EQ(list[0].job_id(), seq);
+    EXPECT_EQ(list[0].frames_size(), 0);
+
+    const auto unit = jobs.next_unit("w1");
+    ASSERT_TRUE(unit);
+    EXPECT_EQ(unit->job_id(), seq + ".0002");
+    EXPECT_EQ(unit->frame(), 2);
+    ASSERT_EQ(jobs.on_result("w1", result_for(*unit)), MergeOutcome::kMerged);
+    test_jobs::tick_while_running(jobs, seq + ".0002");
+    EXPECT_EQ(jobs.status(seq, 1)->frames_done(), 1u);
+    EXPECT_EQ(jobs.status(seq, 1)->frame(), 4);  // the first frame not done
+    jobs.shutdown();
+  }
+  JobStore store(dir.path() / "data");
+  JobManager restarted(store);
+  EXPECT_EQ(restarted.recover(), 2u);  // frames 4 and 6
+  const auto st = restarted.status(seq, 1);
+  ASSERT_TRUE(st);
+  EXPECT_EQ(st->frames_done(), 1u);
+  EXPECT_EQ(st->frames(0).state(), wire::JOB_DONE);
+  const auto next = restarted.next_unit("w2");
+  ASSERT_TRUE(next);
+  EXPECT_EQ(next->frame(), 4);
+  // Removing a frame alone is refused; the sequence cannot go while frames run.
+  EXPECT_THROW(restarted.remove(seq + ".0002"), JobRejected);
+  EXPECT_THROW(restarted.remove(seq), JobRejected);
+  ASSERT_EQ(restarted.cancel(seq), wire::JOB_CANCELLED);
+  restarted.remove(seq);
+  EXPECT_FALSE(restarted.status(seq, 1));
+  EXPECT_FALSE(std::filesystem::exists(store.job_dir(seq)));
+  EXPECT_FALSE(std::filesystem::exists(store.job_dir(seq + ".0004")));
+}
+
+TEST(JobSequences, WhatCannotBeASequenceIsRefusedByName) {
+  TempDir dir;
+  JobStore store(dir.path() / "data");
+  JobManager jobs(store);
+  const auto expect_refused = [&](const wire::SubmitJob& request, const std::string& words) {
+    try {
+      jobs.submit(request);
+      ADD_FAILURE() << "accepted; expected a refusal with " << words;
+    } catch (const JobRejected& e) {
+      EXPECT_NE(std::string(e.what()).find(words), std::string::npos) << e.what();
+    }
+  };
+  expect_refused(animation_job(40, 60, 1), "frame 60 is outside the scene's frames 1-48");
+  expect_refused(animation_job(-3, 2, 1), "frame -3 is outside");
+  expect_refused(animation_job(5, 1, 1), "reversed");
+  expect_refused(animation_job(1, 5, -1), "step");
+  wire::SubmitJob both = animation_job(1, 3, 1);
+  both.set_frame(2);
+  expect_refused(both, "one frame or a sequence of frames, not both");
+  wire::SubmitJob reference = animation_job(1, 3, 1);
+  reference.set_reference_exr("x");
+  expect_refused(reference, "a sequence cannot have one");
+  wire::SubmitJob still = test_jobs::furnace_job(2, 16, 2);
+  *still.mutable_frames() = protocol::frames_to_wire({1, 2, 1});
+  expect_refused(still, "still");
+  EXPECT_TRUE(jobs.list(0).empty());  // nothing accepted half-way
+}
+
+TEST(JobSequences, TheQueueLimitCountsEveryFrame) {
+  Limits limits;
+  limits.max_queued_jobs = 10;
+  EXPECT_FALSE(check_queue(5, limits, 5));
+  const auto full = check_queue(6, limits, 5);
+  ASSERT_TRUE(full);
+  EXPECT_NE(full->find("queue is full"), std::string::npos) << *full;
+  const auto huge = check_queue(0, limits, 11);
+  ASSERT_TRUE(huge);
+  EXPECT_NE(huge->find("a sequence of 11 frames"), std::string::npos) << *huge;
+  wire::FrameList frames = protocol::frames_to_wire({-5, 1000, 5});
+  EXPECT_EQ(protocol::frame_count(frames), 202u);
+  EXPECT_EQ(protocol::frame_count(wire::FrameList{}), 1u);
+}
+
+}  // namespace
+}  // namespace rayfarm::master
