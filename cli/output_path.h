@@ -54,6 +54,12 @@ inline OutputFormat check_output_path(const std::filesystem::path& path) {
   return format;
 }
 
+/// Whether `path`'s file name holds a frame number pattern (a '#' or a '%').
+inline bool has_frame_pattern(const std::filesystem::path& path) {
+  const std::string name = path.filename().string();
+  return name.find('#') != std::string::npos || name.find('%') != std::string::npos;
+}
+
 /// The image of frame `frame` of a sequence rendered to `path`: a run of '#' in the file name
 /// becomes the frame number padded with zeros to its length ("shot.####.exr" -> "shot.0012.exr"),
 /// as does a printf "%d" or "%0Nd"; a name with neither gets ".NNNN" before its extension

@@ -213,8 +213,7 @@ int run_render(const RenderArgs& args) {
   get_logger("render")->info("{}", protocol::kBuildVersion);
   if (!args.frames) {
     // One image: a '#' or '%d' in the name takes the frame number.
-    const bool pattern = args.frame && (args.output.find('#') != std::string::npos ||
-                                        args.output.find('%') != std::string::npos);
+    const bool pattern = args.frame && has_frame_pattern(args.output);
     render_one(
         args, args.frame,
         pattern ? frame_output_path(args.output, *args.frame) : std::filesystem::path(args.output),

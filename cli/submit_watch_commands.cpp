@@ -208,14 +208,20 @@ int run_submit(const SubmitArgs& args) {
   if (!args.wait) return 0;
   StatusPoller poller(args.client, "submit");
   const int code = watch_job(poller, job, args.json);
-  if (code != 0 || !format) return code;
-  if (args.frames) {
-    const auto wrote = poller.with_retry([&](FarmClient& client) {
-      return fetch_frames(client, job, args.output, *format, std::nullopt);
-    });
-    for (const std::string& line : wrote) std::cerr << line << "\n";
-    return 0;
+  if (args.frames && format && code != kExitInterrupted && code != kExitError) {
+    // The frames that are done come home even when others failed or were cancelled.
+    try {
+      const auto wrote = poller.with_retry([&](FarmClient& client) {
+        return fetch_frames(client, job, args.output, *format, std::nullopt);
+      });
+      for (const std::string& line : wrote) std::cerr << line << "\n";
+    } catch (const MasterError& e) {
+      if (code == 0) throw;
+      std::cerr << e.what() << "\n";
+    }
+    return code;
   }
+  if (code != 0 || !format) return code;
   const std::string wrote = poller.with_retry(
       [&](FarmClient& client) { return fetch_image(client, job, args.output, *format); });
   std::cerr << wrote << "\n";

@@ -75,8 +75,7 @@ void add_fetch(CLI::App& app, int& exit_code) {
       FarmClient client(*args);
       if (*all || frame->has_value()) {
         // A frame's own name when --frame is given without a pattern in the name.
-        const bool pattern =
-            output->find('#') != std::string::npos || output->find('%') != std::string::npos;
+        const bool pattern = has_frame_pattern(*output);
         if (frame->has_value() && !pattern) {
           const wire::JobStatus st = query_status(client, *job);
           for (const wire::SequenceFrame& f : st.frames()) {

@@ -137,7 +137,7 @@ void Broker::handle_client(const net::Delivery& delivery) {
       // queued; the scene's figures on the thread.
       const SubmissionFigures figures = bundle_figures(*submit);
       std::optional<std::string> refusal =
-          check_queue(jobs_.active_jobs() + submissions_->in_flight(), options_.limits,
+          check_queue(jobs_.active_jobs() + submissions_->jobs_in_flight(), options_.limits,
                       protocol::frame_count(submit->frames()));
       wire::Error::Code code = wire::Error::REFUSED;
       if (!refusal) refusal = check_figures(figures, options_.limits);
@@ -240,6 +240,12 @@ void Broker::handle_client(const net::Delivery& delivery) {
       }
     } else if (const auto* retry = msg.as<wire::RetryJob>()) {
       if (refuse_unless_manager(retry->job_id(), "retry")) return;
+      // A retried job (each retried frame of a sequence) joins the queue again.
+      if (auto full = check_queue(jobs_.active_jobs() + submissions_->jobs_in_flight(),
+                                  options_.limits, jobs_.retry_count(retry->job_id()))) {
+        reply(peer, error_frames(wire::Error::REFUSED, *full, retry->job_id()));
+        return;
+      }
       try {
         wire::RetryReply out;
         out.set_state(jobs_.retry(retry->job_id()));

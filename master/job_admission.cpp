@@ -107,6 +107,11 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
   } catch (const protocol::ProtocolError& e) {
     throw JobRejected(e.what());
   }
+  if (request.has_frame() &&
+      (request.frame() < -kMaxFrameNumber || request.frame() > kMaxFrameNumber)) {
+    throw JobRejected(fmt::format("frame {} is out of range (frame numbers are within +-{})",
+                                  request.frame(), kMaxFrameNumber));
+  }
   if (frames && request.has_frame()) {
     throw JobRejected("a job is one frame or a sequence of frames, not both");
   }
@@ -299,10 +304,12 @@ std::vector<JobSpec> JobManager::store_frames(const JobSpec& spec, const FrameLi
       f.name = fmt::format("{} frame {}", spec.name, *f.frame);
       store_.create_job_dir(f.id);
       out.push_back(f);
-      store_.share_bundle(spec.id, f.id);
       store_.save_record(record);
     }
     for (const JobSpec& f : out) store_.sync_job_dir(f.id);
+    // Only now is the sequence whole: a crash before this line leaves frames that a restart
+    // removes rather than a part of the sequence its client never heard of.
+    store_.mark_sequence_stored(spec.id, out.size());
   } catch (...) {
     std::error_code ec;
     for (const JobSpec& f : out) fs::remove_all(store_.job_dir(f.id), ec);
@@ -344,7 +351,7 @@ std::string JobManager::admit_one(const JobSpec& spec, std::optional<Image> refe
   job.record.spec = spec;
   job.record.priority = priority;
   job.record.paused = paused;
-  bundle_owner_.emplace(hash, spec.id);
+  bundle_owner_.emplace(hash, JobStore::bundle_holder(spec));
   try {
     activate(job, std::move(reference));
   } catch (const std::exception& e) {

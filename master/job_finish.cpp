@@ -141,6 +141,7 @@ void JobManager::write_image(Job& job, bool wait) {
       {"rayfarm:job", s.id},
       {"rayfarm:spp_target", std::to_string(s.settings.spp)}};
   if (s.settings.clamp > 0) attributes["rayfarm:clamp"] = fmt::format("{:g}", s.settings.clamp);
+  if (s.frame) attributes["rayfarm:frame"] = std::to_string(*s.frame);
   // The same pixels as `rayfarm render` (film_to_image), written on the writer's thread.
   ImageWriter::ErrorRecord record;
   record.rows = job.active->rows;

@@ -188,7 +188,20 @@ MergeOutcome JobManager::on_result(const WorkerId& worker, const wire::UnitResul
   } catch (const protocol::ProtocolError& e) {
     return reject(e.what());
   }
-  const MergeOutcome outcome = a.merger.add(result.unit_id(), tile, &why);
+  MergeOutcome outcome;
+  try {
+    outcome = a.merger.add(result.unit_id(), tile, &why);  // the first allocates the film
+  } catch (const std::bad_alloc&) {
+    // The master cannot hold the job's image: the job fails, saying so, instead of leasing the
+    // unit again and again.
+    log_merger()->error("job {}: no memory for its {}x{} film", id, a.grid().film().width,
+                        a.grid().film().height);
+    finish(job, wire::JOB_FAILED,
+           fmt::format("the master has no memory for the job's {}x{} image", a.grid().film().width,
+                       a.grid().film().height),
+           StopReason::kFailed);
+    return MergeOutcome::kRejected;
+  }
   if (outcome == MergeOutcome::kRejected) return reject(why);
   if (outcome == MergeOutcome::kDuplicate) return outcome;  // checked above; kept for clarity
 
@@ -376,18 +389,10 @@ void JobManager::remove_job(const std::string& id) {
         fmt::format("cannot remove {}: {}", store_.job_dir(id).string(), ec.message()));
   }
   const std::string hash = job.record.spec.bundle_hash;
+  const bool frame = !job.record.spec.sequence.empty();
   jobs_.erase(it);
-  // Bundles are served by a job that has them: another one with the same scene, if any.
-  auto owner = bundle_owner_.find(hash);
-  if (owner != bundle_owner_.end() && owner->second == id) {
-    bundle_owner_.erase(owner);
-    for (const auto& [other, j] : jobs_) {
-      if (!j.record.unreadable && j.record.spec.bundle_hash == hash) {
-        bundle_owner_.emplace(hash, other);
-        break;
-      }
-    }
-  }
+  // A frame's bundle is its sequence's, which remove_sequence() rebinds once it is gone.
+  if (!frame) rebind_bundle(hash, id);
   log_jobs()->info("job {} removed with its files", id);
 }
 
@@ -406,7 +411,7 @@ wire::JobState JobManager::retry(const std::string& id) {
                     protocol::job_state_name(state),
                     state == wire::JOB_DONE ? " (submit it again to render more)" : ""));
   }
-  if (!store_.load_bundle(id)) {
+  if (!store_.load_bundle(JobStore::bundle_holder(job.record.spec))) {
     throw JobRejected("job " + id + " cannot be retried: its bundle is missing from the data dir");
   }
   writer_.flush();

@@ -145,6 +145,9 @@ class JobManager {
   /// and error record start over). Returns the state afterwards (queued). Throws JobRejected
   /// naming the cause: an unknown job, one that is done, queued or running, or unreadable.
   wire::JobState retry(const std::string& id);
+  /// How many jobs retry(id) would queue again: the failed or cancelled frames of a sequence, 1
+  /// for a job of its own (0 when unknown).
+  uint64_t retry_count(const std::string& id) const;
   /// The units `worker` holds now, as "JOB/UNIT".
   std::vector<std::string> units_of(const WorkerId& worker) const;
   /// Status of one job; nullopt when unknown. `workers_total` is the master's worker count.
@@ -196,9 +199,15 @@ class JobManager {
   const JobRecord* change_sequence(const std::string& id, const std::vector<std::string>& frames,
                                    std::optional<int32_t> priority, std::optional<bool> paused);
   void remove_sequence(const std::string& id);
+  /// change() of one job, frames included.
+  const JobRecord* change_one(const std::string& id, std::optional<int32_t> priority,
+                              std::optional<bool> paused);
   wire::JobState retry_sequence(const std::string& id, const std::vector<std::string>& frames);
   /// Removes a finished job and its folder (remove() has checked it may go).
   void remove_job(const std::string& id);
+  /// The bundle of `hash` was served from folder `gone`, which is removed: serve it from another
+  /// job's folder that has it, if any.
+  void rebind_bundle(const std::string& hash, const std::string& gone);
   /// Stores the job of every frame of a sequence whose bundle is in `spec`'s folder; throws
   /// std::runtime_error (the frames stored so far are removed).
   std::vector<JobSpec> store_frames(const JobSpec& spec, const FrameList& frames,

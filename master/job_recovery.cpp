@@ -7,6 +7,7 @@
 #include "master/job_text.h"
 
 namespace rayfarm::master {
+namespace fs = std::filesystem;
 using namespace detail;
 
 size_t JobManager::recover() {
@@ -19,10 +20,20 @@ size_t JobManager::recover() {
       jobs_.emplace(id, std::move(job));
       continue;
     }
-    bundle_owner_.emplace(job.record.spec.bundle_hash, id);
-    if (!job.record.spec.sequence.empty()) sequences_[job.record.spec.sequence].push_back(id);
+    const std::string& sequence = job.record.spec.sequence;
+    if (!sequence.empty() && !store_.sequence_stored(sequence)) {
+      // A sequence whose submission a crash cut short: its client was never told of it.
+      log_jobs()->warn("job {}: frame of sequence {}, whose submission never completed; removed",
+                       id, sequence);
+      std::error_code ec;
+      fs::remove_all(store_.job_dir(id), ec);
+      fs::remove_all(store_.job_dir(sequence), ec);
+      continue;
+    }
+    bundle_owner_.emplace(job.record.spec.bundle_hash, JobStore::bundle_holder(job.record.spec));
+    if (!sequence.empty()) sequences_[sequence].push_back(id);
     if (is_active_state(job.record.state)) {
-      if (!store_.load_bundle(id)) {
+      if (!store_.load_bundle(JobStore::bundle_holder(job.record.spec))) {
         job.record.state = wire::JOB_FAILED;
         job.record.paused = false;
         job.record.error = "the job's bundle is missing from the data dir";

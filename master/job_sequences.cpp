@@ -29,7 +29,13 @@ std::string sequence_name(const JobSpec& frame) {
 
 const std::vector<std::string>* JobManager::sequence_frames(const std::string& id) const {
   auto it = sequences_.find(id);
-  return it == sequences_.end() ? nullptr : &it->second;
+  if (it == sequences_.end()) return nullptr;
+  // A sequence none of whose frames is left (a removal cut short) is unknown, as it would be
+  // after a restart.
+  for (const std::string& f : it->second) {
+    if (jobs_.count(f)) return &it->second;
+  }
+  return nullptr;
 }
 
 wire::JobState JobManager::cancel_sequence(const std::vector<std::string>& frames) {
@@ -50,7 +56,7 @@ const JobRecord* JobManager::change_sequence(const std::string& id,
   for (const std::string& f : frames) {
     auto it = jobs_.find(f);
     if (it == jobs_.end() || !it->second.active || it->second.active->finishing) continue;
-    const JobRecord* r = change(f, priority, paused);
+    const JobRecord* r = change_one(f, priority, paused);
     if (first == nullptr) first = r;
   }
   if (first == nullptr) {
@@ -73,17 +79,35 @@ void JobManager::remove_sequence(const std::string& id) {
                       id, it->second.record.spec.frame.value_or(0)));
     }
   }
+  std::string hash;
   for (const std::string& f : frames) {
-    if (jobs_.count(f)) remove_job(f);
+    if (!jobs_.count(f)) continue;
+    hash = jobs_.at(f).record.spec.bundle_hash;
+    remove_job(f);
   }
-  sequences_.erase(id);
+  // The sequence's own folder (its bundle) goes last: until then a frame may still need it.
   std::error_code ec;
-  fs::remove_all(store_.job_dir(id), ec);  // the sequence's own bundle
+  fs::remove_all(store_.job_dir(id), ec);
   if (ec) {
     throw JobRejected(
         fmt::format("cannot remove {}: {}", store_.job_dir(id).string(), ec.message()));
   }
+  sequences_.erase(id);
+  rebind_bundle(hash, id);
   log_jobs()->info("sequence {} removed with its {} frames", id, frames.size());
+}
+
+uint64_t JobManager::retry_count(const std::string& id) const {
+  const auto* frames = sequence_frames(id);
+  if (frames == nullptr) return jobs_.count(id) ? 1 : 0;
+  uint64_t n = 0;
+  for (const std::string& f : *frames) {
+    auto it = jobs_.find(f);
+    if (it == jobs_.end() || it->second.record.unreadable) continue;
+    const wire::JobState s = it->second.record.state;
+    n += s == wire::JOB_FAILED || s == wire::JOB_CANCELLED;
+  }
+  return n;
 }
 
 wire::JobState JobManager::retry_sequence(const std::string& id,

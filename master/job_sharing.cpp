@@ -15,6 +15,20 @@ const JobRecord* JobManager::change(const std::string& id, std::optional<int32_t
   }
   auto it = jobs_.find(id);
   if (it == jobs_.end()) return nullptr;
+  // A sequence shares the farm as one job, at one priority: its frames' is the sequence's.
+  const JobSpec& spec = it->second.record.spec;
+  if (priority && sequence_frames(spec.sequence)) {
+    throw JobRejected(
+        fmt::format("job {} is frame {} of sequence {}: give the sequence its priority", id,
+                    spec.frame.value_or(0), spec.sequence));
+  }
+  return change_one(id, priority, paused);
+}
+
+const JobRecord* JobManager::change_one(const std::string& id, std::optional<int32_t> priority,
+                                        std::optional<bool> paused) {
+  auto it = jobs_.find(id);
+  if (it == jobs_.end()) return nullptr;
   Job& job = it->second;
   JobRecord& r = job.record;
   if (!job.active || job.active->finishing) {

@@ -128,12 +128,13 @@ std::optional<wire::JobStatus> JobManager::status(const std::string& id,
 std::vector<wire::JobStatus> JobManager::list(uint32_t workers_total) const {
   // A sequence is one line, where its first frame would be.
   std::vector<wire::JobStatus> out;
+  std::set<std::string> listed;  // sequences
   for (const auto& [id, job] : jobs_) {
     const std::string& sequence = job.record.spec.sequence;
     const auto* frames = sequence.empty() ? nullptr : sequence_frames(sequence);
     if (frames == nullptr) {
       out.push_back(make_status(job, workers_total));
-    } else if (frames->front() == id) {
+    } else if (listed.insert(sequence).second) {
       out.push_back(sequence_status(sequence, *frames, workers_total, /*with_frames=*/false));
     }
   }
@@ -167,6 +168,20 @@ std::optional<wire::Bundle> JobManager::bundle(const std::string& hash) const {
   auto it = bundle_owner_.find(hash);
   if (it == bundle_owner_.end()) return std::nullopt;
   return store_.load_bundle(it->second);
+}
+
+void JobManager::rebind_bundle(const std::string& hash, const std::string& gone) {
+  // Bundles are served from a folder that has them: another job's with the same scene, if any.
+  auto owner = bundle_owner_.find(hash);
+  if (owner == bundle_owner_.end() || owner->second != gone) return;
+  bundle_owner_.erase(owner);
+  for (const auto& [other, j] : jobs_) {
+    if (!j.record.unreadable && j.record.spec.bundle_hash == hash &&
+        JobStore::bundle_holder(j.record.spec) != gone) {
+      bundle_owner_.emplace(hash, JobStore::bundle_holder(j.record.spec));
+      break;
+    }
+  }
 }
 
 std::vector<std::string> JobManager::units_of(const WorkerId& worker) const {

@@ -254,15 +254,15 @@ void JobStore::create_job_dir(const std::string& id) {
   }
 }
 
-void JobStore::share_bundle(const std::string& from, const std::string& to) {
+void JobStore::mark_sequence_stored(const std::string& id, size_t frames) {
+  write_file_atomically(job_dir(id) / "sequence.json",
+                        json{{"id", id}, {"frames", frames}}.dump() + "\n");
+  sync_job_dir(id);
+}
+
+bool JobStore::sequence_stored(const std::string& id) const {
   std::error_code ec;
-  fs::create_hard_link(job_dir(from) / "bundle.pb", job_dir(to) / "bundle.pb", ec);
-  if (!ec) return;
-  fs::copy_file(job_dir(from) / "bundle.pb", job_dir(to) / "bundle.pb", ec);
-  if (ec) {
-    throw std::runtime_error("cannot give " + job_dir(to).string() +
-                             " its bundle: " + ec.message());
-  }
+  return fs::exists(job_dir(id) / "sequence.json", ec);
 }
 
 fs::path JobStore::make_scratch_dir() {

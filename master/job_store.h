@@ -11,8 +11,9 @@
 //   <data>/jobs/<id>/error.png   its log-log plot
 //   <data>/jobs/<id>/checkpoint-0.bin, checkpoint-1.bin  a running job's merged state, two
 //                                generations (checkpoint.h); removed when the job ends
-//   <data>/jobs/<seq>/bundle.pb  a sequence's bundle, shared (hard-linked) by its frames' jobs,
-//                                whose folders are <data>/jobs/<seq>.<frame>/
+//   <data>/jobs/<seq>/bundle.pb  a sequence's bundle, which its frames' jobs render (their
+//                                folders are <data>/jobs/<seq>.<frame>/, without a bundle.pb)
+//   <data>/jobs/<seq>/sequence.json  written once every frame's job.json is on disk
 //   <data>/tmp/                  scratch space (scene validation), emptied at start
 #include <cstdint>
 #include <filesystem>
@@ -88,9 +89,15 @@ class JobStore {
   static std::string frame_id(const std::string& sequence, int64_t frame);
   /// Creates the folder of a frame's job (its id from frame_id()). Throws std::runtime_error.
   void create_job_dir(const std::string& id);
-  /// Gives job `to` the bundle.pb of job `from` (a hard link, or a copy where links fail). Throws
+  /// The folder id whose bundle.pb a job renders: its sequence's for a frame, else its own.
+  static const std::string& bundle_holder(const JobSpec& spec) {
+    return spec.sequence.empty() ? spec.id : spec.sequence;
+  }
+  /// Records that every frame of sequence `id` is stored (jobs/<id>/sequence.json, synced): a
+  /// sequence without it was cut short by a crash while being accepted. Throws
   /// std::runtime_error.
-  void share_bundle(const std::string& from, const std::string& to);
+  void mark_sequence_stored(const std::string& id, size_t frames);
+  bool sequence_stored(const std::string& id) const;
   /// A fresh empty folder under tmp/.
   std::filesystem::path make_scratch_dir();
 

@@ -1,6 +1,7 @@
 #include "master/submission_queue.h"
 
 #include "common/protocol/codec.h"
+#include "common/protocol/convert.h"
 
 namespace rayfarm::master {
 
@@ -30,7 +31,9 @@ bool SubmissionQueue::add(const net::PeerId& peer, std::string label, std::strin
   ++per_peer_[peer];
   ++per_key_[user];
   bytes_ += bytes;
-  queue_.push_back(Task{peer, std::move(label), std::move(user), std::move(job), bytes});
+  const uint64_t jobs = protocol::frame_count(job.frames());
+  jobs_in_flight_ += jobs;
+  queue_.push_back(Task{peer, std::move(label), std::move(user), std::move(job), bytes, jobs});
   wake_.notify_one();
   return true;
 }
@@ -41,6 +44,7 @@ std::vector<SubmissionQueue::Done> SubmissionQueue::take_done() {
   out.swap(done_);
   for (const Done& d : out) {
     --in_flight_;
+    jobs_in_flight_ -= d.jobs;
     bytes_ -= d.bytes;
     if (--per_peer_[d.peer] == 0) per_peer_.erase(d.peer);
     if (--per_key_[d.user] == 0) per_key_.erase(d.user);
@@ -51,6 +55,11 @@ std::vector<SubmissionQueue::Done> SubmissionQueue::take_done() {
 size_t SubmissionQueue::in_flight() const {
   std::lock_guard lock(mutex_);
   return in_flight_;
+}
+
+uint64_t SubmissionQueue::jobs_in_flight() const {
+  std::lock_guard lock(mutex_);
+  return jobs_in_flight_;
 }
 
 void SubmissionQueue::drain() {
@@ -73,7 +82,9 @@ void SubmissionQueue::loop() {
               std::nullopt,
               "",
               task.user,
-              task.bytes};
+              task.bytes,
+              false,
+              task.jobs};
     try {
       // The scene parser checks the limits before it loads any mesh.
       done.job = jobs_.prepare(task.job, task.user, scene_check(task.job, limits_));

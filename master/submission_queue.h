@@ -38,6 +38,7 @@ class SubmissionQueue {
     std::string user;   // the client's key
     uint64_t bytes = 0;
     bool internal = false;  // refused for a fault of the master's, not of the submission
+    uint64_t jobs = 1;      // jobs it would add: a sequence's frames
   };
 
   /// Starts the checking thread; `jobs` must outlive the queue.
@@ -55,6 +56,8 @@ class SubmissionQueue {
   std::vector<Done> take_done();
   /// Submissions queued or being checked.
   size_t in_flight() const;
+  /// The jobs they would add if accepted (a sequence counts its frames).
+  uint64_t jobs_in_flight() const;
   /// Waits until every queued submission is checked.
   void drain();
 
@@ -65,6 +68,7 @@ class SubmissionQueue {
     std::string user;
     wire::SubmitJob job;
     uint64_t bytes = 0;
+    uint64_t jobs = 1;
   };
   const JobManager& jobs_;
   const Limits limits_;
@@ -75,6 +79,7 @@ class SubmissionQueue {
   std::map<net::PeerId, size_t> per_peer_;
   std::map<std::string, size_t> per_key_;
   size_t in_flight_ = 0;
+  uint64_t jobs_in_flight_ = 0;
   uint64_t bytes_ = 0;
   bool busy_ = false;
   bool stop_ = false;

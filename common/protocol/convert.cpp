@@ -99,7 +99,12 @@ wire::FrameList frames_to_wire(const FrameList& frames) {
 }
 
 std::optional<FrameList> frames_from_wire(const wire::FrameList& frames) {
-  if (frames.step() == 0) return std::nullopt;
+  if (frames.step() == 0) {
+    if (frames.first() != 0 || frames.last() != 0) {
+      throw ProtocolError("the frames' step must be at least 1");
+    }
+    return std::nullopt;
+  }
   const auto in_range = [](int64_t f) { return f >= -kMaxFrameNumber && f <= kMaxFrameNumber; };
   if (frames.step() < 0) throw ProtocolError("the frames' step must be at least 1");
   if (!in_range(frames.first()) || !in_range(frames.last())) {
@@ -117,7 +122,8 @@ std::optional<FrameList> frames_from_wire(const wire::FrameList& frames) {
 uint64_t frame_count(const wire::FrameList& frames) {
   if (frames.step() <= 0 || frames.last() < frames.first()) return 1;
   const uint64_t span = uint64_t(frames.last()) - uint64_t(frames.first());
-  return span / uint64_t(frames.step()) + 1;
+  const uint64_t steps = span / uint64_t(frames.step());
+  return steps == UINT64_MAX ? steps : steps + 1;  // never 0
 }
 
 wire::Rect rect_to_wire(const TileRect& rect) {

@@ -121,8 +121,11 @@ std::vector<double> evaluate(const Channel& c, double t) {
   };
   if (t <= c.times.front()) return at_key(0);
   if (t >= c.times.back()) return at_key(n - 1);
-  const size_t k =
-      size_t(std::upper_bound(c.times.begin(), c.times.end(), float(t)) - c.times.begin()) - 1;
+  // The segment [k, k + 1] holding t, compared in double as the ends were (a key time in float
+  // may lie just above the double time of the same frame).
+  const auto after = std::upper_bound(c.times.begin(), c.times.end(), t,
+                                      [](double a, float b) { return a < double(b); });
+  const size_t k = std::min(size_t(after - c.times.begin()), n - 1) - 1;
   if (c.interpolation == Interpolation::kStep) return at_key(k);
   const double t0 = c.times[k], t1 = c.times[k + 1], h = t1 - t0;
   const double s = std::clamp((t - t0) / h, 0.0, 1.0);

@@ -44,6 +44,10 @@ Scene load_gltf_scene(const fs::path& file, const SceneCheck& check, SceneImages
   Scene scene;
   scene.source = file;
   // An animated file is a sequence of frames at kGltfFps from time 0 (frame 1) to its last key.
+  if (frame && (*frame < -kMaxFrameNumber || *frame > kMaxFrameNumber)) {
+    throw SceneError(file.string() + ": frame " + std::to_string(*frame) +
+                     " is out of range (frame numbers are within +-1000000000)");
+  }
   options.time = double(frame.value_or(1) - 1) / kGltfFps;
   const GltfResult result = load_gltf(file.parent_path(), file.filename(), options, images, scene);
   if (result.duration > 0.0) {

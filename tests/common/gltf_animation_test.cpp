@@ -118,6 +118,22 @@ TEST(GltfAnimation, CubicSplinesFollowTheirTangents) {
   EXPECT_NEAR(min_x(load_at(glb, 13)), 2.f, 1e-5);
 }
 
+TEST(GltfAnimation, TheLastFrameOfAKeyTimeThatFloatRoundsUpIsTheLastKey) {
+  // 1/3 s in float is a little above the time of frame 9 (8/24 s) in double: frame 9 is the last
+  // frame, inside the last segment by a hair, and must read that segment, not one past it.
+  GltfBuilder b = animated();
+  const int times = b.add_floats({0.f, float(1.0 / 3.0)}, "SCALAR");
+  const int moves = b.add_floats({0, 0, 0, 3, 0, 0}, "VEC3");
+  b.doc["animations"][0]["samplers"][0] = {{"input", times}, {"output", moves}};
+  b.doc["animations"][0]["samplers"][1]["input"] = times;
+  b.doc["animations"][1]["samplers"][0]["input"] = times;
+  const std::string glb = b.glb();
+  const Scene last = load_at(glb, 9);
+  EXPECT_EQ(last.animation->last, 9);
+  EXPECT_NEAR(min_x(last), 3.f, 1e-4);
+  EXPECT_NEAR(min_x(load_at(glb, 5)), 1.5f, 1e-4);  // 4/24 s: half way
+}
+
 TEST(GltfAnimation, AJsonSceneNamingAnAnimatedFilePlaysItOverItsOwnFrames) {
   TempDir dir;
   dir.write("m.glb", animated().glb());

@@ -87,6 +87,50 @@ TEST(JobSequences, FramesGoOutInOrderAndTheSequenceSurvivesARestart) {
   EXPECT_FALSE(std::filesystem::exists(store.job_dir(seq + ".0004")));
 }
 
+TEST(JobSequences, ASequenceCutShortByACrashWhileAcceptedIsRemovedAtTheRestart) {
+  TempDir dir;
+  std::string seq, single;
+  {
+    JobStore store(dir.path() / "data");
+    JobManager jobs(store);
+    seq = jobs.submit(animation_job(1, 3, 1));
+    single = jobs.submit(test_jobs::furnace_job(2, 16, 2));
+    jobs.shutdown();
+    // As if the master had stopped before the last frame's record was written and the sequence
+    // marked whole.
+    std::filesystem::remove(store.job_dir(seq) / "sequence.json");
+    std::filesystem::remove_all(store.job_dir(seq + ".0003"));
+  }
+  JobStore store(dir.path() / "data");
+  JobManager restarted(store);
+  EXPECT_EQ(restarted.recover(), 1u);  // the single job alone
+  EXPECT_FALSE(restarted.status(seq, 1));
+  EXPECT_FALSE(restarted.status(seq + ".0001", 1));
+  EXPECT_FALSE(std::filesystem::exists(store.job_dir(seq + ".0001")));
+  EXPECT_FALSE(std::filesystem::exists(store.job_dir(seq)));
+  EXPECT_TRUE(restarted.status(single, 1));
+}
+
+TEST(JobSequences, APriorityIsTheSequencesAndARetryCountsItsFrames) {
+  TempDir dir;
+  JobStore store(dir.path() / "data");
+  JobManager jobs(store);
+  const std::string seq = jobs.submit(animation_job(1, 4, 1));
+  EXPECT_THROW(jobs.change(seq + ".0002", 5, std::nullopt), JobRejected);
+  ASSERT_NE(jobs.change(seq, 5, std::nullopt), nullptr);
+  EXPECT_EQ(jobs.status(seq + ".0004", 1)->priority(), 5);
+  ASSERT_NE(jobs.change(seq + ".0002", std::nullopt, true), nullptr);  // one frame held
+  EXPECT_TRUE(jobs.status(seq + ".0002", 1)->paused());
+  EXPECT_FALSE(jobs.status(seq, 1)->paused());
+  EXPECT_EQ(jobs.retry_count(seq), 0u);
+  ASSERT_EQ(jobs.cancel(seq), wire::JOB_CANCELLED);
+  EXPECT_EQ(jobs.retry_count(seq), 4u);
+  EXPECT_EQ(jobs.retry_count(seq + ".0001"), 1u);
+  EXPECT_EQ(jobs.retry_count("j9999"), 0u);
+  EXPECT_EQ(jobs.retry(seq), wire::JOB_QUEUED);
+  EXPECT_EQ(jobs.retry_count(seq), 0u);
+}
+
 TEST(JobSequences, WhatCannotBeASequenceIsRefusedByName) {
   TempDir dir;
   JobStore store(dir.path() / "data");
@@ -109,6 +153,13 @@ TEST(JobSequences, WhatCannotBeASequenceIsRefusedByName) {
   wire::SubmitJob reference = animation_job(1, 3, 1);
   reference.set_reference_exr("x");
   expect_refused(reference, "a sequence cannot have one");
+  wire::SubmitJob extreme = animation_job(1, 3, 1);
+  extreme.clear_frames();
+  extreme.set_frame(INT64_MIN);
+  expect_refused(extreme, "out of range");
+  wire::SubmitJob no_step = animation_job(1, 3, 1);
+  no_step.mutable_frames()->set_step(0);
+  expect_refused(no_step, "step");
   wire::SubmitJob still = test_jobs::furnace_job(2, 16, 2);
   *still.mutable_frames() = protocol::frames_to_wire({1, 2, 1});
   expect_refused(still, "still");
@@ -128,6 +179,12 @@ TEST(JobSequences, TheQueueLimitCountsEveryFrame) {
   wire::FrameList frames = protocol::frames_to_wire({-5, 1000, 5});
   EXPECT_EQ(protocol::frame_count(frames), 202u);
   EXPECT_EQ(protocol::frame_count(wire::FrameList{}), 1u);
+  wire::FrameList everything;
+  everything.set_first(INT64_MIN);
+  everything.set_last(INT64_MAX);
+  everything.set_step(1);
+  EXPECT_GT(protocol::frame_count(everything), 1u);  // never wraps to 0
+  ASSERT_TRUE(check_queue(0, limits, protocol::frame_count(everything)));
 }
 
 }  // namespace
