@@ -9,6 +9,7 @@
 
 #include "cli/commands.h"
 #include "cli/film_option.h"
+#include "cli/frames_option.h"
 #include "cli/output_path.h"
 #include "cli/sampling_options.h"
 #include "cli/scene_option.h"
@@ -221,33 +222,17 @@ int run_render(const RenderArgs& args) {
     return 0;
   }
   // A sequence: every check before the first frame renders.
-  std::string why;
-  const auto frames = parse_frame_list(*args.frames, &why);
-  if (!frames) throw std::invalid_argument("--frames: " + why);
-  (void)frame_output_path(args.output, frames->first);  // a malformed '%' is refused now
-  if (args.stop.reference) {
-    throw std::invalid_argument(
-        "--reference is one image; it cannot measure a sequence (render a frame with --frame N "
-        "and its reference)");
-  }
-  const std::optional<FrameRange> animation = load_scene_animation(args.source.scene);
-  if (!animation) {
-    throw std::invalid_argument("--frames " + *args.frames + ": " + args.source.scene +
-                                " is a still scene (it has no \"animation\" block)");
-  }
-  if (!animation->contains(frames->first) || !animation->contains(frames->last)) {
-    throw std::invalid_argument(
-        fmt::format("--frames {}: beyond the scene's animation, frames {}-{}", *args.frames,
-                    animation->first, animation->last));
-  }
+  const FrameList frames =
+      check_frames_option(*args.frames, args.source.scene, args.stop.reference.has_value());
+  (void)frame_output_path(args.output, frames.first);  // a malformed '%' is refused now
   const auto start = std::chrono::steady_clock::now();
-  for (int64_t i = 0; i < frames->count(); ++i) {
-    const int64_t frame = frames->at(i);
-    std::cout << fmt::format("frame {} ({} of {})\n", frame, i + 1, frames->count());
+  for (int64_t i = 0; i < frames.count(); ++i) {
+    const int64_t frame = frames.at(i);
+    std::cout << fmt::format("frame {} ({} of {})\n", frame, i + 1, frames.count());
     render_one(args, frame, frame_output_path(args.output, frame), format);
   }
   std::cout << fmt::format(
-      "rendered {} frames ({}) in {:.3f} s\n", frames->count(), frame_list_name(*frames),
+      "rendered {} frames ({}) in {:.3f} s\n", frames.count(), frame_list_name(frames),
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
   return 0;
 }

@@ -14,6 +14,7 @@
 #include "cli/farm_commands.h"
 #include "cli/farm_output.h"
 #include "cli/film_option.h"
+#include "cli/frames_option.h"
 #include "cli/output_path.h"
 #include "cli/sampling_options.h"
 #include "cli/scene_option.h"
@@ -129,24 +130,9 @@ int run_submit(const SubmitArgs& args) {
   request.set_name(!args.name.empty() ? args.name : name);
   if (args.frame) request.set_frame(*args.frame);
   if (args.frames) {
-    std::string why;
-    const auto frames = parse_frame_list(*args.frames, &why);
-    if (!frames) throw std::invalid_argument("--frames: " + why);
-    if (args.stop.reference) {
-      throw std::invalid_argument("--reference is one image; it cannot measure a sequence");
-    }
-    // The range is checked here against the scene's animation, before anything is sent.
-    const std::optional<FrameRange> animation = load_scene_animation(args.source.scene);
-    if (!animation) {
-      throw std::invalid_argument("--frames " + *args.frames + ": " + args.source.scene +
-                                  " is a still scene (it has no animation)");
-    }
-    if (!animation->contains(frames->first) || !animation->contains(frames->last)) {
-      throw std::invalid_argument(
-          fmt::format("--frames {}: beyond the scene's animation, frames {}-{}", *args.frames,
-                      animation->first, animation->last));
-    }
-    *request.mutable_frames() = protocol::frames_to_wire(*frames);
+    // Checked here against the scene's animation, before anything is sent.
+    *request.mutable_frames() = protocol::frames_to_wire(
+        check_frames_option(*args.frames, args.source.scene, args.stop.reference.has_value()));
   }
   request.set_priority(args.priority);
   request.set_paused(args.paused);
