@@ -171,6 +171,7 @@ wire::JobStatus JobManager::sequence_status(const std::string& id,
       out.set_pass_spp(st.pass_spp());
       out.set_passes_total(st.passes_total());
       out.set_priority(st.priority());
+      out.set_passes_done(st.passes_done());
       spp_min = st.spp_done();
       first = false;
     }
@@ -197,6 +198,7 @@ wire::JobStatus JobManager::sequence_status(const std::string& id,
     out.set_workers_busy(out.workers_busy() + st.workers_busy());
     out.set_samples_per_second(out.samples_per_second() + st.samples_per_second());
     spp_min = std::min(spp_min, st.spp_done());
+    out.set_passes_done(std::min(out.passes_done(), st.passes_done()));  // over every frame
     spp_mean += st.spp_mean();
     elapsed += st.elapsed_seconds();
     if (with_frames) {

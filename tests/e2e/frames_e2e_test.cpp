@@ -131,6 +131,8 @@ TEST_F(FramesTest, ASequenceRendersEveryFrameAsTheLocalRenderOfThatFrame) {
   EXPECT_EQ(shown["name"], "shot");
   EXPECT_EQ(shown["frames_total"], 3);
   EXPECT_EQ(shown["frames_done"], 3);
+  EXPECT_EQ(shown["passes_done"], shown["passes_total"]);
+  EXPECT_EQ(shown["spp_done"], 4);
   ASSERT_EQ(shown["frames"].size(), 3u) << shown;
   EXPECT_EQ(shown["frames"][1]["frame"], 4);
   EXPECT_EQ(shown["frames"][1]["job"], seq + ".0004");
