@@ -135,7 +135,10 @@ std::vector<std::string> fetch_frames(FarmClient& client, const std::string& job
   std::vector<std::string> out;
   for (const wire::SequenceFrame& f : st.frames()) {
     if (only ? f.frame() != *only : f.state() != wire::JOB_DONE) continue;
-    out.push_back(fetch_image(client, f.job_id(), frame_output_path(pattern, f.frame()), format));
+    // One frame asked for by name goes to the name as given when it holds no pattern.
+    const fs::path output =
+        only && !has_frame_pattern(pattern) ? pattern : frame_output_path(pattern, f.frame());
+    out.push_back(fetch_image(client, f.job_id(), output, format));
   }
   if (out.empty()) {
     throw MasterError(only ? fmt::format("sequence {} has no frame {}", job, *only)

@@ -145,7 +145,8 @@ int guarded(const char* command, Body&& body) {
 /// The job's status now.
 wire::JobStatus query_status(FarmClient& client, const std::string& job);
 /// Fetches frames of sequence `job` to `pattern` (frame_output_path: '#' or %04d take the frame
-/// number): frame `only`, or every frame that is done when nullopt. Returns a line per image
+/// number): frame `only` (to `pattern` itself when it holds no '#' or '%'), or every frame that
+/// is done when nullopt. Returns a line per image
 /// written. Throws MasterError when the job is not a sequence, has no such frame, or has no frame
 /// done.
 

@@ -14,16 +14,19 @@ namespace protocol = rayfarm::protocol;
 
 namespace {
 
+/// A sequence frame's state, "paused" for one held before it is done.
+const char* frame_state_label(const wire::SequenceFrame& f) {
+  return f.paused() && f.state() != wire::JOB_DONE ? "paused" : protocol::job_state_name(f.state());
+}
+
 /// A sequence's frames (status of a sequence only): frame, job, state, percent.
 nlohmann::json frames_json(const wire::JobStatus& st) {
   nlohmann::json out = nlohmann::json::array();
   for (const wire::SequenceFrame& f : st.frames()) {
-    out.push_back(
-        {{"frame", f.frame()},
-         {"job", f.job_id()},
-         {"state", f.paused() && f.state() != wire::JOB_DONE ? "paused"
-                                                             : protocol::job_state_name(f.state())},
-         {"percent", f.percent()}});
+    out.push_back({{"frame", f.frame()},
+                   {"job", f.job_id()},
+                   {"state", frame_state_label(f)},
+                   {"percent", f.percent()}});
   }
   return out;
 }
@@ -224,10 +227,7 @@ void print_status(const wire::JobStatus& st) {
     std::cout << fmt::format("\n{:>8} {:<16} {:<9} {:>7}\n", "FRAME", "JOB", "STATE", "DONE");
     for (const wire::SequenceFrame& f : st.frames()) {
       std::cout << fmt::format("{:>8} {:<16} {:<9} {:>6.1f}%\n", f.frame(), f.job_id(),
-                               f.paused() && f.state() != wire::JOB_DONE
-                                   ? "paused"
-                                   : protocol::job_state_name(f.state()),
-                               f.percent());
+                               frame_state_label(f), f.percent());
     }
   }
 }

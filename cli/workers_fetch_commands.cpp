@@ -74,20 +74,6 @@ void add_fetch(CLI::App& app, int& exit_code) {
       const OutputFormat format = check_output_path(*output);
       FarmClient client(*args);
       if (*all || frame->has_value()) {
-        // A frame's own name when --frame is given without a pattern in the name.
-        const bool pattern = has_frame_pattern(*output);
-        if (frame->has_value() && !pattern) {
-          const wire::JobStatus st = query_status(client, *job);
-          for (const wire::SequenceFrame& f : st.frames()) {
-            if (f.frame() == **frame) {
-              std::cout << fetch_image(client, f.job_id(), *output, format) << "\n";
-              return 0;
-            }
-          }
-          throw MasterError(st.frames_size() == 0
-                                ? "job " + *job + " is not a sequence: fetch it without --frame"
-                                : fmt::format("sequence {} has no frame {}", *job, **frame));
-        }
         for (const std::string& line : fetch_frames(client, *job, *output, format, *frame)) {
           std::cout << line << "\n";
         }

@@ -369,7 +369,9 @@ std::string JobManager::admit_one(const JobSpec& spec, std::optional<Image> refe
     save(it->second);
     throw JobRejected(error);
   }
-  log_jobs()->info(
+  // A sequence's frames are logged once, as the sequence.
+  log_jobs()->log(
+      spec.sequence.empty() ? spdlog::level::info : spdlog::level::debug,
       "job {} accepted: '{}', scene {} {}x{}, {}, {}, max depth {}, seed {}; {} tiles of {} x "
       "{} passes of {} spp = {} units; bundle of {} files, {} ({}){}",
       spec.id, spec.name, spec.scene_path, spec.film.width, spec.film.height,

@@ -57,8 +57,7 @@ std::optional<std::string> check_queue(size_t jobs_waiting, const Limits& limits
         "each frame a job); submit it in parts",
         frames, limits.max_queued_jobs);
   }
-  if (frames > 1 && jobs_waiting + frames <= limits.max_queued_jobs) return std::nullopt;
-  if (frames <= 1 && jobs_waiting < limits.max_queued_jobs) return std::nullopt;
+  if (jobs_waiting + std::max<uint64_t>(frames, 1) <= limits.max_queued_jobs) return std::nullopt;
   return fmt::format(
       "the master's queue is full: {} jobs are queued or running, the limit is {} "
       "(--max-queued-jobs); submit again when some have finished",

@@ -44,35 +44,24 @@ std::vector<json> json_lines(const std::string& text) {
   return out;
 }
 
-class CliTest : public FarmFixture {
+class CliTest : public KeyedFarmFixture {
  protected:
-  void SetUp() override {
-    FarmFixture::SetUp();
-    make_keys(keys(), {{"cli", "clients"}, {"w1", "workers"}});
-    client_keys_ = net::read_key_pair(keys() / "own" / "cli.key_secret");
-    master_public_ = net::read_key_pair(keys() / "master.key_secret").public_key;
-  }
-  fs::path keys() const { return dir() / "keys"; }
-  std::vector<std::string> client_auth() const override {
-    return {"--key", (keys() / "own" / "cli.key_secret").string(), "--master-key",
-            (keys() / "master.key").string()};
-  }
-  net::Curve client_curve() const override {
-    return {client_keys_.public_key, client_keys_.secret_key, master_public_, ""};
-  }
   void start_master(const std::string& log = "master.log") {
-    run_master(log, {"--heartbeat-ms", "200", "--liveness", "3", "--image-interval-ms", "500",
-                     "--key", (keys() / "master.key_secret").string(), "--worker-keys",
-                     (keys() / "workers").string(), "--client-keys",
-                     (keys() / "clients").string(),
-                     // The farm's operator: may remove a record nobody can be shown to own.
-                     "--admin-clients", "cli"});
+    std::vector<std::string> options{"--heartbeat-ms", "200", "--liveness", "3",
+                                     "--image-interval-ms", "500",
+                                     // The farm's operator: may remove a record nobody can be
+                                     // shown to own.
+                                     "--admin-clients", "cli"};
+    const auto with_keys = master_keys();
+    options.insert(options.end(), with_keys.begin(), with_keys.end());
+    run_master(log, options);
   }
   Process& start_worker() {
-    return run_worker("w1", {"--threads", "1", "--heartbeat-ms", "200", "--liveness", "3",
-                             "--reconnect-max-ms", "500", "--key",
-                             (keys() / "own" / "w1.key_secret").string(), "--master-key",
-                             (keys() / "master.key").string()});
+    std::vector<std::string> options{"--threads",  "1", "--heartbeat-ms",     "200",
+                                     "--liveness", "3", "--reconnect-max-ms", "500"};
+    const auto with_keys = worker_keys();
+    options.insert(options.end(), with_keys.begin(), with_keys.end());
+    return run_worker("w1", options);
   }
   /// The CLI started in the background (farm options added), for commands that outlive a step.
   std::unique_ptr<Process> cli_in_background(std::vector<std::string> args, const std::string& name) {
@@ -90,10 +79,6 @@ class CliTest : public FarmFixture {
     r.err = read_file(dir() / (name + ".err"));
     return r;
   }
-
- private:
-  net::KeyPair client_keys_;
-  std::string master_public_;
 };
 
 // --- Without a farm ---

@@ -275,4 +275,39 @@ class FarmFixture : public ::testing::Test {
   std::set<std::string> logs_;
 };
 
+/// A farm with CURVE keys made in SetUp under keys(): the master's, the CLI's client key "cli" and
+/// the worker key "w1", both in the master's allow-lists.
+class KeyedFarmFixture : public FarmFixture {
+ protected:
+  void SetUp() override {
+    FarmFixture::SetUp();
+    make_keys(keys(), {{"cli", "clients"}, {"w1", "workers"}});
+    client_keys_ = net::read_key_pair(keys() / "own" / "cli.key_secret");
+    master_public_ = net::read_key_pair(keys() / "master.key_secret").public_key;
+  }
+  fs::path keys() const { return dir() / "keys"; }
+  std::vector<std::string> client_auth() const override {
+    return {"--key", (keys() / "own" / "cli.key_secret").string(), "--master-key",
+            (keys() / "master.key").string()};
+  }
+  net::Curve client_curve() const override {
+    return {client_keys_.public_key, client_keys_.secret_key, master_public_, ""};
+  }
+  /// The master's key options: its key and both allow-lists.
+  std::vector<std::string> master_keys() const {
+    return {"--key",         (keys() / "master.key_secret").string(),
+            "--worker-keys", (keys() / "workers").string(),
+            "--client-keys", (keys() / "clients").string()};
+  }
+  /// Worker w1's key options.
+  std::vector<std::string> worker_keys() const {
+    return {"--key", (keys() / "own" / "w1.key_secret").string(), "--master-key",
+            (keys() / "master.key").string()};
+  }
+
+ private:
+  net::KeyPair client_keys_;
+  std::string master_public_;
+};
+
 }  // namespace rayfarm::test

@@ -7,41 +7,23 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
-#include "common/net/keys.h"
 #include "tests/e2e/farm_fixture.h"
 
 namespace rayfarm::test {
 namespace {
 
-class FramesTest : public FarmFixture {
+class FramesTest : public KeyedFarmFixture {
  protected:
-  void SetUp() override {
-    FarmFixture::SetUp();
-    make_keys(keys(), {{"cli", "clients"}, {"w1", "workers"}});
-    client_keys_ = net::read_key_pair(keys() / "own" / "cli.key_secret");
-    master_public_ = net::read_key_pair(keys() / "master.key_secret").public_key;
-  }
-  fs::path keys() const { return dir() / "keys"; }
-  std::vector<std::string> client_auth() const override {
-    return {"--key", (keys() / "own" / "cli.key_secret").string(), "--master-key",
-            (keys() / "master.key").string()};
-  }
-  net::Curve client_curve() const override {
-    return {client_keys_.public_key, client_keys_.secret_key, master_public_, ""};
-  }
   void start_farm() {
-    run_master("master.log",
-               {"--heartbeat-ms", "200", "--liveness", "3", "--key",
-                (keys() / "master.key_secret").string(), "--worker-keys",
-                (keys() / "workers").string(), "--client-keys", (keys() / "clients").string()});
-    run_worker("w1", {"--threads", "2", "--heartbeat-ms", "200", "--liveness", "3", "--key",
-                      (keys() / "own" / "w1.key_secret").string(), "--master-key",
-                      (keys() / "master.key").string()});
+    std::vector<std::string> master{"--heartbeat-ms", "200", "--liveness", "3"};
+    const auto master_keyed = master_keys();
+    master.insert(master.end(), master_keyed.begin(), master_keyed.end());
+    run_master("master.log", master);
+    std::vector<std::string> worker{"--threads", "2", "--heartbeat-ms", "200", "--liveness", "3"};
+    const auto worker_keyed = worker_keys();
+    worker.insert(worker.end(), worker_keyed.begin(), worker_keyed.end());
+    run_worker("w1", worker);
   }
-
- private:
-  net::KeyPair client_keys_;
-  std::string master_public_;
 };
 
 TEST_F(FramesTest, RenderWritesOneImagePerFrameAndChecksTheRangeFirst) {
