@@ -108,8 +108,28 @@ std::string fetch_image(FarmClient& client, const std::string& job, const fs::pa
                         OutputFormat format) {
   wire::FetchImage request;
   request.set_job_id(job);
+  request.set_movie(format == OutputFormat::kMp4);
   const auto image = client.call<wire::ImageData>(encode(std::move(request)));
   std::string wrote = output.string();
+  // A sequence has no image of its own: its contact sheet (a PNG) and its movie.
+  const bool sequence = image.exr().empty() && (!image.png().empty() || !image.mp4().empty());
+  if (format == OutputFormat::kMp4) {
+    if (image.mp4().empty()) throw MasterError("the master sent no movie of job " + job);
+    write_file_atomically(output, image.mp4());
+    return fmt::format("wrote {} (the movie of sequence {}, {})", wrote, image.job_id(),
+                       protocol::job_state_name(image.state()));
+  }
+  if (sequence) {
+    if (format != OutputFormat::kPng) {
+      throw MasterError(fmt::format(
+          "{} is a sequence: fetch its frames with --frame N or --all, its contact sheet with "
+          "-o NAME.png, its movie with -o NAME.mp4",
+          job));
+    }
+    write_file_atomically(output, image.png());
+    return fmt::format("wrote {} (the contact sheet of sequence {}, {})", wrote, image.job_id(),
+                       protocol::job_state_name(image.state()));
+  }
   if (format == OutputFormat::kPng) {
     if (image.png().empty()) throw MasterError("the master has no PNG preview of job " + job);
     write_file_atomically(output, image.png());

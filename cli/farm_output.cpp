@@ -96,6 +96,7 @@ nlohmann::json status_json(const wire::JobStatus& st) {
       {"frames_total", st.frames_total()},
       {"frames_done", st.frames_done()},
       {"frames", frames_json(st)},
+      {"previews", st.previews().empty() ? nlohmann::json(nullptr) : nlohmann::json(st.previews())},
       {"storage_error",
        st.storage_error().empty() ? nlohmann::json(nullptr) : nlohmann::json(st.storage_error())},
       {"error", st.error().empty() ? nlohmann::json(nullptr) : nlohmann::json(st.error())},
@@ -175,6 +176,7 @@ void print_status(const wire::JobStatus& st) {
   if (st.frames_total() > 0) {
     std::cout << fmt::format("frames     {}/{} done{}\n", st.frames_done(), st.frames_total(),
                              st.has_frame() ? fmt::format(", frame {} next", st.frame()) : "");
+    if (!st.previews().empty()) std::cout << fmt::format("previews   {}\n", st.previews());
   } else if (st.has_frame()) {
     std::cout << fmt::format("frame      {}{}\n", st.frame(),
                              st.sequence().empty() ? "" : " of sequence " + st.sequence());

@@ -1,21 +1,27 @@
 #pragma once
 // --frames A-B[:STEP], as `rayfarm render` and `rayfarm submit` both check it before any work:
 // the list itself, then against the scene's animation (docs/scene-format.md, "Animation").
+#include <filesystem>
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <system_error>
 
 #include <fmt/format.h>
 
+#include "cli/scene_option.h"
 #include "common/scene/frames.h"
 #include "common/scene/parser.h"
 
 namespace rayfarm::cli {
 
-/// The frames `text` names in the animation of `scene`; throws std::invalid_argument naming the
-/// option when the list is malformed or reversed, the scene is a still, or a frame lies beyond its
-/// animation, and when `reference` is set (one reference image cannot measure a sequence).
-inline FrameList check_frames_option(const std::string& text, const std::string& scene,
+/// The frames `text` names: in the animation of `source`'s scene, or, for a list of scene files
+/// (SceneArgs::is_list), frames whose files all exist and are still scenes of one film size (each
+/// is loaded). Throws std::invalid_argument naming the option, the frame and the file when the
+/// list is malformed or reversed, the scene is a still, a frame lies beyond its animation, a
+/// frame's file is missing, animated or of another size, and when `reference` is set (one
+/// reference image cannot measure a sequence); a broken file is its SceneError.
+inline FrameList check_frames_option(const std::string& text, const SceneArgs& source,
                                      bool reference) {
   std::string why;
   const auto frames = parse_frame_list(text, &why);
@@ -25,9 +31,33 @@ inline FrameList check_frames_option(const std::string& text, const std::string&
         "--reference is one image; it cannot measure a sequence (render a frame with --frame N "
         "and its reference)");
   }
-  const std::optional<FrameRange> animation = load_scene_animation(scene);
+  if (source.is_list()) {
+    std::optional<FilmSize> film;
+    std::filesystem::path first;
+    for (int64_t i = 0; i < frames->count(); ++i) {
+      const int64_t frame = frames->at(i);
+      const std::filesystem::path file = source.file_at(frame);
+      std::error_code ec;
+      if (!std::filesystem::is_regular_file(file, ec)) {
+        throw std::invalid_argument(fmt::format("--frames {}: frame {}'s scene {} does not exist",
+                                                text, frame, file.string()));
+      }
+      const Scene scene = source.load(SceneImages::kCheckOnly, frame);
+      if (!film) {
+        film = scene.film;
+        first = file;
+      } else if (scene.film.width != film->width || scene.film.height != film->height) {
+        throw std::invalid_argument(fmt::format(
+            "--frames {}: {} is {}x{} but {} is {}x{}: the frames of a sequence share one film",
+            text, file.string(), scene.film.width, scene.film.height, first.string(), film->width,
+            film->height));
+      }
+    }
+    return *frames;
+  }
+  const std::optional<FrameRange> animation = load_scene_animation(source.scene);
   if (!animation) {
-    throw std::invalid_argument("--frames " + text + ": " + scene +
+    throw std::invalid_argument("--frames " + text + ": " + source.scene +
                                 " is a still scene (it has no animation)");
   }
   if (!animation->contains(frames->first) || !animation->contains(frames->last)) {

@@ -13,16 +13,20 @@
 #include <string>
 #include <system_error>
 
+#include "common/scene/frames.h"
+
 namespace rayfarm::cli {
 
 enum class OutputFormat {
   kExr,  ///< "x.exr": the float EXR (variance and spp layers) and an sRGB preview "x.png" beside it
-  kPng,  ///< "x.png": the sRGB preview alone
+  kPng,  ///< "x.png": the sRGB preview alone (of a sequence: its contact sheet)
+  kMp4,  ///< "x.mp4": a sequence's movie (`fetch` only)
 };
 
-/// The format `path` asks for (.exr or .png, any case), once its folder is known to exist and to
-/// be writable. Throws std::invalid_argument naming the path and what to do otherwise.
-inline OutputFormat check_output_path(const std::filesystem::path& path) {
+/// The format `path` asks for (.exr or .png, any case; .mp4 too when `movie`), once its folder is
+/// known to exist and to be writable. Throws std::invalid_argument naming the path and what to do
+/// otherwise.
+inline OutputFormat check_output_path(const std::filesystem::path& path, bool movie = false) {
   namespace fs = std::filesystem;
   std::string ext = path.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(),
@@ -32,11 +36,14 @@ inline OutputFormat check_output_path(const std::filesystem::path& path) {
     format = OutputFormat::kExr;
   } else if (ext == ".png") {
     format = OutputFormat::kPng;
+  } else if (movie && ext == ".mp4") {
+    format = OutputFormat::kMp4;
   } else {
     throw std::invalid_argument(
         "output " + path.string() +
         ": the name must end in .exr (the image, with a PNG preview beside it) or .png (the "
-        "preview alone)");
+        "preview alone)" +
+        (movie ? std::string(", or .mp4 (a sequence's movie)") : std::string()));
   }
   const fs::path folder = path.parent_path().empty() ? fs::path(".") : path.parent_path();
   std::error_code ec;
@@ -56,8 +63,7 @@ inline OutputFormat check_output_path(const std::filesystem::path& path) {
 
 /// Whether `path`'s file name holds a frame number pattern (a '#' or a '%').
 inline bool has_frame_pattern(const std::filesystem::path& path) {
-  const std::string name = path.filename().string();
-  return name.find('#') != std::string::npos || name.find('%') != std::string::npos;
+  return rayfarm::has_frame_pattern(path.filename().string());
 }
 
 /// The image of frame `frame` of a sequence rendered to `path`: a run of '#' in the file name
@@ -65,35 +71,17 @@ inline bool has_frame_pattern(const std::filesystem::path& path) {
 /// as does a printf "%d" or "%0Nd"; a name with neither gets ".NNNN" before its extension
 /// ("out.exr" -> "out.0012.exr").
 inline std::filesystem::path frame_output_path(const std::filesystem::path& path, int64_t frame) {
-  const auto padded = [frame](size_t width) {
-    char digits[32];
-    std::snprintf(digits, sizeof digits, "%0*lld", int(std::min<size_t>(width, 12)),
-                  static_cast<long long>(frame));
-    return std::string(digits);
-  };
-  std::string name = path.filename().string();
-  if (const size_t hash = name.find('#'); hash != std::string::npos) {
-    size_t end = hash;
-    while (end < name.size() && name[end] == '#') ++end;
-    name.replace(hash, end - hash, padded(end - hash));
-  } else if (const size_t pct = name.find('%'); pct != std::string::npos) {
-    size_t at = pct + 1, width = 0;
-    while (at < name.size() && std::isdigit(static_cast<unsigned char>(name[at])) != 0) {
-      width = width * 10 + size_t(name[at] - '0');
-      if (width > 12) width = 12;
-      ++at;
-    }
-    if (at < name.size() && name[at] == 'd') {
-      name.replace(pct, at + 1 - pct, padded(width));
-    } else {
-      throw std::invalid_argument("output " + path.string() +
-                                  ": a '%' in the name must be a frame number, %d or %04d");
-    }
-  } else {
+  const std::string name = path.filename().string();
+  if (!rayfarm::has_frame_pattern(name)) {
     const std::string ext = path.extension().string();
-    name = name.substr(0, name.size() - ext.size()) + "." + padded(4) + ext;
+    return path.parent_path() /
+           (name.substr(0, name.size() - ext.size()) + "." + substitute_frame("####", frame) + ext);
   }
-  return path.parent_path() / name;
+  try {
+    return path.parent_path() / substitute_frame(name, frame);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument("output " + path.string() + ": " + e.what());
+  }
 }
 
 }  // namespace rayfarm::cli

@@ -223,7 +223,7 @@ int run_render(const RenderArgs& args) {
   }
   // A sequence: every check before the first frame renders.
   const FrameList frames =
-      check_frames_option(*args.frames, args.source.scene, args.stop.reference.has_value());
+      check_frames_option(*args.frames, args.source, args.stop.reference.has_value());
   (void)frame_output_path(args.output, frames.first);  // a malformed '%' is refused now
   const auto start = std::chrono::steady_clock::now();
   for (int64_t i = 0; i < frames.count(); ++i) {
@@ -265,10 +265,12 @@ void add_render_command(CLI::App& app, int& exit_code) {
   add_stop_options(cmd, args->stop, "Reference EXR: the error against it is measured at every pass");
   CLI::Option* frame =
       cmd->add_option("--frame", args->frame,
-                      "Animated scenes: the frame to render (default: the first); a '#' run or "
+                      "Animated scenes, or a list of scene files (frame_####.json): the frame to "
+                      "render (default: the first); a '#' run or "
                       "%04d in the output's name takes its number");
   cmd->add_option("--frames", args->frames,
-                  "Animated scenes: frames A-B[:STEP], one image each; the output's '#' run or "
+                  "Animated scenes, or a list of scene files (frame_####.json): frames A-B[:STEP], "
+                  "one image each; the output's '#' run or "
                   "%04d takes the frame number (default: .NNNN before the extension)")
       ->excludes(frame);
   cmd->callback([args, &exit_code] {

@@ -11,6 +11,7 @@
 #include <CLI/CLI.hpp>
 
 #include "common/bundle/bundle.h"
+#include "common/scene/frames.h"
 #include "common/scene/mitsuba_loader.h"
 #include "common/scene/parser.h"
 
@@ -49,14 +50,50 @@ struct SceneArgs {
       throw std::invalid_argument(
           "--camera chooses among a glTF file's cameras; a JSON scene names "
           "its glTF camera in \"gltf\" (docs/gltf.md)");
+    if (is_list() && (!camera.empty() || is_mitsuba_path(scene)))
+      throw std::invalid_argument(scene +
+                                  ": a list of scene files, one per frame, holds JSON scenes "
+                                  "(or glTF files rendered through their own cameras)");
     if ((!root.empty() || !defines.empty()) && !is_mitsuba_path(scene))
       throw std::invalid_argument("--scene-root and -D apply to Mitsuba XML scenes (.xml)");
   }
 
-  /// The scene at `frame` (an animated scene's first when nullopt). A frame of a still scene, or
-  /// one outside an animated scene's frames, is a SceneError naming the scene.
+  /// A list of scene files, one still scene per frame: the file name holds a frame pattern
+  /// ("shots/frame_####.json", "frame_%04d.json"; docs/farm.md, "Frame sequences").
+  bool is_list() const {
+    return has_frame_pattern(std::filesystem::path(scene).filename().string());
+  }
+  /// The scene file of `frame` in a list.
+  std::filesystem::path file_at(int64_t frame) const {
+    const std::filesystem::path pattern(scene);
+    try {
+      return pattern.parent_path() / substitute_frame(pattern.filename().string(), frame);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument("scene " + scene + ": " + e.what());
+    }
+  }
+
+  /// The scene at `frame` (an animated scene's first when nullopt; a list's file of that frame).
+  /// A frame of a still scene, or one outside an animated scene's frames, is a SceneError naming
+  /// the scene.
   Scene load(SceneImages images, std::optional<int64_t> at = std::nullopt) const {
     check();
+    if (is_list()) {
+      if (!at) {
+        throw std::invalid_argument(scene +
+                                    " is a list of scene files, one per frame: name the frames "
+                                    "(--frames A-B[:STEP] or --frame N)");
+      }
+      const std::filesystem::path file = file_at(*at);
+      Scene s = load_scene(file, {}, images);
+      if (s.animation) {
+        throw std::invalid_argument(file.string() +
+                                    " is animated: the files of a list are still scenes, one "
+                                    "per frame");
+      }
+      s.frame = *at;
+      return s;
+    }
     if (is_mitsuba_path(scene) && !at) {
       return load_mitsuba_scene(scene, {}, images, root, parameters());
     }
@@ -67,6 +104,11 @@ struct SceneArgs {
 
   PackedScene pack() const {
     check();
+    if (is_list()) {
+      throw std::invalid_argument(scene +
+                                  " is a list of scene files, one per frame: name the frames "
+                                  "(--frames A-B[:STEP] or --frame N)");
+    }
     if (is_mitsuba_path(scene)) return pack_mitsuba_scene(scene, root, parameters());
     return camera.empty() ? pack_scene(scene) : pack_gltf_scene(scene, camera);
   }

@@ -118,7 +118,23 @@ int run_submit(const SubmitArgs& args) {
       throw std::invalid_argument("-o needs --wait: the image is fetched when the job is done");
     format = check_output_path(args.output);  // before the job is sent
   }
-  const PackedScene packed = args.source.pack();
+  // Frames are checked here (against the scene's animation, or every file of a list of scene
+  // files), before anything is sent.
+  std::optional<FrameList> frames;
+  if (args.frames) {
+    frames = check_frames_option(*args.frames, args.source, args.stop.reference.has_value());
+  }
+  const bool list = args.source.is_list();
+  if (list && !args.frame && !frames) (void)args.source.load(SceneImages::kCheckOnly);  // says why
+  std::vector<fs::path> files;
+  if (list && frames) {
+    for (int64_t i = 0; i < frames->count(); ++i)
+      files.push_back(args.source.file_at(frames->at(i)));
+  }
+  // One frame of a list is the still scene in its file.
+  const PackedScene packed = !list    ? args.source.pack()
+                             : frames ? pack_scene_list(args.source.scene, files)
+                                      : pack_scene(args.source.file_at(*args.frame));
   wire::SubmitJob request;
   protocol::bundle_to_wire(packed.bundle, request.mutable_bundle());
   request.set_scene_path(packed.scene_path);
@@ -128,12 +144,8 @@ int run_submit(const SubmitArgs& args) {
   std::string name = (folder / scene_file.filename()).generic_string();
   if (args.frame) name += fmt::format(" frame {}", *args.frame);
   request.set_name(!args.name.empty() ? args.name : name);
-  if (args.frame) request.set_frame(*args.frame);
-  if (args.frames) {
-    // Checked here against the scene's animation, before anything is sent.
-    *request.mutable_frames() = protocol::frames_to_wire(
-        check_frames_option(*args.frames, args.source.scene, args.stop.reference.has_value()));
-  }
+  if (args.frame && !list) request.set_frame(*args.frame);
+  if (frames) *request.mutable_frames() = protocol::frames_to_wire(*frames);
   request.set_priority(args.priority);
   request.set_paused(args.paused);
   wire::JobOverrides* o = request.mutable_overrides();
@@ -243,10 +255,13 @@ void add_submit(CLI::App& app, int& exit_code) {
       cmd, args->stop,
       "Reference EXR sent with the job: the error against it is measured at every pass");
   cmd->add_option("--name", args->name, "Job name (default: the scene file's name)");
-  CLI::Option* frame = cmd->add_option(
-      "--frame", args->frame, "Animated scenes: the frame to render (default: the scene's first)");
+  CLI::Option* frame =
+      cmd->add_option("--frame", args->frame,
+                      "Animated scenes, or a list of scene files (frame_####.json): the frame to "
+                      "render (default: the scene's first)");
   cmd->add_option("--frames", args->frames,
-                  "Animated scenes: a sequence of frames A-B[:STEP], one job each, rendered in "
+                  "Animated scenes, or a list of scene files (frame_####.json): a sequence of "
+                  "frames A-B[:STEP], one job each, rendered in "
                   "order; with --wait -o, every frame is fetched ('#' or %04d in the name)")
       ->excludes(frame);
   cmd->add_option("--priority", args->priority,

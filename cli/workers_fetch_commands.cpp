@@ -58,12 +58,14 @@ void add_fetch(CLI::App& app, int& exit_code) {
   auto all = std::make_shared<bool>(false);
   CLI::App* cmd = app.add_subcommand(
       "fetch", "Download a job's current or final EXR (and a PNG preview beside it)");
-  cmd->add_option("job", *job, "Job id (or a sequence's, with --frame or --all)")->required();
+  cmd->add_option("job", *job, "Job id, or a sequence's (its frames with --frame or --all)")
+      ->required();
   cmd->add_option(
          "-o,--output", *output,
          "Output: x.exr (and its PNG preview x.png beside it) or x.png (the preview alone); for a "
          "sequence's frames a '#' run or %04d in the name takes the frame number (default: "
-         ".NNNN before the extension)")
+         ".NNNN before the extension); a sequence without --frame/--all: x.png its contact "
+         "sheet, x.mp4 its movie")
       ->required();
   CLI::Option* one =
       cmd->add_option("--frame", *frame, "A sequence: the image of this frame (done or not)");
@@ -71,7 +73,12 @@ void add_fetch(CLI::App& app, int& exit_code) {
   add_client_options(cmd, *args);
   cmd->callback([args, job, output, frame, all, &exit_code] {
     exit_code = guarded("fetch", [&] {
-      const OutputFormat format = check_output_path(*output);
+      const OutputFormat format = check_output_path(*output, /*movie=*/true);
+      if (format == OutputFormat::kMp4 && (*all || frame->has_value())) {
+        throw std::invalid_argument("-o " + *output +
+                                    ": a sequence's frames are images (.exr or .png); its movie "
+                                    "is fetched without --frame or --all");
+      }
       FarmClient client(*args);
       if (*all || frame->has_value()) {
         for (const std::string& line : fetch_frames(client, *job, *output, format, *frame)) {

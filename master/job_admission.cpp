@@ -4,6 +4,8 @@
 #include <cctype>
 #include <cerrno>
 #include <cmath>
+#include <set>
+#include <string_view>
 #include <system_error>
 
 #include "common/bundle/bundle.h"
@@ -126,8 +128,28 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
   } catch (const BundleError& e) {
     throw JobRejected(std::string("bad bundle: ") + e.what());
   }
-  if (std::none_of(bundle.files.begin(), bundle.files.end(),
-                   [&](const BundleFile& f) { return f.path == request.scene_path(); })) {
+  // A sequence whose scene's file name holds a frame pattern is a list of scene files, one still
+  // scene per frame ("shots/frame_####.json"): every frame's file must be in the bundle.
+  const fs::path pattern(request.scene_path());
+  const bool list = frames && has_frame_pattern(pattern.filename().string());
+  const auto frame_file = [&](int64_t frame) {
+    try {
+      return (pattern.parent_path() / substitute_frame(pattern.filename().string(), frame))
+          .generic_string();
+    } catch (const std::invalid_argument& e) {
+      throw JobRejected("scene " + request.scene_path() + ": " + e.what());
+    }
+  };
+  std::set<std::string_view> in_bundle;
+  for (const BundleFile& f : bundle.files) in_bundle.insert(f.path);
+  for (int64_t i = 0; list && i < frames->count(); ++i) {
+    const std::string file = frame_file(frames->at(i));
+    if (!in_bundle.count(file)) {
+      throw JobRejected(
+          fmt::format("frame {}'s scene file '{}' is not in the bundle", frames->at(i), file));
+    }
+  }
+  if (!list && !in_bundle.count(request.scene_path())) {
     throw JobRejected("the scene file '" + request.scene_path() + "' is not in the bundle");
   }
   const std::string hash = bundle_hash(bundle);
@@ -146,12 +168,36 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
       std::optional<int64_t> frame =
           request.has_frame() ? std::optional<int64_t>(request.frame()) : std::nullopt;
       if (frames) frame = frames->first;
-      scene =
-          load_scene(dir / request.scene_path(), check, SceneImages::kCheckOnly, {}, dir, frame);
-      // A sequence: its last frame loads too (every frame between is checked by the workers).
-      if (frames && frames->count() > 1) {
-        (void)load_scene(dir / request.scene_path(), check, SceneImages::kCheckOnly, {}, dir,
-                         frames->last);
+      if (list) {
+        // The first and last frames' files: still scenes of one film.
+        scene =
+            load_scene(dir / frame_file(frames->first), check, SceneImages::kCheckOnly, {}, dir);
+        const Scene last = frames->count() > 1 ? load_scene(dir / frame_file(frames->last), check,
+                                                            SceneImages::kCheckOnly, {}, dir)
+                                               : Scene{};
+        for (const Scene* s : {static_cast<const Scene*>(&scene), &last}) {
+          if (s->animation) {
+            throw JobRejected(
+                fmt::format("{} is animated: the files of a list are still scenes, one per frame",
+                            frame_file(s == &scene ? frames->first : frames->last)));
+          }
+        }
+        if (frames->count() > 1 &&
+            (last.film.width != scene.film.width || last.film.height != scene.film.height)) {
+          throw JobRejected(
+              fmt::format("{} is {}x{} but {} is {}x{}: the frames of a sequence share one film",
+                          frame_file(frames->last), last.film.width, last.film.height,
+                          frame_file(frames->first), scene.film.width, scene.film.height));
+        }
+        scene.frame = frames->first;
+      } else {
+        scene =
+            load_scene(dir / request.scene_path(), check, SceneImages::kCheckOnly, {}, dir, frame);
+        // A sequence: its last frame loads too (every frame between is checked by the workers).
+        if (frames && frames->count() > 1) {
+          (void)load_scene(dir / request.scene_path(), check, SceneImages::kCheckOnly, {}, dir,
+                           frames->last);
+        }
       }
     } catch (const std::exception& e) {
       throw JobRejected(replace_all(e.what(), dir.string() + "/", ""));
@@ -273,7 +319,9 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
     store_.save_bundle(spec.id, canonical);
     if (spec.has_reference) store_.save_reference(spec.id, request.reference_exr());
     if (frames) {
-      prepared.frames = store_frames(spec, *frames, record);
+      // The movie plays the frames rendered at the animation's speed.
+      const double fps = (scene.animation ? scene.animation->fps : kGltfFps) / double(frames->step);
+      prepared.frames = store_frames(spec, *frames, record, fps);
     } else {
       store_.save_record(record);  // throws: a job is accepted only once it is on disk
     }
@@ -292,7 +340,7 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
 }
 
 std::vector<JobSpec> JobManager::store_frames(const JobSpec& spec, const FrameList& frames,
-                                              const JobRecord& shared) const {
+                                              const JobRecord& shared, double fps) const {
   std::vector<JobSpec> out;
   try {
     for (int64_t i = 0; i < frames.count(); ++i) {
@@ -300,6 +348,14 @@ std::vector<JobSpec> JobManager::store_frames(const JobSpec& spec, const FrameLi
       JobSpec& f = record.spec;
       f.frame = frames.at(i);
       f.sequence = spec.id;
+      // A list of scene files: the frame's own file.
+      const fs::path pattern(spec.scene_path);
+      if (has_frame_pattern(pattern.filename().string())) {
+        f.frame_file = true;
+        f.scene_path =
+            (pattern.parent_path() / substitute_frame(pattern.filename().string(), *f.frame))
+                .generic_string();
+      }
       f.id = JobStore::frame_id(spec.id, *f.frame);
       f.name = fmt::format("{} frame {}", spec.name, *f.frame);
       store_.create_job_dir(f.id);
@@ -309,7 +365,7 @@ std::vector<JobSpec> JobManager::store_frames(const JobSpec& spec, const FrameLi
     for (const JobSpec& f : out) store_.sync_job_dir(f.id);
     // Only now is the sequence whole: a crash before this line leaves frames that a restart
     // removes rather than a part of the sequence its client never heard of.
-    store_.mark_sequence_stored(spec.id, out.size());
+    store_.mark_sequence_stored(spec.id, out.size(), fps);
   } catch (...) {
     std::error_code ec;
     for (const JobSpec& f : out) fs::remove_all(store_.job_dir(f.id), ec);

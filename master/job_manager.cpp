@@ -109,7 +109,7 @@ std::optional<wire::WorkUnit> JobManager::next_unit(const WorkerId& worker,
   out.set_pass(u.pass);
   out.set_film_width(s.film.width);  // the job's film, which may override the scene's
   out.set_film_height(s.film.height);
-  if (s.frame) out.set_frame(*s.frame);
+  if (s.frame && !s.frame_file) out.set_frame(*s.frame);  // a list's file is a still
   log_scheduler()->debug("job {} unit {} (pass {}) leased to {}", s.id, u.id, u.pass,
                          name_of(worker));
   return out;

@@ -27,6 +27,7 @@
 #include "master/log_budget.h"
 #include "master/merger.h"
 #include "master/scheduler.h"
+#include "master/sequence_previews.h"
 #include "proto/rayfarm.pb.h"
 
 namespace rayfarm::master {
@@ -57,6 +58,9 @@ struct JobManagerOptions {
   /// (it could never finish; a worker that joins meanwhile saves it). Unset: not checked.
   std::function<std::vector<std::string>()> connected_workers;
   std::chrono::milliseconds blocked_grace{60000};
+  /// The ffmpeg program that makes a finished sequence's movie (a path or a name looked up in
+  /// PATH); "" makes none.
+  std::string ffmpeg = "ffmpeg";
 };
 
 class JobManager {
@@ -154,8 +158,11 @@ class JobManager {
   std::optional<wire::JobStatus> status(const std::string& id, uint32_t workers_total) const;
   /// Status of every job, in id order.
   std::vector<wire::JobStatus> list(uint32_t workers_total) const;
-  /// The job's current image; throws JobRejected when unknown or nothing is written yet.
-  wire::ImageData image(const std::string& id) const;
+  /// The job's current image; throws JobRejected when unknown or nothing is written yet. Of a
+  /// sequence: its contact sheet as `png`, and with `movie` its MP4.
+  wire::ImageData image(const std::string& id, bool movie = false) const;
+  /// Returns once every sequence preview queued so far is made (tests).
+  void wait_for_previews() { previews_.flush(); }
   /// The bundle with this hash, from the store; nullopt when no job has it.
   std::optional<wire::Bundle> bundle(const std::string& hash) const;
 
@@ -189,6 +196,7 @@ class JobManager {
   std::map<std::string, Job> jobs_;
   std::map<std::string, std::string> bundle_owner_;  // bundle hash -> a job that has it
   std::map<std::string, std::vector<std::string>> sequences_;  // id -> its frames' jobs, in order
+  SequencePreviews previews_{options_.ffmpeg};
 
   // Sequences (job_sequences.cpp): the public requests above fan out to a sequence's frames.
   const std::vector<std::string>* sequence_frames(const std::string& id) const;
@@ -211,7 +219,12 @@ class JobManager {
   /// Stores the job of every frame of a sequence whose bundle is in `spec`'s folder; throws
   /// std::runtime_error (the frames stored so far are removed).
   std::vector<JobSpec> store_frames(const JobSpec& spec, const FrameList& frames,
-                                    const JobRecord& shared) const;
+                                    const JobRecord& shared, double fps) const;
+  /// Queues the sequence's previews (sequence_previews.h): its contact sheet, and its movie once
+  /// every frame is done; at recovery (`missing_only`), only those missing.
+  void update_previews(const std::string& id, bool missing_only = false);
+  /// What the sequence's previews are, for its status.
+  std::string previews_note(const std::string& id, const std::vector<std::string>& frames) const;
   /// Admits one job (of its own, or a frame of a sequence); returns its id.
   std::string admit_one(const JobSpec& spec, std::optional<Image> reference, int32_t priority,
                         bool paused, const std::vector<std::string>& warnings, size_t bundle_files,

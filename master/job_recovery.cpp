@@ -86,6 +86,7 @@ size_t JobManager::recover() {
     std::sort(frames.begin(), frames.end(), [&](const std::string& a, const std::string& b) {
       return jobs_.at(a).record.spec.frame.value_or(0) < jobs_.at(b).record.spec.frame.value_or(0);
     });
+    update_previews(sequence, /*missing_only=*/true);  // e.g. a stop while one was being made
   }
   return restarted;
 }

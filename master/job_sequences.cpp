@@ -85,7 +85,9 @@ void JobManager::remove_sequence(const std::string& id) {
     hash = jobs_.at(f).record.spec.bundle_hash;
     remove_job(f);
   }
-  // The sequence's own folder (its bundle) goes last: until then a frame may still need it.
+  // The sequence's own folder (its bundle, its previews) goes last: until then a frame may still
+  // need it.
+  previews_.forget(id);
   std::error_code ec;
   fs::remove_all(store_.job_dir(id), ec);
   if (ec) {
@@ -212,6 +214,7 @@ wire::JobStatus JobManager::sequence_status(const std::string& id,
     }
   }
   out.set_frames_done(done);
+  out.set_previews(previews_note(id, frames));
   out.set_paused(any_active && all_paused);
   out.set_spp_done(spp_min);
   out.set_spp_mean(frames.empty() ? 0.0 : spp_mean / double(frames.size()));
@@ -228,6 +231,54 @@ wire::JobStatus JobManager::sequence_status(const std::string& id,
     out.set_eta_seconds(-1.0);
   }
   return out;
+}
+
+void JobManager::update_previews(const std::string& id, bool missing_only) {
+  auto it = sequences_.find(id);
+  if (it == sequences_.end()) return;
+  SequencePreviews::Request request;
+  request.sequence = id;
+  request.dir = store_.job_dir(id);
+  bool any_done = false, all_done = true;
+  for (const std::string& f : it->second) {
+    auto job = jobs_.find(f);
+    if (job == jobs_.end()) continue;
+    const bool done = job->second.record.state == wire::JOB_DONE;
+    request.frames.push_back(
+        {job->second.record.spec.frame.value_or(0), store_.image_path(f), done});
+    any_done = any_done || done;
+    all_done = all_done && done;
+  }
+  if (!any_done) return;
+  std::error_code ec;
+  request.sheet = !missing_only || !fs::exists(request.dir / SequencePreviews::kSheetName, ec);
+  request.movie = all_done && previews_.makes_movies() &&
+                  (!missing_only || !fs::exists(request.dir / SequencePreviews::kMovieName, ec));
+  if (!request.sheet && !request.movie) return;
+  request.fps = store_.sequence_fps(id);
+  previews_.submit(std::move(request));
+}
+
+std::string JobManager::previews_note(const std::string& id,
+                                      const std::vector<std::string>& frames) const {
+  const fs::path dir = store_.job_dir(id);
+  std::error_code ec;
+  std::string note = fs::exists(dir / SequencePreviews::kSheetName, ec)
+                         ? "contact sheet"
+                         : "contact sheet when a frame is done";
+  const std::string failure = previews_.movie_failure(id);
+  if (fs::exists(dir / SequencePreviews::kMovieName, ec)) {
+    note += "; movie";
+  } else if (!failure.empty()) {
+    note += "; no movie: " + failure;
+  } else if (!previews_.makes_movies()) {
+    note += "; no movie (turned off)";
+  } else if (sequence_state(frames) == wire::JOB_DONE) {
+    note += "; movie being made";
+  } else {
+    note += "; movie when every frame is done";
+  }
+  return note;
 }
 
 }  // namespace rayfarm::master

@@ -141,13 +141,33 @@ std::vector<wire::JobStatus> JobManager::list(uint32_t workers_total) const {
   return out;
 }
 
-wire::ImageData JobManager::image(const std::string& id) const {
+wire::ImageData JobManager::image(const std::string& id, bool movie) const {
   if (const auto* frames = sequence_frames(id)) {
-    throw JobRejected(
-        fmt::format("{} is a sequence of {} frames: fetch one frame (--frame N) or "
-                    "all of them (--all)",
-                    id, frames->size()));
+    // A sequence's images are its frames'; of its own it has its previews.
+    wire::ImageData out;
+    out.set_job_id(id);
+    out.set_state(sequence_state(*frames));
+    const auto read = [&](const char* name) { return store_.read_file(id, name); };
+    if (movie) {
+      auto mp4 = read(SequencePreviews::kMovieName);
+      if (!mp4) {
+        throw JobRejected(
+            fmt::format("sequence {} has no movie ({})", id, previews_note(id, *frames)));
+      }
+      out.set_mp4(std::move(*mp4));
+      return out;
+    }
+    auto sheet = read(SequencePreviews::kSheetName);
+    if (!sheet) {
+      throw JobRejected(
+          fmt::format("sequence {} has no contact sheet yet (no frame is done); its frames: "
+                      "--frame N or --all",
+                      id));
+    }
+    out.set_png(std::move(*sheet));
+    return out;
   }
+  if (movie) throw JobRejected("job " + id + " is not a sequence: it has no movie");
   auto it = jobs_.find(id);
   if (it == jobs_.end()) throw JobRejected("unknown job '" + id + "'");
   auto exr = store_.read_file(id, "image.exr");

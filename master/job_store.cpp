@@ -90,7 +90,8 @@ json to_json(const JobRecord& r) {
               {"est_rel_mse", finite_or(r.est_rel_mse, -1.0)},
               {"ref_rel_mse", finite_or(r.ref_rel_mse, -1.0)},
               {"frame", s.frame ? json(*s.frame) : json(nullptr)},
-              {"sequence", s.sequence}};
+              {"sequence", s.sequence},
+              {"frame_file", s.frame_file}};
 }
 
 JobRecord from_json(const json& j) {
@@ -144,6 +145,8 @@ JobRecord from_json(const json& j) {
     s.frame = f->get<int64_t>();
   }
   s.sequence = j.value("sequence", "");
+  s.frame_file = j.value("frame_file", false);
+  if (s.frame_file && s.sequence.empty()) throw std::runtime_error("frame_file outside a sequence");
   if (!s.sequence.empty() && (!s.frame || s.id != JobStore::frame_id(s.sequence, *s.frame))) {
     throw std::runtime_error("sequence does not match the id and frame");
   }
@@ -254,10 +257,21 @@ void JobStore::create_job_dir(const std::string& id) {
   }
 }
 
-void JobStore::mark_sequence_stored(const std::string& id, size_t frames) {
+void JobStore::mark_sequence_stored(const std::string& id, size_t frames, double fps) {
   write_file_atomically(job_dir(id) / "sequence.json",
-                        json{{"id", id}, {"frames", frames}}.dump() + "\n");
+                        json{{"id", id}, {"frames", frames}, {"fps", fps}}.dump() + "\n");
   sync_job_dir(id);
+}
+
+double JobStore::sequence_fps(const std::string& id) const {
+  try {
+    std::ifstream in(job_dir(id) / "sequence.json");
+    const json j = json::parse(in);
+    const double fps = j.value("fps", 24.0);
+    if (std::isfinite(fps) && fps > 0 && fps <= 1000) return fps;
+  } catch (const std::exception&) {
+  }
+  return 24.0;
 }
 
 bool JobStore::sequence_stored(const std::string& id) const {

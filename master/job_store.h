@@ -40,6 +40,9 @@ struct JobSpec {
   /// The sequence the job is a frame of (its id, e.g. "j0007"; the frame's own id is
   /// "j0007.0012"); empty for a job of its own.
   std::string sequence;
+  /// A frame of a list of scene files ("frame_####.json"): scene_path names the frame's own file,
+  /// a still scene, and units carry no frame.
+  bool frame_file = false;
   RenderSettings settings;
   FilmSize film;
   uint32_t tile_size = kDefaultTileSize;
@@ -96,8 +99,11 @@ class JobStore {
   /// Records that every frame of sequence `id` is stored (jobs/<id>/sequence.json, synced): a
   /// sequence without it was cut short by a crash while being accepted. Throws
   /// std::runtime_error.
-  void mark_sequence_stored(const std::string& id, size_t frames);
+  /// `fps`: the frames a second its movie plays at.
+  void mark_sequence_stored(const std::string& id, size_t frames, double fps);
   bool sequence_stored(const std::string& id) const;
+  /// The frames a second of sequence `id`'s movie (24 when its sequence.json does not say).
+  double sequence_fps(const std::string& id) const;
   /// A fresh empty folder under tmp/.
   std::filesystem::path make_scratch_dir();
 

@@ -72,6 +72,11 @@ int main(int argc, char** argv) {
                  "... and at least this long (milliseconds)")
       ->check(CLI::Range(int64_t{0}, int64_t{86400000}))
       ->capture_default_str();
+  app.add_option("--ffmpeg", durability.ffmpeg,
+                 "the ffmpeg program that makes a finished sequence's MP4 movie (a path, or a "
+                 "name looked up in PATH; \"\" = no movies); without it only the movie is "
+                 "skipped")
+      ->capture_default_str();
 
   // Security: CURVE with allow-lists by default; --insecure only on loopback.
   std::string key_file, worker_keys, client_keys;

@@ -10,6 +10,9 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   python3
 )
+# ffmpeg makes a finished sequence's MP4 movie: optional for a master, needed by the tests;
+# RAYFARM_DEPS=build (an image's build stage) leaves it out.
+[ "${RAYFARM_DEPS:-all}" = build ] || packages+=(ffmpeg)
 
 missing=()
 for p in "${packages[@]}"; do

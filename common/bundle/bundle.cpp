@@ -5,6 +5,7 @@
 #include <cerrno>
 #include <fstream>
 #include <iterator>
+#include <set>
 #include <system_error>
 #include <utility>
 
@@ -191,28 +192,32 @@ std::string bundle_hash(const Bundle& bundle) { return sha256_hex(canonical_byte
 namespace {
 
 /// Packs `scene_file` with the files its loaded `scene` references.
-PackedScene pack_loaded(const fs::path& scene_file, const Scene& scene) {
+/// The files a loaded scene needs: the scene file itself, then every file it references.
+std::vector<fs::path> scene_sources(const fs::path& scene_file, const Scene& scene) {
   const fs::path scene_abs = fs::absolute(scene_file).lexically_normal();
-  const fs::path scene_dir = scene_abs.parent_path();
-
   std::vector<fs::path> sources{scene_abs};
   for (const auto& ref : scene.referenced) {
     if (ref.is_absolute()) {
       throw BundleError(scene_file.string() + ": references the absolute path " + ref.string() +
                         "; a bundled scene must reference its files by relative paths");
     }
-    sources.push_back((scene_dir / ref).lexically_normal());
+    sources.push_back((scene_abs.parent_path() / ref).lexically_normal());
   }
-  fs::path root = scene_dir;
+  return sources;
+}
+
+/// Packs `sources` under their deepest common folder; the bundle's scene is `scene_file` (which
+/// may be a pattern naming the files of a list).
+PackedScene pack_sources(const fs::path& scene_file, const std::vector<fs::path>& sources) {
+  const fs::path scene_abs = fs::absolute(scene_file).lexically_normal();
+  fs::path root = scene_abs.parent_path();
   for (const auto& s : sources) root = common_ancestor(root, s.parent_path());
 
   std::vector<BundleFile> files;
+  std::set<std::string> packed_paths;
   for (const auto& s : sources) {
     const std::string rel = s.lexically_relative(root).generic_string();
-    if (std::any_of(files.begin(), files.end(),
-                    [&](const BundleFile& f) { return f.path == rel; })) {
-      continue;  // referenced twice
-    }
+    if (!packed_paths.insert(rel).second) continue;  // referenced twice
     files.push_back({rel, read_inside(root, s.lexically_relative(root))});
   }
   PackedScene packed;
@@ -220,6 +225,10 @@ PackedScene pack_loaded(const fs::path& scene_file, const Scene& scene) {
   packed.bundle = make_bundle(std::move(files));
   packed.hash = bundle_hash(packed.bundle);
   return packed;
+}
+
+PackedScene pack_loaded(const fs::path& scene_file, const Scene& scene) {
+  return pack_sources(scene_file, scene_sources(scene_file, scene));
 }
 
 /// Adds `text` to the bundle as the file `stem` + `suffix` (with '_'s before the suffix while
@@ -354,6 +363,16 @@ fs::path unpack_bundle(const Bundle& bundle, const fs::path& cache_dir,
     throw;
   }
   return final_dir;
+}
+
+PackedScene pack_scene_list(const fs::path& pattern, const std::vector<fs::path>& files) {
+  std::vector<fs::path> sources;
+  for (const fs::path& file : files) {
+    // One scene at a time: only the names of what it references are kept.
+    const Scene scene = load_scene(file, {}, SceneImages::kCheckOnly);
+    for (fs::path& s : scene_sources(file, scene)) sources.push_back(std::move(s));
+  }
+  return pack_sources(pattern, sources);
 }
 
 }  // namespace rayfarm

@@ -68,6 +68,12 @@ std::string bundle_hash(const Bundle& bundle);
 /// A Mitsuba XML scene may read files anywhere under `root` (empty: its own folder).
 PackedScene pack_scene(const std::filesystem::path& scene_file,
                        const std::filesystem::path& root = {});
+/// pack_scene() of a list of scene files, one per frame: every file of `files` with what each
+/// references, in one bundle whose scene is `pattern` (their names with the frame pattern,
+/// "shots/frame_####.json"; common/scene/frames.h). Throws SceneError or BundleError naming the
+/// file.
+PackedScene pack_scene_list(const std::filesystem::path& pattern,
+                            const std::vector<std::filesystem::path>& files);
 /// pack_scene() of a glTF file rendered through the camera named `camera`: the bundle's scene is
 /// then a JSON file beside the glTF that names both (docs/gltf.md).
 PackedScene pack_gltf_scene(const std::filesystem::path& gltf_file, const std::string& camera);

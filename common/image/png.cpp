@@ -91,6 +91,13 @@ uint8_t to_srgb8(float linear, float exposure) {
 
 }  // namespace
 
+std::vector<uint8_t> preview_pixels(const Image& image, float exposure) {
+  std::vector<uint8_t> pixels(image.rgb.size());
+  std::transform(image.rgb.begin(), image.rgb.end(), pixels.begin(),
+                 [exposure](float v) { return to_srgb8(v, exposure); });
+  return pixels;
+}
+
 void write_png_preview(const std::filesystem::path& path, const Image& image, float exposure) {
   const size_t values = size_t{image.width} * image.height * 3;
   if (image.width == 0 || image.height == 0 || image.rgb.size() != values) {
@@ -98,10 +105,7 @@ void write_png_preview(const std::filesystem::path& path, const Image& image, fl
                      std::to_string(image.width) + "x" + std::to_string(image.height) + ", " +
                      std::to_string(image.rgb.size()) + " RGB values)");
   }
-  std::vector<uint8_t> pixels(values);
-  std::transform(image.rgb.begin(), image.rgb.end(), pixels.begin(),
-                 [exposure](float v) { return to_srgb8(v, exposure); });
-  write_png_rgb8(path, pixels, image.width, image.height);
+  write_png_rgb8(path, preview_pixels(image, exposure), image.width, image.height);
 }
 
 void write_png_rgb8(const std::filesystem::path& path, const std::vector<uint8_t>& rgb,

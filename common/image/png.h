@@ -8,6 +8,10 @@
 
 namespace rayfarm {
 
+/// The 8-bit sRGB codes of a linear image, as its preview shows them: each value scaled by
+/// `exposure`, clamped to [0, 1] (non-finite values read 0), encoded and rounded.
+std::vector<uint8_t> preview_pixels(const Image& image, float exposure = 1.f);
+
 /// Writes an sRGB preview (linear values clamped to [0,1] after `exposure` scaling), atomically.
 void write_png_preview(const std::filesystem::path& path, const Image& image, float exposure = 1.f);
 

@@ -1,6 +1,10 @@
 #include "common/scene/frames.h"
 
+#include <algorithm>
+#include <cctype>
+#include <cstdio>
 #include <cstdlib>
+#include <stdexcept>
 #include <string_view>
 
 namespace rayfarm {
@@ -70,6 +74,36 @@ std::string frame_list_name(const FrameList& frames) {
   std::string out = std::to_string(frames.first) + "-" + std::to_string(frames.last);
   if (frames.step != 1) out += ":" + std::to_string(frames.step);
   return out;
+}
+
+bool has_frame_pattern(const std::string& file_name) {
+  return file_name.find('#') != std::string::npos || file_name.find('%') != std::string::npos;
+}
+
+std::string substitute_frame(const std::string& file_name, int64_t frame) {
+  const auto padded = [frame](size_t width) {
+    char digits[32];
+    std::snprintf(digits, sizeof digits, "%0*lld", int(std::min<size_t>(width, 12)),
+                  static_cast<long long>(frame));
+    return std::string(digits);
+  };
+  std::string name = file_name;
+  if (const size_t hash = name.find('#'); hash != std::string::npos) {
+    size_t end = hash;
+    while (end < name.size() && name[end] == '#') ++end;
+    name.replace(hash, end - hash, padded(end - hash));
+  } else if (const size_t pct = name.find('%'); pct != std::string::npos) {
+    size_t at = pct + 1, width = 0;
+    while (at < name.size() && std::isdigit(static_cast<unsigned char>(name[at])) != 0) {
+      width = std::min<size_t>(width * 10 + size_t(name[at] - '0'), 12);
+      ++at;
+    }
+    if (at >= name.size() || name[at] != 'd') {
+      throw std::invalid_argument("a '%' in the name must be a frame number, %d or %04d");
+    }
+    name.replace(pct, at + 1 - pct, padded(width));
+  }
+  return name;
 }
 
 }  // namespace rayfarm

@@ -38,4 +38,13 @@ std::optional<FrameList> parse_frame_list(const std::string& text, std::string* 
 /// "A-B:STEP", "A-B" when the step is 1, "A" for one frame.
 std::string frame_list_name(const FrameList& frames);
 
+/// Whether a file name holds a frame number pattern: a run of '#' or a '%' (a printf "%d" or
+/// "%0Nd"). Output names take the frame number so; a scene name so is a list of scene files, one
+/// per frame ("shots/frame_####.json").
+bool has_frame_pattern(const std::string& file_name);
+/// `file_name` with its pattern replaced by `frame`, padded with zeros to the pattern's width
+/// ("shot.####.exr" -> "shot.0012.exr", "frame_%04d.json" -> "frame_0012.json"); unchanged
+/// without one. Throws std::invalid_argument when a '%' is not "%d" or "%0Nd".
+std::string substitute_frame(const std::string& file_name, int64_t frame);
+
 }  // namespace rayfarm

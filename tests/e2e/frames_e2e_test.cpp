@@ -1,12 +1,20 @@
 // Animated scenes through the CLI, with real processes on loopback and CURVE keys: `rayfarm render
 // --frames` writes one image per frame and checks the whole range before the first, and a farm
 // job of one frame (`submit --frame N`) renders that frame bit for bit as `rayfarm render --frame
-// N` does. Every wait is bounded; every process is killed by PID at the end.
+// N` does; a sequence's frames, contact sheet and movie are fetched. Every wait is bounded; every
+// process is killed by PID at the end.
 #include <gtest/gtest.h>
+
+#include <chrono>
+#include <fstream>
+#include <thread>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "common/image/contact_sheet.h"
+#include "common/image/decode_image.h"
+#include "common/util/read_file.h"
 #include "tests/e2e/farm_fixture.h"
 
 namespace rayfarm::test {
@@ -142,7 +150,43 @@ TEST_F(FramesTest, ASequenceRendersEveryFrameAsTheLocalRenderOfThatFrame) {
   EXPECT_TRUE(bit_identical(out / "seven.exr", out / "shot.0007.exr"));
   const RunResult whole = cli({"fetch", seq, "-o", (out / "whole.exr").string()});
   EXPECT_EQ(whole.code, 1);
-  EXPECT_NE(whole.err.find("is a sequence of 3 frames"), std::string::npos) << whole.err;
+  EXPECT_NE(whole.err.find("is a sequence: fetch its frames with --frame N or --all"),
+            std::string::npos)
+      << whole.err;
+  EXPECT_FALSE(fs::exists(out / "whole.exr"));
+  // Its previews: the contact sheet, and the movie that ffmpeg makes once every frame is done.
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  std::string previews;
+  while (std::chrono::steady_clock::now() < deadline) {
+    previews = nlohmann::json::parse(cli({"status", seq, "--json"}).out)["previews"];
+    if (previews != "contact sheet; movie being made") break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  EXPECT_EQ(previews, "contact sheet; movie");
+  const RunResult sheet = cli({"fetch", seq, "-o", (out / "sheet.png").string()});
+  ASSERT_EQ(sheet.code, 0) << sheet.err;
+  EXPECT_NE(sheet.out.find("the contact sheet of sequence " + seq), std::string::npos);
+  const std::string png = read_whole_file(out / "sheet.png", 1 << 26);
+  const DecodedImage decoded =
+      decode_image({reinterpret_cast<const uint8_t*>(png.data()), png.size()}, "sheet.png");
+  const SheetLayout layout = sheet_layout(3, 16, 16);
+  EXPECT_EQ(decoded.width, layout.width());
+  EXPECT_EQ(decoded.height, layout.height());
+  const RunResult movie = cli({"fetch", seq, "-o", (out / "shot.mp4").string()});
+  ASSERT_EQ(movie.code, 0) << movie.err;
+  const std::string mp4 = read_whole_file(out / "shot.mp4", 1 << 26);
+  ASSERT_GT(mp4.size(), 12u);
+  EXPECT_EQ(mp4.substr(4, 4), "ftyp");  // an ISO media file
+  const RunResult frame_movie =
+      cli({"fetch", seq, "--frame", "4", "-o", (out / "four.mp4").string()});
+  EXPECT_EQ(frame_movie.code, 1);
+  EXPECT_NE(frame_movie.err.find("its movie is fetched without --frame or --all"),
+            std::string::npos)
+      << frame_movie.err;
+  const RunResult still_movie = cli({"fetch", seq + ".0004", "-o", (out / "four.mp4").string()});
+  EXPECT_EQ(still_movie.code, 1);
+  EXPECT_NE(still_movie.err.find("is not a sequence: it has no movie"), std::string::npos)
+      << still_movie.err;
   const RunResult missing = cli({"fetch", seq, "--frame", "2", "-o", (out / "two.exr").string()});
   EXPECT_EQ(missing.code, 1);
   EXPECT_NE(missing.err.find("has no frame 2"), std::string::npos) << missing.err;
@@ -160,6 +204,75 @@ TEST_F(FramesTest, ASequenceRendersEveryFrameAsTheLocalRenderOfThatFrame) {
   EXPECT_EQ(beyond.code, 1);
   EXPECT_NE(beyond.err.find("beyond the scene's animation, frames 1-48"), std::string::npos)
       << beyond.err;
+}
+
+TEST_F(FramesTest, AListOfSceneFilesIsASequenceOfItsFiles) {
+  // frame_0001.json .. frame_0003.json: the Cornell box seen from three places.
+  const fs::path box = small_scene("cornell-box", 16);
+  const nlohmann::json base = nlohmann::json::parse(read_file(box));
+  const fs::path shots = dir() / "shots";
+  fs::create_directories(shots);
+  for (int frame = 1; frame <= 3; ++frame) {
+    nlohmann::json scene = base;
+    scene["camera"]["eye"][0] = 278 + 40 * frame;
+    std::ofstream(shots / fmt::format("frame_{:04d}.json", frame)) << scene.dump(2);
+  }
+  const fs::path pattern = shots / "frame_####.json";
+  const std::vector<std::string> settings{"--spp", "4", "--seed", "3"};
+  const fs::path out = dir() / "list-out";
+  fs::create_directories(out);
+  std::vector<std::string> local{"render",    pattern.string(),
+                                 "--frames",  "1-3",
+                                 "-o",        (out / "local.####.exr").string(),
+                                 "--threads", "2"};
+  local.insert(local.end(), settings.begin(), settings.end());
+  const RunResult rendered = cli(local, false);
+  ASSERT_EQ(rendered.code, 0) << rendered.err;
+  EXPECT_FALSE(bit_identical(out / "local.0001.exr", out / "local.0002.exr"));
+
+  start_farm();
+  std::vector<std::string> args = settings;
+  args.insert(args.end(), {"--frames", "1-3", "--wait", "-o", (out / "farm.####.exr").string()});
+  const std::string seq = submit(pattern, args);
+  wait_for_state(seq, wire::JOB_DONE);
+  for (int frame = 1; frame <= 3; ++frame) {
+    EXPECT_TRUE(bit_identical(out / fmt::format("farm.{:04d}.exr", frame),
+                              out / fmt::format("local.{:04d}.exr", frame)))
+        << "frame " << frame;
+  }
+  // One frame of the list is the still scene in its file.
+  const RunResult one = cli({"render", pattern.string(), "--frame", "2", "--spp", "4", "--seed",
+                             "3", "-o", (out / "two.exr").string(), "--threads", "2"},
+                            false);
+  ASSERT_EQ(one.code, 0) << one.err;
+  EXPECT_TRUE(bit_identical(out / "two.exr", out / "local.0002.exr"));
+
+  // Refused before anything renders or is sent, naming the frame and the file.
+  const auto expect_refused = [&](const std::string& command, std::vector<std::string> extra,
+                                  const std::string& words) {
+    std::vector<std::string> a{command, pattern.string(), "--spp", "1"};
+    if (command == "render") a.insert(a.end(), {"-o", (out / "x.exr").string()});
+    a.insert(a.end(), extra.begin(), extra.end());
+    const RunResult bad = cli(a, command == "submit");
+    EXPECT_EQ(bad.code, 1) << command << ": " << bad.err;
+    EXPECT_NE(bad.err.find(words), std::string::npos) << bad.err;
+  };
+  for (const char* command : {"render", "submit"}) {
+    expect_refused(command, {"--frames", "1-4"},
+                   "--frames 1-4: frame 4's scene " + (shots / "frame_0004.json").string() +
+                       " does not exist");
+    expect_refused(command, {}, "is a list of scene files, one per frame");
+  }
+  nlohmann::json wide = base;
+  wide["film"] = {{"width", 32}, {"height", 16}};
+  std::ofstream(shots / "frame_0004.json") << wide.dump(2);
+  expect_refused("submit", {"--frames", "1-4"},
+                 (shots / "frame_0004.json").string() + " is 32x16 but " +
+                     (shots / "frame_0001.json").string() +
+                     " is 16x16: the frames of a sequence share one film");
+  std::ofstream(shots / "frame_0005.json") << read_file(small_scene("animated-box", 16));
+  expect_refused("render", {"--frames", "5-5"},
+                 "is animated: the files of a list are still scenes");
 }
 
 TEST_F(FramesTest, ASequenceIsCancelledPausedAndRetriedAsOne) {

@@ -163,7 +163,45 @@ TEST(JobSequences, WhatCannotBeASequenceIsRefusedByName) {
   wire::SubmitJob still = test_jobs::furnace_job(2, 16, 2);
   *still.mutable_frames() = protocol::frames_to_wire({1, 2, 1});
   expect_refused(still, "still");
+
+  // A list of scene files, as a client that packs them itself may send it: a frame's file
+  // missing from the bundle, files of two sizes, an animated file.
+  const std::string box = pack_scene(std::filesystem::path(RAYFARM_SOURCE_DIR) / "scenes" /
+                                     "cornell-box" / "scene.json")
+                              .bundle.files.at(0)
+                              .data;
+  const std::string animated = animation_job(1, 1, 1).bundle().files(0).data();
+  const auto list_job = [&](std::vector<BundleFile> files) {
+    wire::SubmitJob request;
+    protocol::bundle_to_wire(make_bundle(std::move(files)), request.mutable_bundle());
+    request.set_scene_path("shots/f_%03d.json");
+    *request.mutable_frames() = protocol::frames_to_wire({1, 3, 1});
+    return request;
+  };
+  std::string wide = box;
+  const std::string square = "\"film\": {\"width\": 256, \"height\": 256}";
+  const size_t film = wide.find(square);
+  ASSERT_NE(film, std::string::npos);
+  wide.replace(film, square.size(), "\"film\": {\"width\": 64, \"height\": 32}");
+  expect_refused(list_job({{"shots/f_001.json", box}, {"shots/f_003.json", box}}),
+                 "frame 2's scene file 'shots/f_002.json' is not in the bundle");
+  expect_refused(
+      list_job({{"shots/f_001.json", box}, {"shots/f_002.json", box}, {"shots/f_003.json", wide}}),
+      "shots/f_003.json is 64x32 but shots/f_001.json is");
+  expect_refused(
+      list_job(
+          {{"shots/f_001.json", animated}, {"shots/f_002.json", box}, {"shots/f_003.json", box}}),
+      "shots/f_001.json is animated");
   EXPECT_TRUE(jobs.list(0).empty());  // nothing accepted half-way
+  // The same list, whole, is a sequence whose frames render their own files as stills.
+  const std::string seq = jobs.submit(
+      list_job({{"shots/f_001.json", box}, {"shots/f_002.json", box}, {"shots/f_003.json", box}}));
+  const auto unit = jobs.next_unit("w1");
+  ASSERT_TRUE(unit);
+  EXPECT_EQ(unit->job_id(), seq + ".0001");
+  EXPECT_EQ(unit->scene_path(), "shots/f_001.json");
+  EXPECT_FALSE(unit->has_frame());
+  EXPECT_EQ(jobs.status(seq, 1)->frames_total(), 3u);
 }
 
 TEST(JobSequences, TheQueueLimitCountsEveryFrame) {
