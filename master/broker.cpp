@@ -79,12 +79,15 @@ std::string Broker::worker_label(const net::PeerId& peer) const {
 
 void Broker::run(const std::atomic<bool>& stop) {
   std::array<net::Socket*, 2> sockets{&workers_socket_, &clients_socket_};
+  Clock::time_point woke = Clock::now();  // busy from here until the next poll
   while (!stop.load()) {
-    const auto until_heartbeat =
-        std::chrono::duration_cast<milliseconds>(next_heartbeat_ - Clock::now());
+    const auto now = Clock::now();
+    busy_.fetch_add((now - woke).count(), std::memory_order_relaxed);
+    const auto until_heartbeat = std::chrono::duration_cast<milliseconds>(next_heartbeat_ - now);
     const auto wait = std::clamp(until_heartbeat, milliseconds{0}, milliseconds{100});
     const auto readable = net::poll(sockets, wait);
-    listened_ = Clock::now();
+    polls_.fetch_add(1, std::memory_order_relaxed);
+    listened_ = woke = Clock::now();
     if (readable[0]) {
       for (int i = 0; i < kBatch; ++i) {
         auto delivery = workers_socket_.receive(milliseconds{0});
@@ -102,6 +105,7 @@ void Broker::run(const std::atomic<bool>& stop) {
     admit_submissions();
     on_timers();
   }
+  busy_.fetch_add((Clock::now() - woke).count(), std::memory_order_relaxed);
   // Submissions being checked are finished and answered: each is on disk once checked.
   submissions_->drain();
   admit_submissions();

@@ -46,6 +46,15 @@ class Broker {
   std::string worker_endpoint() const { return workers_socket_.endpoint(); }
   std::string client_endpoint() const { return clients_socket_.endpoint(); }
 
+  /// Wall time run() has spent outside its poll wait (handling messages, timers, dispatch), and
+  /// the polls it made, since it started: busy_seconds over a window's wall time is the reactor's
+  /// busy fraction. Safe to read from another thread while run() serves.
+  double busy_seconds() const {
+    return std::chrono::duration<double>(Clock::duration(busy_.load(std::memory_order_relaxed)))
+        .count();
+  }
+  uint64_t polls() const { return polls_.load(std::memory_order_relaxed); }
+
  private:
   using Clock = std::chrono::steady_clock;
   struct Worker {
@@ -84,6 +93,8 @@ class Broker {
   std::map<net::PeerId, Worker> workers_;
   Clock::time_point next_heartbeat_;
   Clock::time_point listened_;  // when the sockets were last polled
+  std::atomic<Clock::rep> busy_{0};  // busy_seconds(), in Clock ticks
+  std::atomic<uint64_t> polls_{0};
 
   void handle_worker(const net::Delivery& delivery);
   void handle_client(const net::Delivery& delivery);
