@@ -10,8 +10,8 @@ namespace rayfarm {
 double variance_of_mean(Fixed sum, Fixed sum_sq, uint32_t n) {
   if (n < 2) return std::numeric_limits<double>::infinity();
   constexpr long double kScale = 1.0L / 1099511627776.0L;  // 2^-40
-  const long double s = static_cast<long double>(sum) * kScale;
-  const long double q = static_cast<long double>(sum_sq) * kScale;
+  const long double s = fixed_raw_long_double(sum) * kScale;
+  const long double q = fixed_raw_long_double(sum_sq) * kScale;
   const long double nn = n;
   const long double spread = q - s * (s / nn);  // (n - 1) times the sample variance
   if (!(spread > 0)) return 0.0;
