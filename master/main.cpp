@@ -1,13 +1,16 @@
 // rayfarm-master: binds the worker and client endpoints and serves jobs until SIGINT or SIGTERM.
+#include <algorithm>
 #include <atomic>
 #include <csignal>
 #include <exception>
 #include <iostream>
+#include <thread>
 
 #include <CLI/CLI.hpp>
 
 #include "common/limits.h"
 #include "common/net/keys.h"
+#include "common/net/socket.h"
 #include "common/protocol/version.h"
 #include "common/util/log.h"
 #include "common/util/log_options.h"
@@ -115,6 +118,12 @@ int main(int argc, char** argv) {
   rayfarm::master::Limits& limits = options.limits;
   int64_t max_message_mb = limits.max_message_bytes >> 20;
   uint64_t max_bundle_mb = limits.max_bundle_bytes >> 20;
+  int io_threads = 0;
+  app.add_option("--io-threads", io_threads,
+                 "ZeroMQ I/O threads, which receive results and with CURVE decrypt them, each "
+                 "worker's connection on one (0 = a quarter of the cores, 1 to 4)")
+      ->check(CLI::Range(0, 64))
+      ->capture_default_str();
   app.add_option("--max-message-mb", max_message_mb,
                  "largest message a socket accepts, in MiB; a peer sending more is disconnected")
       ->check(CLI::Range(int64_t{1}, int64_t{1024}))
@@ -166,6 +175,12 @@ int main(int argc, char** argv) {
       options.security.client_keys = client_keys;
       options.security.admin_clients.insert(admin_clients.begin(), admin_clients.end());
     }
+    if (io_threads == 0) {
+      io_threads = static_cast<int>(std::clamp(std::thread::hardware_concurrency() / 4, 1u, 4u));
+    }
+    rayfarm::net::set_io_threads(io_threads);
+    rayfarm::get_logger("master")->info("{} ZeroMQ I/O thread{}", io_threads,
+                                        io_threads == 1 ? "" : "s");
     rayfarm::master::Broker broker(options);
     broker.run(g_stop);
   } catch (const std::exception& e) {

@@ -16,9 +16,25 @@
 
 namespace rayfarm::net {
 
+namespace {
+std::atomic<int> g_io_threads{1};
+std::atomic<bool> g_context_made{false};
+}  // namespace
+
 zmq::context_t& detail::context() {
-  static auto* ctx = new zmq::context_t(1);
+  static auto* ctx = [] {
+    g_context_made = true;
+    return new zmq::context_t(g_io_threads.load());
+  }();
   return *ctx;
+}
+
+void set_io_threads(int threads) {
+  if (threads < 1 || threads > 64) {
+    throw NetError(fmt::format("I/O threads must be 1 to 64, got {}", threads));
+  }
+  if (g_context_made) throw NetError("I/O threads are set before the first socket is made");
+  g_io_threads = threads;
 }
 
 namespace {

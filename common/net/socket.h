@@ -131,4 +131,9 @@ class Dealer : public Socket {
 /// for each socket, whether it is readable. An interrupted wait (a signal) returns all false.
 std::vector<bool> poll(std::span<Socket* const> sockets, std::chrono::milliseconds timeout);
 
+/// The I/O threads of the process's ZeroMQ context (1 unless set): they read and write the
+/// sockets, and with CURVE encrypt and decrypt every message, each connection on one of them.
+/// Must be called before the first socket is made; throws NetError afterwards or outside 1-64.
+void set_io_threads(int threads);
+
 }  // namespace rayfarm::net

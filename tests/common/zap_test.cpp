@@ -8,6 +8,7 @@
 #include <sstream>
 #include <thread>
 
+#include "common/net/context.h"
 #include "common/net/keys.h"
 #include "common/net/socket.h"
 #include "common/net/zap.h"
@@ -276,6 +277,18 @@ TEST_F(CurveTest, OnlyOneZapHandlerCanBeBound) {
     FAIL() << "a second ZAP handler was bound";
   } catch (const NetError& e) {
     EXPECT_NE(std::string(e.what()).find("zeromq.zap.01"), std::string::npos) << e.what();
+  }
+}
+
+TEST(IoThreads, AreSetBeforeTheContextOnlyAndWithinBounds) {
+  EXPECT_THROW(set_io_threads(0), NetError);
+  EXPECT_THROW(set_io_threads(65), NetError);
+  (void)detail::context();  // what the first socket does
+  try {
+    set_io_threads(2);
+    ADD_FAILURE() << "set after the context was made";
+  } catch (const NetError& e) {
+    EXPECT_NE(std::string(e.what()).find("before the first socket"), std::string::npos);
   }
 }
 
