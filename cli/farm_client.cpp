@@ -109,6 +109,7 @@ std::string fetch_image(FarmClient& client, const std::string& job, const fs::pa
   wire::FetchImage request;
   request.set_job_id(job);
   request.set_movie(format == OutputFormat::kMp4);
+  request.set_contact_sheet(format == OutputFormat::kPng);  // what a sequence has as a PNG
   const auto image = client.call<wire::ImageData>(encode(std::move(request)));
   std::string wrote = output.string();
   // A sequence has no image of its own: its contact sheet (a PNG) and its movie.

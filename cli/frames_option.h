@@ -10,6 +10,7 @@
 #include <fmt/format.h>
 
 #include "cli/scene_option.h"
+#include "common/protocol/convert.h"
 #include "common/scene/frames.h"
 #include "common/scene/parser.h"
 
@@ -33,6 +34,7 @@ inline FrameList check_frames_option(const std::string& text, const SceneArgs& s
   }
   if (source.is_list()) {
     std::optional<FilmSize> film;
+    RenderSettings render;
     std::filesystem::path first;
     for (int64_t i = 0; i < frames->count(); ++i) {
       const int64_t frame = frames->at(i);
@@ -45,12 +47,18 @@ inline FrameList check_frames_option(const std::string& text, const SceneArgs& s
       const Scene scene = source.load(SceneImages::kCheckOnly, frame);
       if (!film) {
         film = scene.film;
+        render = scene.render;
         first = file;
       } else if (scene.film.width != film->width || scene.film.height != film->height) {
         throw std::invalid_argument(fmt::format(
             "--frames {}: {} is {}x{} but {} is {}x{}: the frames of a sequence share one film",
             text, file.string(), scene.film.width, scene.film.height, first.string(), film->width,
             film->height));
+      } else if (!protocol::same_settings(scene.render, render)) {
+        throw std::invalid_argument(fmt::format(
+            "--frames {}: {}'s render settings differ from {}'s: the frames of a sequence share "
+            "one set (the farm renders every frame with the first's)",
+            text, file.string(), first.string()));
       }
     }
     return *frames;

@@ -125,7 +125,8 @@ int run_submit(const SubmitArgs& args) {
     frames = check_frames_option(*args.frames, args.source, args.stop.reference.has_value());
   }
   const bool list = args.source.is_list();
-  if (list && !args.frame && !frames) (void)args.source.load(SceneImages::kCheckOnly);  // says why
+  // A list without frames is refused (load says why); one frame of it must be a still.
+  if (list && !frames) (void)args.source.load(SceneImages::kCheckOnly, args.frame);
   std::vector<fs::path> files;
   if (list && frames) {
     for (int64_t i = 0; i < frames->count(); ++i)
@@ -163,7 +164,8 @@ int run_submit(const SubmitArgs& args) {
   if (args.pass_spp) o->set_pass_spp(*args.pass_spp);
   o->set_clamp(args.clamp);
   if (args.film.given()) {
-    const Scene scene = args.source.load(SceneImages::kCheckOnly, args.frame);
+    const Scene scene = args.source.load(SceneImages::kCheckOnly,
+                                         frames ? std::optional(frames->first) : args.frame);
     check_uncropped(scene);
     const auto film = args.film.resolve(scene.film);
     o->set_width(film->width);

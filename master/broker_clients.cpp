@@ -265,7 +265,7 @@ void Broker::handle_client(const net::Delivery& delivery) {
         return;
       }
       try {
-        reply(peer, encode(jobs_.image(fetch->job_id(), fetch->movie())));
+        reply(peer, encode(jobs_.image(fetch->job_id(), fetch->movie(), fetch->contact_sheet())));
       } catch (const JobRejected& e) {
         reply(peer,
               error_frames(wire::Error::NOT_FOUND, jobs_.for_clients(e.what()), fetch->job_id()));

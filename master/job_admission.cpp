@@ -182,6 +182,11 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
                             frame_file(s == &scene ? frames->first : frames->last)));
           }
         }
+        if (frames->count() > 1 && !protocol::same_settings(last.render, scene.render)) {
+          throw JobRejected(fmt::format(
+              "{}'s render settings differ from {}'s: the frames of a sequence share one set",
+              frame_file(frames->last), frame_file(frames->first)));
+        }
         if (frames->count() > 1 &&
             (last.film.width != scene.film.width || last.film.height != scene.film.height)) {
           throw JobRejected(

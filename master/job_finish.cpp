@@ -81,7 +81,9 @@ void JobManager::finish(Job& job, wire::JobState state, const std::string& error
     checkpoints_.forget(s.id, store_.job_dir(s.id));
   }
   // A finished frame joins its sequence's contact sheet (and, the last one, makes its movie).
-  if (state == wire::JOB_DONE && !s.sequence.empty()) update_previews(s.sequence);
+  if (state == wire::JOB_DONE && !s.sequence.empty() && !recovering_) {
+    update_previews(s.sequence);
+  }
   const double seconds = job.record.elapsed_seconds;
   if (state == wire::JOB_DONE) {
     log_jobs()->info("job {} done ({}): '{}' {}x{}, {:.1f} spp mean in {:.2f} s ({}){}; image {}",

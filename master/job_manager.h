@@ -159,8 +159,9 @@ class JobManager {
   /// Status of every job, in id order.
   std::vector<wire::JobStatus> list(uint32_t workers_total) const;
   /// The job's current image; throws JobRejected when unknown or nothing is written yet. Of a
-  /// sequence: its contact sheet as `png`, and with `movie` its MP4.
-  wire::ImageData image(const std::string& id, bool movie = false) const;
+  /// sequence: with `movie` its MP4, with `sheet` its contact sheet as `png`; with neither,
+  /// JobRejected (it has no image of its own).
+  wire::ImageData image(const std::string& id, bool movie = false, bool sheet = false) const;
   /// Returns once every sequence preview queued so far is made (tests).
   void wait_for_previews() { previews_.flush(); }
   /// The bundle with this hash, from the store; nullopt when no job has it.
@@ -196,6 +197,7 @@ class JobManager {
   std::map<std::string, Job> jobs_;
   std::map<std::string, std::string> bundle_owner_;  // bundle hash -> a job that has it
   std::map<std::string, std::vector<std::string>> sequences_;  // id -> its frames' jobs, in order
+  bool recovering_ = false;  // recover() is loading jobs: previews wait until it is done
   SequencePreviews previews_{options_.ffmpeg};
 
   // Sequences (job_sequences.cpp): the public requests above fan out to a sequence's frames.

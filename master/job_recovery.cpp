@@ -12,6 +12,7 @@ using namespace detail;
 
 size_t JobManager::recover() {
   size_t restarted = 0;
+  recovering_ = true;  // a frame finished here joins its sequence's previews once all are loaded
   for (JobRecord& record : store_.load_records()) {
     const std::string id = record.spec.id;
     Job job;
@@ -88,6 +89,7 @@ size_t JobManager::recover() {
     });
     update_previews(sequence, /*missing_only=*/true);  // e.g. a stop while one was being made
   }
+  recovering_ = false;
   return restarted;
 }
 

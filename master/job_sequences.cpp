@@ -79,6 +79,7 @@ void JobManager::remove_sequence(const std::string& id) {
                       id, it->second.record.spec.frame.value_or(0)));
     }
   }
+  previews_.forget(id);  // nothing reads the frames' images any more
   std::string hash;
   for (const std::string& f : frames) {
     if (!jobs_.count(f)) continue;
@@ -87,7 +88,6 @@ void JobManager::remove_sequence(const std::string& id) {
   }
   // The sequence's own folder (its bundle, its previews) goes last: until then a frame may still
   // need it.
-  previews_.forget(id);
   std::error_code ec;
   fs::remove_all(store_.job_dir(id), ec);
   if (ec) {
@@ -251,7 +251,23 @@ void JobManager::update_previews(const std::string& id, bool missing_only) {
   }
   if (!any_done) return;
   std::error_code ec;
-  request.sheet = !missing_only || !fs::exists(request.dir / SequencePreviews::kSheetName, ec);
+  request.sheet = !missing_only;
+  if (missing_only) {
+    // Left by a stop while a movie was being made: its temporary file and log.
+    for (const auto& entry : fs::directory_iterator(request.dir, ec)) {
+      const std::string name = entry.path().filename().string();
+      if (name.rfind(std::string(SequencePreviews::kMovieName) + ".", 0) == 0) {
+        fs::remove(entry.path(), ec);
+      }
+    }
+    // A sheet older than a finished frame misses it (a stop before it was rewritten).
+    const auto sheet_time = fs::last_write_time(request.dir / SequencePreviews::kSheetName, ec);
+    request.sheet = ec.operator bool();
+    for (const SequencePreviews::Frame& f : request.frames) {
+      if (request.sheet) break;
+      if (f.done) request.sheet = fs::last_write_time(f.exr, ec) > sheet_time || ec;
+    }
+  }
   request.movie = all_done && previews_.makes_movies() &&
                   (!missing_only || !fs::exists(request.dir / SequencePreviews::kMovieName, ec));
   if (!request.sheet && !request.movie) return;
@@ -275,6 +291,8 @@ std::string JobManager::previews_note(const std::string& id,
     note += "; no movie (turned off)";
   } else if (sequence_state(frames) == wire::JOB_DONE) {
     note += "; movie being made";
+  } else if (!is_active_state(sequence_state(frames))) {
+    note += "; no movie: not every frame is done";
   } else {
     note += "; movie when every frame is done";
   }

@@ -141,8 +141,14 @@ std::vector<wire::JobStatus> JobManager::list(uint32_t workers_total) const {
   return out;
 }
 
-wire::ImageData JobManager::image(const std::string& id, bool movie) const {
+wire::ImageData JobManager::image(const std::string& id, bool movie, bool sheet) const {
   if (const auto* frames = sequence_frames(id)) {
+    if (!movie && !sheet) {
+      throw JobRejected(
+          fmt::format("{} is a sequence of {} frames: fetch one frame (--frame N), all of them "
+                      "(--all), its contact sheet (-o NAME.png) or its movie (-o NAME.mp4)",
+                      id, frames->size()));
+    }
     // A sequence's images are its frames'; of its own it has its previews.
     wire::ImageData out;
     out.set_job_id(id);
@@ -167,8 +173,10 @@ wire::ImageData JobManager::image(const std::string& id, bool movie) const {
     out.set_png(std::move(*sheet));
     return out;
   }
-  if (movie) throw JobRejected("job " + id + " is not a sequence: it has no movie");
   auto it = jobs_.find(id);
+  if (it != jobs_.end() && movie) {
+    throw JobRejected("job " + id + " is not a sequence: it has no movie");
+  }
   if (it == jobs_.end()) throw JobRejected("unknown job '" + id + "'");
   auto exr = store_.read_file(id, "image.exr");
   if (!exr) throw JobRejected("job " + id + " has no image yet (no unit has been merged)");

@@ -26,6 +26,19 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+/// Whether ffmpeg's log says it has no such encoder (the wording differs between versions).
+bool lacks_encoder(const fs::path& log) {
+  std::ifstream in(log);
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.find("nknown encoder") != std::string::npos ||
+        line.find("ncoder not found") != std::string::npos) {
+      return true;
+    }
+  }
+  return false;
+}
+
 /// The last non-empty line of a file (ffmpeg's error log), at most 300 characters.
 std::string last_line(const fs::path& file) {
   std::ifstream in(file);
@@ -86,7 +99,13 @@ class Encoder {
     std::vector<char*> argv;
     for (std::string& a : args_) argv.push_back(a.data());
     argv.push_back(nullptr);
-    const int spawned = posix_spawnp(&pid_, argv[0], &actions, nullptr, argv.data(), environ);
+    // A group of its own, so that a kill reaches whatever it started too (a wrapper script).
+    posix_spawnattr_t attributes;
+    posix_spawnattr_init(&attributes);
+    posix_spawnattr_setflags(&attributes, POSIX_SPAWN_SETPGROUP);
+    posix_spawnattr_setpgroup(&attributes, 0);
+    const int spawned = posix_spawnp(&pid_, argv[0], &actions, &attributes, argv.data(), environ);
+    posix_spawnattr_destroy(&attributes);
     posix_spawn_file_actions_destroy(&actions);
     close(fds[0]);
     if (spawned != 0) {
@@ -97,7 +116,7 @@ class Encoder {
     }
     fcntl(fds[1], F_SETFL, O_NONBLOCK);
     std::string why;
-    for (size_t i = 0; i < movie_.frames && why.empty(); ++i) {
+    for (size_t i = 0; i < movie_.frames && why.empty() && !broken_; ++i) {
       std::vector<uint8_t> pixels;
       try {
         pixels = movie_.frame(i);
@@ -124,9 +143,11 @@ class Encoder {
   std::vector<std::string> args_;
   fs::path log_;
   pid_t pid_ = -1;
+  bool broken_ = false;  // ffmpeg closed its input
 
   std::string interrupted() const {
-    return stop_ ? "the master is stopping" : "ffmpeg took longer than its time limit";
+    return stop_ ? "stopped (the master is stopping, or the sequence is being removed)"
+                 : "ffmpeg took longer than its time limit";
   }
 
   std::string feed(int fd, const std::vector<uint8_t>& bytes) {
@@ -139,7 +160,8 @@ class Encoder {
       if (n > 0) {
         done += static_cast<size_t>(n);
       } else if (n < 0 && errno == EPIPE) {
-        return "";  // ffmpeg stopped reading: its exit status says why
+        broken_ = true;  // ffmpeg stopped reading: its exit status says why
+        return "";
       } else if (n < 0 && errno != EAGAIN && errno != EINTR) {
         return fmt::format("cannot write to ffmpeg: {}", strerror(errno));
       }
@@ -157,7 +179,7 @@ class Encoder {
       if (r < 0 && errno != EINTR)
         return fmt::format("cannot wait for ffmpeg: {}", strerror(errno));
       if (kill_now || stop_ || Clock::now() > deadline_) {
-        ::kill(pid_, SIGKILL);
+        ::kill(-pid_, SIGKILL);
         waitpid(pid_, &status, 0);
         return kill_now ? "" : interrupted();
       }
@@ -195,7 +217,7 @@ std::string write_movie(const fs::path& path, const MovieSpec& movie,
       if (why.empty()) why = e.what();  // the file, not ffmpeg
     }
     // Only an encoder this ffmpeg lacks is worth a second try.
-    if (why.empty() || why.find("nknown encoder") == std::string::npos) break;
+    if (why.empty() || !lacks_encoder(log)) break;
   }
   // A SIGPIPE raised while blocked stays pending on this thread: take it.
   timespec zero{0, 0};

@@ -15,7 +15,10 @@ std::shared_ptr<spdlog::logger> log_previews() { return get_logger("jobs"); }
 
 SequencePreviews::SequencePreviews(std::string ffmpeg) : ffmpeg_(std::move(ffmpeg)) {}
 
-SequencePreviews::~SequencePreviews() { stopping_ = true; }
+SequencePreviews::~SequencePreviews() {
+  stopping_ = true;
+  abort_current_ = true;
+}
 
 void SequencePreviews::submit(Request request) {
   const std::string id = request.sequence;
@@ -24,9 +27,11 @@ void SequencePreviews::submit(Request request) {
 
 void SequencePreviews::forget(const std::string& sequence) {
   tasks_.discard([&](const Request& waiting) { return waiting.sequence == sequence; });
-  tasks_.flush();
-  std::lock_guard lock(mutex_);
+  std::unique_lock lock(mutex_);
+  if (current_ == sequence) abort_current_ = true;
+  made_.wait(lock, [&] { return current_ != sequence; });
   movie_failures_.erase(sequence);
+  forgotten_.push_back(sequence);
 }
 
 std::string SequencePreviews::movie_failure(const std::string& sequence) const {
@@ -36,16 +41,31 @@ std::string SequencePreviews::movie_failure(const std::string& sequence) const {
 }
 
 void SequencePreviews::make(Request& request) {
-  if (request.frames.empty()) return;
-  if (request.sheet) make_sheet(request);
-  if (request.movie) make_movie(request);
-  bool complete = true;
-  for (const Frame& f : request.frames) complete = complete && f.done;
-  if (complete) thumbnails_.erase(request.sequence);  // its sheet changes no more
+  {
+    std::lock_guard lock(mutex_);
+    for (const std::string& gone : forgotten_) thumbnails_.erase(gone);
+    forgotten_.clear();
+    current_ = request.sequence;
+    abort_current_ = stopping_.load();
+  }
+  if (!request.frames.empty()) {
+    if (request.sheet) make_sheet(request);
+    if (request.movie && !abort_current_) make_movie(request);
+    bool complete = true;
+    for (const Frame& f : request.frames) complete = complete && f.done;
+    if (complete) thumbnails_.erase(request.sequence);  // its sheet changes no more
+  }
+  std::lock_guard lock(mutex_);
+  current_.clear();
+  made_.notify_all();
 }
 
 void SequencePreviews::make_sheet(const Request& request) {
   Thumbnails& thumbs = thumbnails_[request.sequence];
+  if (thumbs.count != request.frames.size()) {
+    thumbs = Thumbnails{};  // made for another layout
+    thumbs.count = request.frames.size();
+  }
   try {
     std::vector<SheetCell> cells;
     for (const Frame& f : request.frames) {
@@ -104,7 +124,7 @@ void SequencePreviews::make_movie(const Request& request) {
       };
       // Generous: a minute, and a second per frame.
       const auto limit = std::chrono::seconds(60 + movie.frames);
-      why = write_movie(request.dir / kMovieName, movie, limit, stopping_);
+      why = write_movie(request.dir / kMovieName, movie, limit, abort_current_);
     } catch (const std::exception& e) {
       why = e.what();
     }
@@ -112,7 +132,7 @@ void SequencePreviews::make_movie(const Request& request) {
   if (why.empty()) {
     log_previews()->info("sequence {}: movie {} ({} frames at {:g} fps)", request.sequence,
                          (request.dir / kMovieName).string(), request.frames.size(), request.fps);
-  } else if (!stopping_) {
+  } else if (!abort_current_) {
     log_previews()->warn("sequence {}: no movie: {}{}", request.sequence, why,
                          why.find("not found") != std::string::npos
                              ? " (install Debian's ffmpeg on the master to get one; the "

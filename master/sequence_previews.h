@@ -4,6 +4,7 @@
 // frames finish, and once every frame is done an MP4 movie of them (preview.mp4) made by ffmpeg,
 // when the master has it. docs/farm.md, "Frame sequences".
 #include <atomic>
+#include <condition_variable>
 #include <cstdint>
 #include <filesystem>
 #include <map>
@@ -42,7 +43,8 @@ class SequencePreviews {
 
   /// Queues the sequence's previews, in place of a waiting request for the same sequence.
   void submit(Request request);
-  /// Drops the sequence's waiting request and waits for one being made (its folder is going).
+  /// Drops the sequence's waiting request, stops a movie of it being made and waits until
+  /// nothing of it is being made (its folder is about to go); other sequences' work goes on.
   void forget(const std::string& sequence);
   /// Returns when everything queued before the call is made (or failed, which is logged).
   void flush() { tasks_.flush(); }
@@ -58,11 +60,16 @@ class SequencePreviews {
 
   std::string ffmpeg_;
   std::atomic<bool> stopping_{false};
-  mutable std::mutex mutex_;  // guards movie_failures_
+  std::atomic<bool> abort_current_{false};  // stops the movie being made (stopping, forget)
+  mutable std::mutex mutex_;                // guards movie_failures_, current_, forgotten_
+  std::condition_variable made_;            // current_ changed
   std::map<std::string, std::string> movie_failures_;
+  std::string current_;                 // the sequence being made, "" when none
+  std::vector<std::string> forgotten_;  // their thumbnails go at the next task
   // The thread's own: thumbnails of each sequence's finished frames, until it is complete.
   struct Thumbnails {
     uint32_t width = 0, height = 0;  // of the frames; 0 until one is read
+    size_t count = 0;                // frames the pictures' layout was made for
     std::map<int64_t, Rgb8Image> pictures;
   };
   std::map<std::string, Thumbnails> thumbnails_;

@@ -52,6 +52,10 @@ RouletteType roulette_from_wire(wire::Roulette value) {
   throw ProtocolError("unknown roulette " + std::to_string(static_cast<int>(value)));
 }
 
+bool same_settings(const RenderSettings& a, const RenderSettings& b) {
+  return settings_to_wire(a).SerializeAsString() == settings_to_wire(b).SerializeAsString();
+}
+
 wire::RenderSettings settings_to_wire(const RenderSettings& settings) {
   wire::RenderSettings out;
   out.set_spp(settings.spp);

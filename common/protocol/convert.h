@@ -36,6 +36,8 @@ wire::Roulette roulette_to_wire(RouletteType type);
 RouletteType roulette_from_wire(wire::Roulette value);
 
 wire::RenderSettings settings_to_wire(const RenderSettings& settings);
+/// Whether two scenes' render settings are the same (every field).
+bool same_settings(const RenderSettings& a, const RenderSettings& b);
 /// Throws ProtocolError on an unknown integrator or zero spp.
 RenderSettings settings_from_wire(const wire::RenderSettings& settings);
 

@@ -56,6 +56,32 @@ TEST(FixedTest, TruncatesSmallerValuesTowardZeroBelowResolution) {
   EXPECT_EQ(from_fixed(to_fixed(0x1p-41f)), 0.0);
 }
 
+TEST(FixedTest, FastConversionsRoundAsThePlainOnes) {
+  // Values that fit 64 bits take one instruction; the result must be the 128-bit conversion's,
+  // bit for bit, at the edges (ties of double's 53 bits, the int64 limits) and beyond 64 bits.
+  const Fixed two64 = Fixed{1} << 64;
+  const std::vector<Fixed> values = {0,
+                                     1,
+                                     -1,
+                                     (Fixed{1} << 53) + 1,
+                                     (Fixed{1} << 53) + 3,
+                                     -((Fixed{1} << 53) + 1),
+                                     (Fixed{1} << 62) + 511,
+                                     (Fixed{1} << 62) + 513,
+                                     INT64_MAX,
+                                     INT64_MIN,
+                                     Fixed{INT64_MAX} + 1,
+                                     Fixed{INT64_MIN} - 1,
+                                     two64 + 12345,
+                                     -two64 * 1000 - 7};
+  for (const Fixed v : values) {
+    SCOPED_TRACE(static_cast<double>(v));
+    const double plain = static_cast<double>(v) * (1.0 / 1099511627776.0);
+    EXPECT_EQ(from_fixed(v), plain);
+    EXPECT_EQ(fixed_raw_long_double(v), static_cast<long double>(v));
+  }
+}
+
 TEST(FixedTest, PartsRoundTripIncludingNegativeValues) {
   const Fixed minus_one = to_fixed(-1.0);
   EXPECT_EQ(fixed_hi(minus_one), -1);

@@ -150,7 +150,8 @@ TEST_F(FramesTest, ASequenceRendersEveryFrameAsTheLocalRenderOfThatFrame) {
   EXPECT_TRUE(bit_identical(out / "seven.exr", out / "shot.0007.exr"));
   const RunResult whole = cli({"fetch", seq, "-o", (out / "whole.exr").string()});
   EXPECT_EQ(whole.code, 1);
-  EXPECT_NE(whole.err.find("is a sequence: fetch its frames with --frame N or --all"),
+  EXPECT_NE(whole.err.find("is a sequence of 3 frames: fetch one frame (--frame N), all of them "
+                           "(--all), its contact sheet (-o NAME.png) or its movie (-o NAME.mp4)"),
             std::string::npos)
       << whole.err;
   EXPECT_FALSE(fs::exists(out / "whole.exr"));

@@ -39,7 +39,9 @@ TEST(BrokerBusyTest, CountsItsTimeOutsideThePollWaitAndItsPolls) {
   EXPECT_GE(broker.polls(), 3u);
   EXPECT_GE(busy_while_running, 0.0);
   EXPECT_LE(busy_while_running, broker.busy_seconds());
-  EXPECT_LT(broker.busy_seconds(), wall);  // the waits are not counted
+  // The waits are not counted: idle, the reactor is busy a small part of the time (polls of up to
+  // 100 ms, each followed by a few microseconds of timers).
+  EXPECT_LT(broker.busy_seconds(), 0.5 * wall);
 }
 
 }  // namespace

@@ -188,6 +188,14 @@ TEST(JobSequences, WhatCannotBeASequenceIsRefusedByName) {
   expect_refused(
       list_job({{"shots/f_001.json", box}, {"shots/f_002.json", box}, {"shots/f_003.json", wide}}),
       "shots/f_003.json is 64x32 but shots/f_001.json is");
+  std::string seeded = box;
+  const std::string render = "\"render\": {\"spp\": 64,";
+  ASSERT_NE(seeded.find(render), std::string::npos);
+  seeded.replace(seeded.find(render), render.size(), "\"render\": {\"seed\": 9, \"spp\": 64,");
+  expect_refused(
+      list_job(
+          {{"shots/f_001.json", box}, {"shots/f_002.json", box}, {"shots/f_003.json", seeded}}),
+      "shots/f_003.json's render settings differ from shots/f_001.json's");
   expect_refused(
       list_job(
           {{"shots/f_001.json", animated}, {"shots/f_002.json", box}, {"shots/f_003.json", box}}),

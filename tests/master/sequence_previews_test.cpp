@@ -78,7 +78,7 @@ TEST(SequencePreviews, TheContactSheetGrowsAndTheMovieComesWithTheLastFrame) {
   const fs::path movie = store.job_dir(seq) / "preview.mp4";
   EXPECT_EQ(jobs.status(seq, 1)->previews(),
             "contact sheet when a frame is done; movie when every frame is done");
-  EXPECT_THROW(jobs.image(seq), JobRejected);
+  EXPECT_THROW(jobs.image(seq, false, true), JobRejected);  // no contact sheet yet
 
   finish_next_frame(jobs, 0.5);  // frame 1: mid grey
   jobs.wait_for_previews();
@@ -98,7 +98,8 @@ TEST(SequencePreviews, TheContactSheetGrowsAndTheMovieComesWithTheLastFrame) {
   const uint32_t right = kSheetGap + layout.cell_width - 1;
   EXPECT_EQ(at(right, kSheetGap), 188);
   EXPECT_EQ(at(right + layout.cell_width + kSheetGap, kSheetGap), 48);
-  EXPECT_EQ(jobs.image(seq).png(), bytes);
+  EXPECT_EQ(jobs.image(seq, false, /*sheet=*/true).png(), bytes);
+  EXPECT_THROW(jobs.image(seq), JobRejected);  // a sequence has no image of its own
   EXPECT_EQ(jobs.status(seq, 1)->previews(), "contact sheet; movie when every frame is done");
   try {
     (void)jobs.image(seq, /*movie=*/true);
@@ -143,11 +144,23 @@ TEST(SequencePreviews, ARestartMakesWhatIsMissing) {
   ASSERT_TRUE(fs::exists(sheet) && fs::exists(movie));
   const auto made = fs::last_write_time(movie);
   fs::remove(sheet);
+  std::ofstream(store.job_dir(seq) / "preview.mp4.tmp-123-4") << "half a movie";
+  {
+    JobManager restarted(store);
+    restarted.recover();
+    restarted.wait_for_previews();
+  }
+  EXPECT_TRUE(fs::exists(sheet));
+  EXPECT_EQ(fs::last_write_time(movie), made);                             // not made again
+  EXPECT_FALSE(fs::exists(store.job_dir(seq) / "preview.mp4.tmp-123-4"));  // a stop's leftover
+  // A sheet older than a finished frame (a stop before it was rewritten) is made again.
+  const auto old =
+      fs::last_write_time(store.job_dir(seq + ".0003") / "image.exr") - std::chrono::hours(1);
+  fs::last_write_time(sheet, old);
   JobManager restarted(store);
   restarted.recover();
   restarted.wait_for_previews();
-  EXPECT_TRUE(fs::exists(sheet));
-  EXPECT_EQ(fs::last_write_time(movie), made);  // not made again
+  EXPECT_GT(fs::last_write_time(sheet), old);
   // Removing the sequence removes its previews with its folder.
   restarted.remove(seq);
   EXPECT_FALSE(fs::exists(store.job_dir(seq)));
