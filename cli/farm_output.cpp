@@ -165,7 +165,9 @@ std::string progress_line(const wire::JobStatus& st) {
     line += fmt::format("  {}  ETA {}  workers {} busy/{}", human_rate(st.samples_per_second()),
                         format_duration(st.eta_seconds()), st.workers_busy(), st.workers_total());
   } else if (st.state() == wire::JOB_DONE) {
-    line += fmt::format("  in {} ({})", format_duration(st.elapsed_seconds()), st.stop_reason());
+    // A sequence has no stop rule of its own: each frame stopped by its own.
+    line += fmt::format("  in {}{}", format_duration(st.elapsed_seconds()),
+                        st.stop_reason().empty() ? "" : " (" + st.stop_reason() + ")");
   }
   if (!st.storage_error().empty()) line += "  storage: " + st.storage_error();
   return line;

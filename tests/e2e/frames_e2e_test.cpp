@@ -131,6 +131,11 @@ TEST_F(FramesTest, ASequenceRendersEveryFrameAsTheLocalRenderOfThatFrame) {
   EXPECT_EQ(frame_job["sequence"], seq);
   EXPECT_EQ(frame_job["frame"], 4);
   EXPECT_TRUE(has_line(cli({"list"}).out, seq, "3/3 fr"));
+  // watch of a finished sequence: its last line, without a stop rule of its own.
+  const RunResult watched = cli({"watch", seq, "--timeout", "30"});
+  EXPECT_EQ(watched.code, 0) << watched.err;
+  EXPECT_TRUE(has_line(watched.out, seq, "done")) << watched.out;
+  EXPECT_EQ(watched.out.find("()"), std::string::npos) << watched.out;
 
   // Every frame, fetched at once, is the local render of that frame bit for bit.
   const fs::path out = dir() / "farm-frames";
