@@ -22,6 +22,10 @@ SequencePreviews::~SequencePreviews() {
 
 void SequencePreviews::submit(Request request) {
   const std::string id = request.sequence;
+  {
+    std::lock_guard lock(mutex_);
+    forgotten_.erase(id);  // an id given again after its sequence was removed
+  }
   tasks_.submit(std::move(request), [&](const Request& waiting) { return waiting.sequence == id; });
 }
 
@@ -31,7 +35,8 @@ void SequencePreviews::forget(const std::string& sequence) {
   if (current_ == sequence) abort_current_ = true;
   made_.wait(lock, [&] { return current_ != sequence; });
   movie_failures_.erase(sequence);
-  forgotten_.push_back(sequence);
+  // A request taken off the queue but not started yet sees this and does nothing.
+  forgotten_.insert(sequence);
 }
 
 std::string SequencePreviews::movie_failure(const std::string& sequence) const {
@@ -41,13 +46,15 @@ std::string SequencePreviews::movie_failure(const std::string& sequence) const {
 }
 
 void SequencePreviews::make(Request& request) {
+  bool gone = false;
   {
     std::lock_guard lock(mutex_);
-    for (const std::string& gone : forgotten_) thumbnails_.erase(gone);
-    forgotten_.clear();
-    current_ = request.sequence;
+    for (const std::string& id : forgotten_) thumbnails_.erase(id);
+    gone = forgotten_.count(request.sequence) > 0;
+    if (!gone) current_ = request.sequence;
     abort_current_ = stopping_.load();
   }
+  if (gone) return;  // removed meanwhile: its folder is going
   if (!request.frames.empty()) {
     if (request.sheet) make_sheet(request);
     if (request.movie && !abort_current_) make_movie(request);

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <map>
 #include <mutex>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -65,7 +66,7 @@ class SequencePreviews {
   std::condition_variable made_;            // current_ changed
   std::map<std::string, std::string> movie_failures_;
   std::string current_;                 // the sequence being made, "" when none
-  std::vector<std::string> forgotten_;  // their thumbnails go at the next task
+  std::set<std::string> forgotten_;     // removed sequences: no more work, no thumbnails
   // The thread's own: thumbnails of each sequence's finished frames, until it is complete.
   struct Thumbnails {
     uint32_t width = 0, height = 0;  // of the frames; 0 until one is read
