@@ -120,13 +120,7 @@ std::string fetch_image(FarmClient& client, const std::string& job, const fs::pa
     return fmt::format("wrote {} (the movie of sequence {}, {})", wrote, image.job_id(),
                        protocol::job_state_name(image.state()));
   }
-  if (sequence) {
-    if (format != OutputFormat::kPng) {
-      throw MasterError(fmt::format(
-          "{} is a sequence: fetch its frames with --frame N or --all, its contact sheet with "
-          "-o NAME.png, its movie with -o NAME.mp4",
-          job));
-    }
+  if (sequence) {  // asked for as a PNG: the master sends a sequence's sheet only then
     write_file_atomically(output, image.png());
     return fmt::format("wrote {} (the contact sheet of sequence {}, {})", wrote, image.job_id(),
                        protocol::job_state_name(image.state()));

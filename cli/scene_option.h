@@ -11,7 +11,7 @@
 #include <CLI/CLI.hpp>
 
 #include "common/bundle/bundle.h"
-#include "common/scene/frames.h"
+#include "common/scene/frame_files.h"
 #include "common/scene/mitsuba_loader.h"
 #include "common/scene/parser.h"
 
@@ -60,14 +60,11 @@ struct SceneArgs {
 
   /// A list of scene files, one still scene per frame: the file name holds a frame pattern
   /// ("shots/frame_####.json", "frame_%04d.json"; docs/farm.md, "Frame sequences").
-  bool is_list() const {
-    return has_frame_pattern(std::filesystem::path(scene).filename().string());
-  }
+  bool is_list() const { return is_scene_list(scene); }
   /// The scene file of `frame` in a list.
   std::filesystem::path file_at(int64_t frame) const {
-    const std::filesystem::path pattern(scene);
     try {
-      return pattern.parent_path() / substitute_frame(pattern.filename().string(), frame);
+      return frame_scene_file(scene, frame);
     } catch (const std::invalid_argument& e) {
       throw std::invalid_argument("scene " + scene + ": " + e.what());
     }

@@ -12,6 +12,7 @@
 #include "common/limits.h"
 #include "common/protocol/codec.h"
 #include "common/protocol/convert.h"
+#include "common/scene/frame_files.h"
 #include "common/scene/parser.h"
 #include "common/util/atomic_file.h"
 #include "master/job_manager.h"
@@ -130,12 +131,10 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
   }
   // A sequence whose scene's file name holds a frame pattern is a list of scene files, one still
   // scene per frame ("shots/frame_####.json"): every frame's file must be in the bundle.
-  const fs::path pattern(request.scene_path());
-  const bool list = frames && has_frame_pattern(pattern.filename().string());
+  const bool list = frames && is_scene_list(request.scene_path());
   const auto frame_file = [&](int64_t frame) {
     try {
-      return (pattern.parent_path() / substitute_frame(pattern.filename().string(), frame))
-          .generic_string();
+      return frame_scene_file(request.scene_path(), frame).generic_string();
     } catch (const std::invalid_argument& e) {
       throw JobRejected("scene " + request.scene_path() + ": " + e.what());
     }
@@ -354,12 +353,9 @@ std::vector<JobSpec> JobManager::store_frames(const JobSpec& spec, const FrameLi
       f.frame = frames.at(i);
       f.sequence = spec.id;
       // A list of scene files: the frame's own file.
-      const fs::path pattern(spec.scene_path);
-      if (has_frame_pattern(pattern.filename().string())) {
+      if (is_scene_list(spec.scene_path)) {
         f.frame_file = true;
-        f.scene_path =
-            (pattern.parent_path() / substitute_frame(pattern.filename().string(), *f.frame))
-                .generic_string();
+        f.scene_path = frame_scene_file(spec.scene_path, *f.frame).generic_string();
       }
       f.id = JobStore::frame_id(spec.id, *f.frame);
       f.name = fmt::format("{} frame {}", spec.name, *f.frame);
