@@ -118,6 +118,8 @@ nlohmann::json status_json(const wire::JobStatus& st) {
                        ? nlohmann::json(nullptr)
                        : nlohmann::json(roulette_label(st.settings().roulette()))},
       {"roulette_depth", st.settings().roulette_depth()},
+      {"shutter", {st.settings().shutter_open(), st.settings().shutter_close()}},
+      {"motion_steps", st.settings().motion_steps()},
       {"seed", st.settings().seed()},
       {"clamp", st.settings().clamp()},
       {"tile_size", st.tile_size()},

@@ -20,6 +20,7 @@
 #include "common/protocol/version.h"
 #include "common/report/error_tracker.h"
 #include "common/scene/animation.h"
+#include "common/scene/motion.h"
 #include "common/scene/parser.h"
 #include "common/util/log.h"
 #include "worker/renderer.h"
@@ -60,8 +61,9 @@ class ProgressReporter {
   /// `row` is set when a round of passes has just completed (its error figures are new).
   void update(const RenderProgress& p, const ErrorRow* row) {
     const bool last = p.reason != StopReason::kRunning;
-    const double fraction =
-        last ? 1.0 : p.units_released ? double(p.units_done) / double(p.units_released) : 0.0;
+    const double fraction = last               ? 1.0
+                            : p.units_released ? double(p.units_done) / double(p.units_released)
+                                               : 0.0;
     if (row) error_ = fmt::format("relMSE~{:.3g}", row->est_rel_mse);
     if (tty_) {
       const int width = 30, filled = static_cast<int>(fraction * width);
@@ -99,6 +101,9 @@ void render_one(const RenderArgs& args, std::optional<int64_t> frame,
   if (args.integrator) settings.integrator = *parse_integrator(*args.integrator);
   settings.clamp = args.clamp;
   if (settings.spp == 0) throw std::invalid_argument("--spp must be at least 1");
+  const size_t warned = scene.warnings.size();
+  args.source.add_motion(scene, settings);  // the poses within an open shutter
+  for (size_t i = warned; i < scene.warnings.size(); ++i) log->warn("{}", scene.warnings[i]);
 
   LocalRenderOptions options;
   options.threads = args.threads;
@@ -165,6 +170,7 @@ void render_one(const RenderArgs& args, std::optional<int64_t> frame,
       {"rayfarm:scene", std::filesystem::path(args.source.scene).filename().string()},
       {"rayfarm:stop", stop_reason_name(final_progress.reason)},
       {"rayfarm:est_rel_mse", fmt::format("{:.6g}", last.est_rel_mse)}};
+  if (settings.shutter_is_open()) attributes["rayfarm:shutter"] = shutter_attribute(settings);
   if (settings.clamp > 0) attributes["rayfarm:clamp"] = fmt::format("{:g}", settings.clamp);
   if (scene.frame) attributes["rayfarm:frame"] = std::to_string(*scene.frame);
   std::string wrote = output;
@@ -185,19 +191,18 @@ void render_one(const RenderArgs& args, std::optional<int64_t> frame,
   const double spp_mean = samples / (double(scene.film.width) * scene.film.height);
   std::cout << fmt::format("wrote {}; error record {} and {}\n", wrote,
                            error_csv_path(output).string(), error_plot_path(output).string());
-  std::cout << fmt::format("time {:.3f} s, {:.3f} Msamples/s, {:.3f} Mrays/s, {:.2f} spp/s at {}x{}\n",
-                           seconds, samples / seconds * 1e-6, double(film.rays()) / seconds * 1e-6,
-                           spp_mean / seconds, scene.film.width, scene.film.height);
-  std::cout << fmt::format("stopped: {}; {:.1f} spp mean ({} to {} per pixel){}\n",
-                           stop_reason_name(final_progress.reason), spp_mean, film.min_spp(),
-                           film.max_spp(),
-                           options.stop.target_error > 0
-                               ? fmt::format(", {}/{} tiles converged",
-                                             final_progress.tiles_converged,
-                                             final_progress.tiles_total)
-                               : "");
-  std::cout << fmt::format("estimated relMSE {:.4g}, RMSE {:.4g}", last.est_rel_mse,
-                           last.est_rmse);
+  std::cout << fmt::format(
+      "time {:.3f} s, {:.3f} Msamples/s, {:.3f} Mrays/s, {:.2f} spp/s at {}x{}\n", seconds,
+      samples / seconds * 1e-6, double(film.rays()) / seconds * 1e-6, spp_mean / seconds,
+      scene.film.width, scene.film.height);
+  std::cout << fmt::format(
+      "stopped: {}; {:.1f} spp mean ({} to {} per pixel){}\n",
+      stop_reason_name(final_progress.reason), spp_mean, film.min_spp(), film.max_spp(),
+      options.stop.target_error > 0
+          ? fmt::format(", {}/{} tiles converged", final_progress.tiles_converged,
+                        final_progress.tiles_total)
+          : "");
+  std::cout << fmt::format("estimated relMSE {:.4g}, RMSE {:.4g}", last.est_rel_mse, last.est_rmse);
   if (last.ref_rel_mse) {
     std::cout << fmt::format("; against {}: relMSE {:.4g}, RMSE {:.4g}, MAE {:.4g}, max {:.4g}",
                              *args.stop.reference, *last.ref_rel_mse, *last.ref_rmse, *last.ref_mae,
@@ -241,7 +246,8 @@ int run_render(const RenderArgs& args) {
 
 void add_render_command(CLI::App& app, int& exit_code) {
   auto args = std::make_shared<RenderArgs>();
-  CLI::App* cmd = app.add_subcommand("render", "Render a scene on this machine to an EXR (+ PNG preview)");
+  CLI::App* cmd =
+      app.add_subcommand("render", "Render a scene on this machine to an EXR (+ PNG preview)");
   cmd->add_option("scene", args->source.scene,
                   "Scene file: JSON, glTF 2.0 (.gltf, .glb) or Mitsuba 3 XML (.xml)")
       ->required();
@@ -260,9 +266,11 @@ void add_render_command(CLI::App& app, int& exit_code) {
   cmd->add_option("--tile", args->tile,
                   "Tile size in pixels (default " + std::to_string(kDefaultTileSize) +
                       "); does not change the image");
-  cmd->add_option("--pass-spp", args->pass_spp, "Samples per pass (default: automatic); does not change the image");
+  cmd->add_option("--pass-spp", args->pass_spp,
+                  "Samples per pass (default: automatic); does not change the image");
   add_film_options(cmd, args->film);
-  add_stop_options(cmd, args->stop, "Reference EXR: the error against it is measured at every pass");
+  add_stop_options(cmd, args->stop,
+                   "Reference EXR: the error against it is measured at every pass");
   CLI::Option* frame =
       cmd->add_option("--frame", args->frame,
                       "Animated scenes, or a list of scene files (frame_####.json): the frame to "

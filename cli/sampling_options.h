@@ -1,9 +1,13 @@
 #pragma once
 // How paths are sampled and ended, as `rayfarm render` and `rayfarm submit` both take it:
-// --max-depth (a number or "unlimited"), --sampler, --roulette, --roulette-depth.
+// --max-depth (a number or "unlimited"), --sampler, --roulette, --roulette-depth; and the
+// shutter of motion blur, --shutter OPEN,CLOSE and --motion-steps.
+#include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <optional>
 #include <string>
+#include <utility>
 
 #include <CLI/CLI.hpp>
 
@@ -11,9 +15,26 @@
 
 namespace rayfarm::cli {
 
+/// "OPEN,CLOSE" in frames after the frame (OPEN <= CLOSE, both within +-kMaxShutterFrames);
+/// nullopt when malformed.
+inline std::optional<std::pair<float, float>> parse_shutter(const std::string& text) {
+  const size_t comma = text.find(',');
+  if (comma == std::string::npos) return std::nullopt;
+  const auto number = [](const std::string& t) -> std::optional<double> {
+    if (t.empty()) return std::nullopt;
+    char* end = nullptr;
+    const double v = std::strtod(t.c_str(), &end);
+    if (end != t.c_str() + t.size() || !(std::fabs(v) <= kMaxShutterFrames)) return std::nullopt;
+    return v;
+  };
+  const auto open = number(text.substr(0, comma)), close = number(text.substr(comma + 1));
+  if (!open || !close || *close < *open) return std::nullopt;
+  return std::make_pair(static_cast<float>(*open), static_cast<float>(*close));
+}
+
 struct SamplingArgs {
-  std::optional<std::string> max_depth, sampler, roulette;
-  std::optional<uint32_t> roulette_depth;
+  std::optional<std::string> max_depth, sampler, roulette, shutter;
+  std::optional<uint32_t> roulette_depth, motion_steps;
 
   /// The scene's settings with these applied (the options were checked when parsed).
   void apply(RenderSettings& s) const {
@@ -21,6 +42,8 @@ struct SamplingArgs {
     if (sampler) s.sampler = *parse_sampler(*sampler);
     if (roulette) s.roulette = *parse_roulette(*roulette);
     if (roulette_depth) s.roulette_depth = *roulette_depth;
+    if (shutter) std::tie(s.shutter_open, s.shutter_close) = *parse_shutter(*shutter);
+    if (motion_steps) s.motion_steps = *motion_steps;
   }
 };
 
@@ -46,6 +69,20 @@ inline void add_sampling_options(CLI::App* cmd, SamplingArgs& args) {
                   "(0 = the camera ray's hit; default " +
                       std::to_string(kDefaultRouletteDepth) + ")")
       ->check(CLI::Range(0u, kMaxRouletteDepth));
+  cmd->add_option("--shutter", args.shutter,
+                  "Motion blur: the shutter is open from OPEN to CLOSE frames after the frame "
+                  "(e.g. -0.25,0.25; 0,0 closes it); an animated scene's shapes and camera move "
+                  "within it")
+      ->check([](const std::string& v) -> std::string {
+        return parse_shutter(v)
+                   ? std::string()
+                   : "OPEN,CLOSE in frames, OPEN <= CLOSE, each within +-100, got '" + v + "'";
+      });
+  cmd->add_option("--motion-steps", args.motion_steps,
+                  "Poses of the scene within an open shutter; moving things move linearly "
+                  "between them (default " +
+                      std::to_string(kDefaultMotionSteps) + ")")
+      ->check(CLI::Range(kMinMotionSteps, kMaxMotionSteps));
 }
 
 }  // namespace rayfarm::cli

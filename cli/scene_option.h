@@ -13,6 +13,7 @@
 #include "common/bundle/bundle.h"
 #include "common/scene/frame_files.h"
 #include "common/scene/mitsuba_loader.h"
+#include "common/scene/motion.h"
 #include "common/scene/parser.h"
 
 namespace rayfarm::cli {
@@ -97,6 +98,15 @@ struct SceneArgs {
     GltfOptions gltf;
     gltf.camera = camera;
     return load_scene(scene, {}, images, gltf, {}, at);
+  }
+
+  /// Finds what moves within the open shutter of `settings` in a scene that load() gave
+  /// (add_motion(), common/scene/motion.h); a list's frames are stills.
+  void add_motion(Scene& s, const RenderSettings& settings) const {
+    if (is_list() || is_mitsuba_path(scene)) return;
+    GltfOptions gltf;
+    gltf.camera = camera;
+    rayfarm::add_motion(s, settings, gltf);
   }
 
   PackedScene pack() const {

@@ -157,6 +157,12 @@ int run_submit(const SubmitArgs& args) {
   if (args.sampling.roulette)
     o->set_roulette(protocol::roulette_to_wire(*parse_roulette(*args.sampling.roulette)));
   if (args.sampling.roulette_depth) o->set_roulette_depth(*args.sampling.roulette_depth);
+  if (args.sampling.shutter) {
+    const auto shutter = *parse_shutter(*args.sampling.shutter);
+    o->set_shutter_open(shutter.first);
+    o->set_shutter_close(shutter.second);
+  }
+  if (args.sampling.motion_steps) o->set_motion_steps(*args.sampling.motion_steps);
   if (args.seed) o->set_seed(*args.seed);
   if (args.integrator)
     o->set_integrator(protocol::integrator_to_wire(*parse_integrator(*args.integrator)));

@@ -85,6 +85,14 @@ inline constexpr uint32_t kDefaultMaxDepth = kUnlimitedDepth;
 inline constexpr uint32_t kDefaultRouletteDepth = 3;
 /// Most a roulette_depth may be.
 inline constexpr uint32_t kMaxRouletteDepth = 1000000;
+/// Most frames a shutter may reach before or after its frame (RenderSettings::shutter_open and
+/// shutter_close).
+inline constexpr double kMaxShutterFrames = 100.0;
+/// Time steps at which a scene is loaded within an open shutter: the fewest, the most, and how
+/// many when the scene does not say (docs/scene-format.md, "Motion blur").
+inline constexpr uint32_t kMinMotionSteps = 2;
+inline constexpr uint32_t kMaxMotionSteps = 64;
+inline constexpr uint32_t kDefaultMotionSteps = 5;
 /// Tile side in pixels when the job or the command line does not choose one (docs/protocol.md).
 inline constexpr uint32_t kDefaultTileSize = 64;
 /// Largest tile side a job may choose.

@@ -3,6 +3,7 @@
 // numbers without checking them again.
 #include <cmath>
 
+#include "common/scene/motion.h"
 #include "common/scene/scene.h"
 #include "fuzz_support.h"
 
@@ -24,6 +25,8 @@ inline void check_scene(const Scene& s) {
               (s.render.max_depth <= kMaxDepth || s.render.max_depth == kUnlimitedDepth) &&
               s.render.roulette_depth <= kMaxRouletteDepth,
           "render settings");
+  require(!shutter_problem(s.render.shutter_open, s.render.shutter_close, s.render.motion_steps),
+          "shutter");
   for (const Material& m : s.materials) {
     require(is_finite(m.emission.value) && min_component(m.emission.value) >= 0.f, "emission");
     if (const auto* d = std::get_if<DiffuseMaterial>(&m.kind)) {

@@ -13,6 +13,7 @@
 #include "common/protocol/codec.h"
 #include "common/protocol/convert.h"
 #include "common/scene/frame_files.h"
+#include "common/scene/motion.h"
 #include "common/scene/parser.h"
 #include "common/util/atomic_file.h"
 #include "master/job_manager.h"
@@ -268,6 +269,16 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
     throw JobRejected(fmt::format("roulette depth must be at most {}, got {}", kMaxRouletteDepth,
                                   spec.settings.roulette_depth));
   }
+  if (o.has_shutter_open() != o.has_shutter_close())
+    throw JobRejected("the shutter override needs both ends (open and close)");
+  if (o.has_shutter_open()) {
+    spec.settings.shutter_open = o.shutter_open();
+    spec.settings.shutter_close = o.shutter_close();
+  }
+  if (o.has_motion_steps()) spec.settings.motion_steps = o.motion_steps();
+  if (auto why = shutter_problem(spec.settings.shutter_open, spec.settings.shutter_close,
+                                 spec.settings.motion_steps))
+    throw JobRejected("motion blur: " + *why);
   spec.tile_size = o.tile_size() == 0 ? kDefaultTileSize : o.tile_size();
   if (spec.tile_size > kMaxTileSize) {
     throw JobRejected(

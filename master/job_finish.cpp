@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "common/image/film_output.h"
+#include "common/scene/motion.h"
 #include "common/util/check.h"
 #include "master/job_manager.h"
 #include "master/job_text.h"
@@ -146,6 +147,7 @@ void JobManager::write_image(Job& job, bool wait) {
       {"rayfarm:spp_target", std::to_string(s.settings.spp)}};
   if (s.settings.clamp > 0) attributes["rayfarm:clamp"] = fmt::format("{:g}", s.settings.clamp);
   if (s.frame) attributes["rayfarm:frame"] = std::to_string(*s.frame);
+  if (s.settings.shutter_is_open()) attributes["rayfarm:shutter"] = shutter_attribute(s.settings);
   // The same pixels as `rayfarm render` (film_to_image), written on the writer's thread.
   ImageWriter::ErrorRecord record;
   record.rows = job.active->rows;

@@ -1,5 +1,7 @@
 #include "master/job_store.h"
 
+#include "common/scene/motion.h"
+
 #include "common/limits.h"
 #include "common/util/atomic_file.h"
 
@@ -65,6 +67,9 @@ json to_json(const JobRecord& r) {
               {"sampler", sampler_name(s.settings.sampler)},
               {"roulette", roulette_name(s.settings.roulette)},
               {"roulette_depth", s.settings.roulette_depth},
+              {"shutter",
+               {finite_or(s.settings.shutter_open, 0.0), finite_or(s.settings.shutter_close, 0.0)}},
+              {"motion_steps", s.settings.motion_steps},
               {"width", s.film.width},
               {"height", s.film.height},
               {"tile_size", s.tile_size},
@@ -119,6 +124,16 @@ JobRecord from_json(const json& j) {
   if (!roulette) throw std::runtime_error("unknown roulette");
   s.settings.roulette = *roulette;
   s.settings.roulette_depth = j.value("roulette_depth", 0u);
+  // Jobs stored before motion blur had the shutter closed.
+  if (auto it = j.find("shutter"); it != j.end()) {
+    if (!it->is_array() || it->size() != 2) throw std::runtime_error("malformed shutter");
+    s.settings.shutter_open = (*it)[0].get<float>();
+    s.settings.shutter_close = (*it)[1].get<float>();
+  }
+  s.settings.motion_steps = j.value("motion_steps", kDefaultMotionSteps);
+  if (auto why = shutter_problem(s.settings.shutter_open, s.settings.shutter_close,
+                                 s.settings.motion_steps))
+    throw std::runtime_error(*why);
   if ((s.settings.max_depth > kMaxDepth && s.settings.max_depth != kUnlimitedDepth) ||
       s.settings.roulette_depth > kMaxRouletteDepth || s.settings.spp == 0 ||
       s.settings.spp > kMaxSpp) {
@@ -152,7 +167,8 @@ JobRecord from_json(const json& j) {
   }
   const std::string state = j.at("state").get<std::string>();
   r.state = state_from_key(state);
-  if (r.state == wire::JOB_STATE_UNSPECIFIED) throw std::runtime_error("unknown state \"" + state + "\"");
+  if (r.state == wire::JOB_STATE_UNSPECIFIED)
+    throw std::runtime_error("unknown state \"" + state + "\"");
   // Records from before priorities: 0, not paused. Read exactly: a value past int32's range must
   // fail the check, not wrap into it.
   if (const auto p = j.find("priority"); p != j.end()) {
@@ -212,7 +228,6 @@ uint64_t id_number(const std::string& id) {
 }
 
 }  // namespace
-
 
 JobStore::JobStore(fs::path data_dir) : root_(std::move(data_dir)) {
   std::error_code ec;
@@ -343,7 +358,8 @@ std::vector<JobRecord> JobStore::load_records() const {
         throw std::runtime_error("id does not match its folder");
       records.push_back(std::move(r));
     } catch (const std::exception& e) {
-      // Kept, as a record that says what is wrong: `rayfarm list` shows it, `rayfarm rm` removes it.
+      // Kept, as a record that says what is wrong: `rayfarm list` shows it, `rayfarm rm` removes
+      // it.
       get_logger("master")->error("cannot read {}: {}; the job is listed as unreadable",
                                   file.string(), e.what());
       records.push_back(unreadable_record(dir.filename().string(), file, e.what()));

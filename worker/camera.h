@@ -2,10 +2,12 @@
 // Thin-lens perspective and orthographic cameras. Right-handed: the image's right is forward x up;
 // row 0 is the top.
 #include <cmath>
+#include <vector>
 
 #include "common/math/wide.h"
 #include "common/scene/scene.h"
 #include "worker/embree/bvh.h"
+#include "worker/motion_blend.h"
 
 namespace rayfarm {
 
@@ -64,8 +66,45 @@ class CameraModel {
   Vec3 eye_, forward_, right_, up_;
   float tan_half_ = 1.f, aspect_ = 1.f, inv_w_ = 1.f, inv_h_ = 1.f, lens_ = 0.f, focus_ = 1.f;
   bool ortho_ = false;
-  float ortho_half_ = 0.f;  // orthographic: half the view height
+  float ortho_half_ = 0.f;             // orthographic: half the view height
   float crop_x_ = 0.f, crop_y_ = 0.f;  // the film's offset in the whole image
+};
+
+/// A camera that moves within the shutter: one model per pose (common/scene/motion.h), the ray
+/// at a time blended between the two poses around it (origin and direction, linearly).
+class MovingCamera {
+ public:
+  /// `still` carries what does not move (projection, crop); `poses` the animated values.
+  MovingCamera(const Camera& still, const std::vector<Camera>& poses, FilmSize film) {
+    for (const Camera& p : poses) {
+      Camera c = still;
+      c.eye = p.eye;
+      c.look_at = p.look_at;
+      c.up = p.up;
+      c.fov_y_deg = p.fov_y_deg;
+      c.aperture_radius = p.aperture_radius;
+      c.focus_distance = p.focus_distance;
+      c.view_height = p.view_height;
+      poses_.emplace_back(c, film);
+    }
+  }
+
+  bool empty() const { return poses_.empty(); }
+
+  /// CameraModel::generate() at `time` in [0, 1].
+  Ray generate(float fx, float fy, float lu, float lv, float time) const {
+    const PoseBlend b = pose_blend(static_cast<uint32_t>(poses_.size()), time);
+    const Ray r0 = poses_[b.i].generate(fx, fy, lu, lv);
+    const Ray r1 = poses_[b.i + 1].generate(fx, fy, lu, lv);
+    Ray ray;
+    ray.org = blend(r0.org, r1.org, b.f);
+    ray.dir = normalize_wide(blend(r0.dir, r1.dir, b.f));
+    ray.time = time;
+    return ray;
+  }
+
+ private:
+  std::vector<CameraModel> poses_;
 };
 
 }  // namespace rayfarm

@@ -14,6 +14,7 @@
 #include <fmt/format.h>
 
 #include "common/image/fixed.h"
+#include "common/scene/motion.h"
 #include "common/util/log.h"
 #include "worker/camera.h"
 #include "worker/integrators/path_integrator.h"
@@ -57,6 +58,8 @@ struct Renderer::Impl {
   LightSet lights;
   AnyIntegrator integrator;
   CameraModel camera;
+  MovingCamera moving_camera;  // empty unless the camera moves within the shutter
+  bool timed = false;          // something moves: each sample draws its time
   mutable std::mutex stats_mutex;
   mutable RenderStats totals;     // guarded by stats_mutex
   mutable bool reported = false;  // guarded by stats_mutex
@@ -66,7 +69,10 @@ struct Renderer::Impl {
         data(scene),
         lights(data, choice),
         integrator(make_integrator(data, lights, s, kinds)),
-        camera(scene.camera, scene.film) {}
+        camera(scene.camera, scene.film),
+        moving_camera(scene.camera, scene.motion ? scene.motion->cameras : std::vector<Camera>{},
+                      scene.film),
+        timed(data.moves() || !moving_camera.empty()) {}
 
   // Renders samples [begin, end) of one pixel into its fixed-point sums.
   template <class Integrator>
@@ -76,8 +82,16 @@ struct Renderer::Impl {
     for (uint32_t s = samples.begin; s < samples.end; ++s) {
       PathSampler sampler(settings.sampler, settings.seed, pixel, s);
       const std::array<float, 4> u = sampler.camera();
-      const Ray ray =
-          camera.generate(static_cast<float>(x) + u[0], static_cast<float>(y) + u[1], u[2], u[3]);
+      const float fx = static_cast<float>(x) + u[0], fy = static_cast<float>(y) + u[1];
+      Ray ray;
+      if (!timed) {
+        ray = camera.generate(fx, fy, u[2], u[3]);
+      } else {
+        const float time = sampler.time();
+        ray = moving_camera.empty() ? camera.generate(fx, fy, u[2], u[3])
+                                    : moving_camera.generate(fx, fy, u[2], u[3], time);
+        ray.time = time;
+      }
       const Vec3 l = path.li(ray, sampler, paths);
       // A sample that is NaN, infinite or beyond the accumulator's range never reaches the film.
       if (!is_finite(l) || max_component(abs(l)) > kMaxSampleValue) {
@@ -86,7 +100,8 @@ struct Renderer::Impl {
       }
       // --clamp: the sample scaled down so that its largest component is the clamp (biased).
       const float largest = max_component(l);
-      const float scale = settings.clamp > 0.f && largest > settings.clamp ? settings.clamp / largest : 1.f;
+      const float scale =
+          settings.clamp > 0.f && largest > settings.clamp ? settings.clamp / largest : 1.f;
       for (int c = 0; c < 3; ++c) {
         const double v = l[c] * scale;
         sum[c] += to_fixed(v);
@@ -101,9 +116,28 @@ struct Renderer::Impl {
   }
 };
 
+namespace {
+
+/// A renderer of an animated scene with an open shutter needs the scene's motion found for the
+/// same shutter (add_motion()): without it the image would silently not be blurred.
+const Scene& check_motion(const Scene& scene, const RenderSettings& settings) {
+  if (!scene.animation || !settings.shutter_is_open()) return scene;
+  const SceneMotion* m = scene.motion.get();
+  if (m == nullptr ||
+      m->steps() != std::clamp(settings.motion_steps, kMinMotionSteps, kMaxMotionSteps) ||
+      m->times.front() != double(settings.shutter_open) ||
+      m->times.back() != double(settings.shutter_close))
+    throw std::runtime_error(
+        "the shutter is open, but the scene's motion within it was not found for these settings "
+        "(add_motion)");
+  return scene;
+}
+
+}  // namespace
+
 Renderer::Renderer(const Scene& scene, const RenderSettings& settings, BsdfKinds kinds,
                    LightChoice choice)
-    : impl_(std::make_unique<Impl>(scene, settings, kinds, choice)) {}
+    : impl_(std::make_unique<Impl>(check_motion(scene, settings), settings, kinds, choice)) {}
 
 Renderer::~Renderer() {
   try {
@@ -143,8 +177,9 @@ std::string Renderer::report_truncation() const {
       "{:.3g} per sample",
       impl_->settings.max_depth, t.truncated_paths, t.samples, 100.0 * t.truncated_fraction(), cut);
   if (cut >= kTruncationWarningLevel) {
-    line += "; the light those paths would have gathered beyond the cap is missing from the "
-            "image (a bias of the order of the throughput cut): raise max_depth";
+    line +=
+        "; the light those paths would have gathered beyond the cap is missing from the "
+        "image (a bias of the order of the throughput cut): raise max_depth";
     get_logger("render")->warn("{}", line);
   } else {
     get_logger("render")->debug("{}", line);
@@ -301,6 +336,18 @@ std::string Renderer::plan() const {
       (p.roulette == RouletteType::kThroughput ? " from vertex " + std::to_string(p.roulette_depth)
                                                : std::string()) +
       ", " + sampler_name(impl_->settings.sampler) + " sampler";
+  if (const SceneMotion* m = data.scene().motion.get()) {
+    out += fmt::format("; shutter [{:g}, {:g}] frames, {} poses: ", m->times.front(),
+                       m->times.back(), m->steps());
+    if (!m->moves()) {
+      out += "nothing moves";
+    } else {
+      out += fmt::format("{} meshes, {} spheres, {} placements{} move", m->meshes.size(),
+                         m->spheres.size(), m->instances.size(),
+                         m->cameras.empty() ? "" : " and the camera");
+    }
+    if (!m->still.empty()) out += fmt::format(" ({} drawn still)", m->still.size());
+  }
   return out;
 }
 

@@ -8,7 +8,9 @@
 
 #include "common/math/wide.h"
 #include "common/scene/instances.h"
+#include "common/scene/motion.h"
 #include "worker/bsdfs/microfacet.h"
+#include "worker/motion_blend.h"
 
 namespace rayfarm {
 namespace {
@@ -45,14 +47,19 @@ float sphere_point_error(const Vec3& center, float radius) {
 }
 
 SceneData::SceneData(const Scene& scene) : scene_(scene) {
-  flattened_ = flatten_instances(scene_, true);
+  std::vector<uint32_t> kept;
+  flattened_ = flatten_instances(scene_, true, &kept);
   build_textures();
   build_coat_tables();
+  build_motion(kept);
   std::vector<Bvh::Mesh> meshes;
-  for (const TriangleMesh& mesh : scene_.meshes) {
+  for (size_t m = 0; m < scene_.meshes.size(); ++m) {
+    const TriangleMesh& mesh = scene_.meshes[m];
     mesh_offset_.push_back(triangles_.size());
     add_triangles(mesh, triangles_);
     meshes.push_back({&mesh.positions, &mesh.indices});
+    if (moves_ && mesh_motion_[m] >= 0)
+      meshes.back().poses = &scene_.motion->meshes[size_t(mesh_motion_[m])].positions;
     interpolates_.push_back(!mesh.normals.empty() || (uses_uv_ && !mesh.uvs.empty()));
   }
   std::vector<Bvh::SphereInput> spheres;
@@ -68,12 +75,148 @@ SceneData::SceneData(const Scene& scene) : scene_(scene) {
   build_surface(meshes, sphere_filter, groups);
   build_instances();
   std::vector<Bvh::InstanceInput> placements;
-  for (const InstanceInfo& i : instances_) placements.push_back({i.group, i.m});
+  for (size_t i = 0; i < instances_.size(); ++i) {
+    placements.push_back({instances_[i].group, instances_[i].m, {}});
+    if (moves_)
+      for (const InstanceInfo& pose : instance_poses_[i]) placements.back().poses.push_back(pose.m);
+  }
   const auto none = [](const std::vector<uint8_t>& v) {
     return std::none_of(v.begin(), v.end(), [](uint8_t x) { return x != 0; });
   };
   plain_ = !uses_uv_ && !uses_surface_ && none(interpolates_) && none(group_interpolates_);
-  bvh_ = std::make_unique<Bvh>(meshes, spheres, sphere_filter, groups, placements);
+  // A moving mesh interpolates its own posed attributes (resolve_moving()).
+  for (size_t m = 0; m < mesh_motion_.size(); ++m)
+    if (mesh_motion_[m] >= 0) interpolates_[m] = 0;
+  bvh_ = std::make_unique<Bvh>(meshes, spheres, sphere_filter, groups, placements, sphere_poses_);
+}
+
+void SceneData::build_motion(const std::vector<uint32_t>& kept) {
+  mesh_motion_.assign(scene_.meshes.size(), -1);
+  sphere_motion_.assign(scene_.spheres.size(), -1);
+  instance_poses_.assign(scene_.instances.size(), {});
+  const SceneMotion* motion = scene_.motion.get();
+  if (motion == nullptr || !motion->moves()) return;
+  moves_ = true;
+  poses_ = static_cast<uint32_t>(motion->steps());
+  for (size_t k = 0; k < motion->meshes.size(); ++k)
+    mesh_motion_.at(motion->meshes[k].mesh) = static_cast<int32_t>(k);
+  for (size_t k = 0; k < motion->spheres.size(); ++k)
+    sphere_motion_.at(motion->spheres[k].sphere) = static_cast<int32_t>(k);
+  if (!motion->spheres.empty()) {
+    for (uint32_t pose = 0; pose < poses_; ++pose) {
+      sphere_poses_.emplace_back();
+      for (uint32_t i = 0; i < scene_.spheres.size(); ++i) {
+        const Sphere& s = sphere_motion_[i] >= 0
+                              ? motion->spheres[size_t(sphere_motion_[i])].poses[pose]
+                              : scene_.spheres[i];
+        sphere_poses_.back().push_back({s.center, s.radius});
+      }
+    }
+  }
+  // Instances left after flattening (emissive groups' placements are world meshes now).
+  for (size_t i = 0; i < kept.size(); ++i) {
+    for (const SceneMotion::InstancePoses& p : motion->instances) {
+      if (p.instance != kept[i]) continue;
+      for (const std::array<double, 16>& m : p.poses) {
+        std::array<double, 12> rows;
+        std::copy(m.begin(), m.begin() + 12, rows.begin());
+        instance_poses_[i].push_back(instance_info(rows, scene_.instances[i].group));
+      }
+    }
+  }
+}
+
+SceneData::InstanceInfo SceneData::instance_info(const std::array<double, 12>& rows,
+                                                 uint32_t group) {
+  const Transform t(rows);
+  InstanceInfo info{};
+  info.group = group;
+  info.norm = 0.f;
+  for (int r = 0; r < 3; ++r) {
+    double row = 0.0;
+    for (int c = 0; c < 4; ++c) {
+      info.m[4 * r + c] = static_cast<float>(t.at(r, c));
+      if (c < 3) row += std::fabs(t.at(r, c));
+    }
+    info.norm = std::max(info.norm, static_cast<float>(row));
+  }
+  // Columns of the normals' matrix: the images of the unit normals.
+  const double outward = t.determinant() < 0.0 ? -1.0 : 1.0;
+  info.handedness = static_cast<float>(outward);
+  for (int c = 0; c < 3; ++c) {
+    const WideVec3 col = t.normal({c == 0 ? 1.0 : 0.0, c == 1 ? 1.0 : 0.0, c == 2 ? 1.0 : 0.0});
+    info.normal[c] = static_cast<float>(outward * col.x);
+    info.normal[3 + c] = static_cast<float>(outward * col.y);
+    info.normal[6 + c] = static_cast<float>(outward * col.z);
+  }
+  return info;
+}
+
+const SceneData::InstanceInfo& SceneData::instance_at(uint32_t index, float time,
+                                                      InstanceInfo& scratch) const {
+  const std::vector<InstanceInfo>& poses = instance_poses_[index];
+  if (poses.empty()) return instances_[index];
+  // The placement Embree traced: the poses' matrices blended element by element.
+  const PoseBlend b = pose_blend(poses_, time);
+  std::array<double, 12> rows;
+  for (size_t e = 0; e < 12; ++e) rows[e] = blend(poses[b.i].m[e], poses[b.i + 1].m[e], b.f);
+  scratch = instance_info(rows, instances_[index].group);
+  return scratch;
+}
+
+const Sphere& SceneData::sphere_at(uint32_t index, float time, Sphere& scratch) const {
+  if (!moves_ || sphere_motion_[index] < 0) return scene_.spheres[index];
+  const std::vector<Sphere>& poses = scene_.motion->spheres[size_t(sphere_motion_[index])].poses;
+  const PoseBlend b = pose_blend(poses_, time);
+  const Sphere &a = poses[b.i], &c = poses[b.i + 1];
+  scratch = scene_.spheres[index];
+  scratch.center = blend(a.center, c.center, b.f);
+  scratch.radius = blend(a.radius, c.radius, b.f);
+  // The texture frame turns with the sphere: blended, then made orthonormal again.
+  const Vec3 z = unit_or_zero(blend(a.axis_z, c.axis_z, b.f));
+  const Vec3 x0 = blend(a.axis_x, c.axis_x, b.f);
+  const Vec3 x = unit_or_zero(x0 - z * dot(x0, z));
+  if (!is_black(z) && !is_black(x)) {
+    scratch.axis_z = z;
+    scratch.axis_x = x;
+    scratch.axis_y = cross(z, x);
+  } else {
+    scratch.axis_x = a.axis_x;
+    scratch.axis_y = a.axis_y;
+    scratch.axis_z = a.axis_z;
+  }
+  return scratch;
+}
+
+SurfaceHit SceneData::resolve_moving(const Ray& ray, const RayHit& hit) const {
+  const SceneMotion::MeshPoses& poses = scene_.motion->meshes[size_t(mesh_motion_[hit.geom])];
+  const TriangleMesh& mesh = scene_.meshes[hit.geom];
+  const uint32_t* idx = &mesh.indices[3 * size_t(hit.prim)];
+  const PoseBlend b = pose_blend(poses_, ray.time);
+  const std::vector<Vec3>&p0 = poses.positions[b.i], &p1 = poses.positions[b.i + 1];
+  const Vec3 v0 = blend(p0[idx[0]], p1[idx[0]], b.f), v1 = blend(p0[idx[1]], p1[idx[1]], b.f),
+             v2 = blend(p0[idx[2]], p1[idx[2]], b.f);
+  const TriangleInfo& tri = triangles_[mesh_offset_[hit.geom] + hit.prim];
+  SurfaceHit s;
+  s.p = v0 + (v1 - v0) * hit.u + (v2 - v0) * hit.v;
+  s.n = Vec3(0.f, 0.f, 1.f);
+  (void)triangle_normal(v0, v1, v2, s.n);
+  s.ns = s.n;
+  s.uv = {hit.u, hit.v};
+  s.p_error = triangle_point_error(v0, v1, v2);
+  s.material = tri.material;
+  s.light = tri.light;  // -1: emitters do not move (common/scene/motion.h)
+  s.time = ray.time;
+  if (!poses.normals.empty()) {
+    const std::vector<Vec3>&n0 = poses.normals[b.i], &n1 = poses.normals[b.i + 1];
+    const std::array<Vec3, 3> normals{blend(n0[idx[0]], n1[idx[0]], b.f),
+                                      blend(n0[idx[1]], n1[idx[1]], b.f),
+                                      blend(n0[idx[2]], n1[idx[2]], b.f)};
+    interpolate(mesh, hit, s, &normals);
+  } else if (uses_uv_ && !mesh.uvs.empty()) {
+    interpolate(mesh, hit, s);
+  }
+  return s;
 }
 
 void SceneData::add_triangles(const TriangleMesh& mesh, std::vector<TriangleInfo>& out) {
@@ -103,27 +246,10 @@ void SceneData::build_instances() {
   }
   for (const Instance& instance : scene_.instances) {
     const Transform t = instance_transform(instance);
-    InstanceInfo info{};
-    info.group = instance.group;
-    info.norm = 0.f;
-    for (int r = 0; r < 3; ++r) {
-      double row = 0.0;
-      for (int c = 0; c < 4; ++c) {
-        info.m[4 * r + c] = static_cast<float>(t.at(r, c));
-        if (c < 3) row += std::fabs(t.at(r, c));
-      }
-      info.norm = std::max(info.norm, static_cast<float>(row));
-    }
-    // Columns of the normals' matrix: the images of the unit normals.
-    const double outward = t.determinant() < 0.0 ? -1.0 : 1.0;
-    info.handedness = static_cast<float>(outward);
-    for (int c = 0; c < 3; ++c) {
-      const WideVec3 col = t.normal({c == 0 ? 1.0 : 0.0, c == 1 ? 1.0 : 0.0, c == 2 ? 1.0 : 0.0});
-      info.normal[c] = static_cast<float>(outward * col.x);
-      info.normal[3 + c] = static_cast<float>(outward * col.y);
-      info.normal[6 + c] = static_cast<float>(outward * col.z);
-    }
-    instances_.push_back(info);
+    std::array<double, 12> rows;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 4; ++c) rows[size_t(4 * r + c)] = t.at(r, c);
+    instances_.push_back(instance_info(rows, instance.group));
   }
 }
 
@@ -178,7 +304,8 @@ void SceneData::set_light_index(uint32_t geom, uint32_t prim, int32_t light) {
 
 SurfaceHit SceneData::resolve_sphere(const Ray& ray, const RayHit& hit) const {
   SurfaceHit s;
-  const Sphere& sphere = scene_.spheres[hit.prim];
+  Sphere posed;
+  const Sphere& sphere = sphere_at(hit.prim, ray.time, posed);
   const Vec3 raw = ray.org + ray.dir * hit.t;
   Vec3 n = raw - sphere.center;
   const float len = length(n);
@@ -191,6 +318,7 @@ SurfaceHit SceneData::resolve_sphere(const Ray& ray, const RayHit& hit) const {
   if (uses_uv_) s.uv = sphere_uv(sphere, n);
   s.material = sphere.material;
   s.light = sphere_lights_[hit.prim];
+  s.time = ray.time;
   return s;
 }
 
@@ -202,8 +330,9 @@ Vec2 SceneData::sphere_uv(const Sphere& sphere, const Vec3& n) const {
   return {phi * (0.5f * kInvPi), std::acos(std::clamp(z, -1.f, 1.f)) * kInvPi};
 }
 
-SurfaceHit SceneData::resolve_instanced(const RayHit& hit) const {
-  const InstanceInfo& in = instances_[hit.inst];
+SurfaceHit SceneData::resolve_instanced(const Ray& ray, const RayHit& hit) const {
+  InstanceInfo posed;
+  const InstanceInfo& in = moves_ ? instance_at(hit.inst, ray.time, posed) : instances_[hit.inst];
   const size_t mesh = group_first_mesh_[in.group] + hit.geom;
   const TriangleInfo& tri = group_triangles_[group_mesh_offset_[mesh] + hit.prim];
   const Vec3 po = tri.v0 + tri.e1 * hit.u + tri.e2 * hit.v;
@@ -231,6 +360,7 @@ SurfaceHit SceneData::resolve_instanced(const RayHit& hit) const {
   s.p_error = in.norm * tri.p_error + 4.f * max_component(mag) * gamma_bound(7);
   s.material = tri.material;
   s.light = -1;  // emissive groups are placed as world meshes
+  s.time = ray.time;
   if (group_interpolates_[mesh]) {
     // Interpolated in object space against the object's normal, then placed; a point that keeps
     // its flat normal keeps ns == n bit for bit.
@@ -245,11 +375,14 @@ SurfaceHit SceneData::resolve_instanced(const RayHit& hit) const {
   return s;
 }
 
-void SceneData::interpolate(const TriangleMesh& mesh, const RayHit& hit, SurfaceHit& s) const {
+void SceneData::interpolate(const TriangleMesh& mesh, const RayHit& hit, SurfaceHit& s,
+                            const std::array<Vec3, 3>* normals) const {
   const uint32_t* idx = &mesh.indices[3 * size_t(hit.prim)];
   const float b0 = 1.f - hit.u - hit.v;
   if (!mesh.normals.empty()) {
-    const Vec3 &n0 = mesh.normals[idx[0]], &n1 = mesh.normals[idx[1]], &n2 = mesh.normals[idx[2]];
+    const Vec3& n0 = normals ? (*normals)[0] : mesh.normals[idx[0]];
+    const Vec3& n1 = normals ? (*normals)[1] : mesh.normals[idx[1]];
+    const Vec3& n2 = normals ? (*normals)[2] : mesh.normals[idx[2]];
     if (!is_black(n0) && !is_black(n1) && !is_black(n2)) {
       const Vec3 sum = n0 * b0 + n1 * hit.u + n2 * hit.v;
       const float len = length(sum);

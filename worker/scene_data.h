@@ -2,6 +2,7 @@
 // The scene prepared for rendering: the BVH, per-triangle normals, and where each hit's
 // material and light live. Built once per job; read-only while rendering.
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <memory>
@@ -21,8 +22,8 @@ namespace rayfarm {
 
 /// What the integrator needs to know about a hit point.
 struct SurfaceHit {
-  Vec3 p;          ///< position, recomputed from the primitive (not org + t dir)
-  Vec3 n;          ///< unit geometric normal on the front side
+  Vec3 p;  ///< position, recomputed from the primitive (not org + t dir)
+  Vec3 n;  ///< unit geometric normal on the front side
   /// Unit shading normal on n's side: interpolated from a mesh's vertex normals, else n itself
   /// (bit for bit, which the integrator uses to know a flat hit).
   Vec3 ns;
@@ -33,6 +34,7 @@ struct SurfaceHit {
   float p_error = 0.f;  ///< offset that clears the error bound of p (scene units)
   uint32_t material = 0;
   int32_t light = -1;  ///< index into LightSet, or -1
+  float time = 0.f;    ///< the ray's time within the shutter (rays leaving the hit keep it)
 };
 
 /// Derivatives and tangent directions at a hit, for normal and bump maps and anisotropic BSDFs;
@@ -88,6 +90,12 @@ enum SurfaceNeeds : uint8_t {
 #endif
 }
 
+/// v made unit length; zero when it has no length (or an infinite one).
+inline Vec3 unit_or_zero(const Vec3& v) {
+  const float len = length(v);
+  return len > 0.f && std::isfinite(len) ? v / len : Vec3(0.f);
+}
+
 /// Unit normal of triangle (a, b, c) along (b - a) x (c - a), computed in double so that edges
 /// up to the format's 1e30 cannot overflow; false (and n unchanged) when it has no area.
 bool triangle_normal(const Vec3& a, const Vec3& b, const Vec3& c, Vec3& n);
@@ -121,7 +129,8 @@ class SceneData {
   /// world mesh's vertex attributes (texture coordinates are the barycentrics, the normal flat).
   SurfaceHit resolve_plain(const Ray& ray, const RayHit& hit) const {
     if (hit.geom == kSphereGeometry) return resolve_sphere(ray, hit);
-    if (hit.inst != kNoInstance) return resolve_instanced(hit);
+    if (hit.inst != kNoInstance) return resolve_instanced(ray, hit);
+    if (moves_ && mesh_motion_[hit.geom] >= 0) return resolve_moving(ray, hit);
     const TriangleInfo& tri = triangles_[mesh_offset_[hit.geom] + hit.prim];
     SurfaceHit s;
     s.p = tri.v0 + tri.e1 * hit.u + tri.e2 * hit.v;
@@ -131,6 +140,7 @@ class SceneData {
     s.p_error = tri.p_error;
     s.material = tri.material;
     s.light = tri.light;
+    s.time = ray.time;
     return s;
   }
   /// True when every hit is flat (no vertex normals, no normal or bump map) and no material
@@ -146,7 +156,8 @@ class SceneData {
   TangentFrame tangent_frame(const RayHit& hit, const SurfaceHit& s) const;
   /// Whether the candidate hit (geom, prim, barycentrics u v, point p) is there: false where its
   /// material's opacity falls below its cutoff (or, partial coverage, with probability 1 - alpha).
-  bool covered(uint32_t geom, uint32_t prim, float u, float v, const Vec3& p) const;
+  bool covered(uint32_t geom, uint32_t prim, float u, float v, const Vec3& p,
+               float time = 0.f) const;
   /// covered() for triangle `prim` of mesh `geom` of group `group`, hit through any instance:
   /// the opacity is looked up at the object's own texture coordinates.
   bool covered_in_group(uint32_t group, uint32_t geom, uint32_t prim, float u, float v,
@@ -166,6 +177,9 @@ class SceneData {
   size_t flattened_instances() const { return flattened_; }
   /// Triangles stored for hits: the world meshes' and each group's once.
   size_t stored_triangles() const { return triangles_.size() + group_triangles_.size(); }
+  /// Whether some shape moves within the shutter (common/scene/motion.h): hits then depend on
+  /// the ray's time.
+  bool moves() const { return moves_; }
   /// Number of triangles dropped because they have no area.
   uint64_t degenerate_triangles() const { return degenerate_; }
 
@@ -190,7 +204,16 @@ class SceneData {
     uint32_t group;
   };
   SurfaceHit resolve_sphere(const Ray& ray, const RayHit& hit) const;
-  SurfaceHit resolve_instanced(const RayHit& hit) const;
+  SurfaceHit resolve_instanced(const Ray& ray, const RayHit& hit) const;
+  // A hit on a moving world mesh: its triangle posed at the ray's time.
+  SurfaceHit resolve_moving(const Ray& ray, const RayHit& hit) const;
+  // Sphere `index` at `time`: the scene's own when it does not move, else `scratch` filled.
+  const Sphere& sphere_at(uint32_t index, float time, Sphere& scratch) const;
+  // Instance `index` at `time`: the stored one when it does not move, else `scratch` filled.
+  const InstanceInfo& instance_at(uint32_t index, float time, InstanceInfo& scratch) const;
+  // Motion blur: which shapes move, and their poses; `kept` maps the instances left after
+  // flattening to the scene's.
+  void build_motion(const std::vector<uint32_t>& kept);
   void build_textures();
   // The tables of the rough plastics' coatings, one per distinct (ior, distribution, alpha),
   // their addresses written into the materials.
@@ -204,8 +227,10 @@ class SceneData {
   Vec2 sphere_uv(const Sphere& sphere, const Vec3& n) const;
   void build_instances();
   void add_triangles(const TriangleMesh& mesh, std::vector<TriangleInfo>& out);
-  // Shading normal and texture coordinates from a mesh's vertex attributes.
-  void interpolate(const TriangleMesh& mesh, const RayHit& hit, SurfaceHit& s) const;
+  // Shading normal and texture coordinates from a mesh's vertex attributes; `normals`, when
+  // given, are the triangle's vertex normals instead of the mesh's (a moving mesh's, posed).
+  void interpolate(const TriangleMesh& mesh, const RayHit& hit, SurfaceHit& s,
+                   const std::array<Vec3, 3>* normals = nullptr) const;
 
   std::vector<TriangleInfo> triangles_;  // all meshes, mesh after mesh
   std::vector<size_t> mesh_offset_;      // index of each mesh's first triangle in triangles_
@@ -230,6 +255,15 @@ class SceneData {
   std::vector<uint8_t> group_interpolates_;
   std::vector<InstanceInfo> instances_;
   size_t flattened_ = 0;
+  // Motion blur: poses_ poses; per world mesh and per sphere the index of its poses in
+  // scene_.motion (-1: still); per instance its poses (empty: still); every sphere at each pose.
+  bool moves_ = false;
+  uint32_t poses_ = 0;
+  std::vector<int32_t> mesh_motion_;
+  std::vector<int32_t> sphere_motion_;
+  std::vector<std::vector<InstanceInfo>> instance_poses_;
+  std::vector<std::vector<Bvh::SphereInput>> sphere_poses_;
+  static InstanceInfo instance_info(const std::array<double, 12>& rows, uint32_t group);
 };
 
 }  // namespace rayfarm

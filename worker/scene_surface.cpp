@@ -6,6 +6,9 @@
 #include <variant>
 
 #include "worker/scene_data.h"
+
+#include "common/scene/motion.h"
+#include "worker/motion_blend.h"
 #include "worker/textures/texture_lookup.h"
 
 namespace rayfarm {
@@ -24,12 +27,12 @@ bool anisotropic(const MaterialKind& kind) {
 }
 
 bool keep_covered(const void* context, uint32_t geom, uint32_t prim, float u, float v,
-                  const Vec3& p) {
-  return static_cast<const SceneData*>(context)->covered(geom, prim, u, v, p);
+                  const Vec3& p, float time) {
+  return static_cast<const SceneData*>(context)->covered(geom, prim, u, v, p, time);
 }
 
 bool keep_covered_in_group(const void* context, uint32_t geom, uint32_t prim, float u, float v,
-                           const Vec3& p) {
+                           const Vec3& p, float /*time*/) {
   const auto* g = static_cast<const SceneData::GroupFilter*>(context);
   return g->data->covered_in_group(g->group, geom, prim, u, v, p);
 }
@@ -40,11 +43,6 @@ Vec2 triangle_uv(const TriangleMesh& mesh, uint32_t prim, float u, float v) {
   if (mesh.uvs.empty()) return {u, v};
   const uint32_t* idx = &mesh.indices[3 * size_t(prim)];
   return mesh.uvs[idx[0]] * (1.f - u - v) + mesh.uvs[idx[1]] * u + mesh.uvs[idx[2]] * v;
-}
-
-Vec3 unit_or_zero(const Vec3& v) {
-  const float len = length(v);
-  return len > 0.f && std::isfinite(len) ? v / len : Vec3(0.f);
 }
 
 }  // namespace
@@ -131,11 +129,13 @@ bool SceneData::covered_in_group(uint32_t group, uint32_t geom, uint32_t prim, f
   return opaque_at(material, triangle_uv(scene_.groups[group].meshes[geom], prim, u, v), p, prim);
 }
 
-bool SceneData::covered(uint32_t geom, uint32_t prim, float u, float v, const Vec3& p) const {
+bool SceneData::covered(uint32_t geom, uint32_t prim, float u, float v, const Vec3& p,
+                        float time) const {
   uint32_t material;
   Vec2 uv;
   if (geom == kSphereGeometry) {
-    const Sphere& sphere = scene_.spheres[prim];
+    Sphere posed;
+    const Sphere& sphere = sphere_at(prim, time, posed);
     material = sphere.material;
     uv = sphere_uv(sphere, unit_or_zero(p - sphere.center));
   } else {
@@ -148,7 +148,8 @@ bool SceneData::covered(uint32_t geom, uint32_t prim, float u, float v, const Ve
 TangentFrame SceneData::tangent_frame(const RayHit& hit, const SurfaceHit& s) const {
   TangentFrame f;
   if (hit.geom == kSphereGeometry) {
-    const Sphere& sphere = scene_.spheres[hit.prim];
+    Sphere posed;
+    const Sphere& sphere = sphere_at(hit.prim, s.time, posed);
     // p = r (sin t cos f, sin t sin f, cos t) in the sphere's frame, u = f / 2pi, v = t / pi.
     const float x = dot(s.n, sphere.axis_x), y = dot(s.n, sphere.axis_y),
                 z = dot(s.n, sphere.axis_z);
@@ -163,9 +164,15 @@ TangentFrame SceneData::tangent_frame(const RayHit& hit, const SurfaceHit& s) co
   } else {
     // An instanced hit's frame is found in object space, then placed: vectors by the instance's
     // 3x3 part, as place_mesh places a world copy's positions and tangents.
-    const InstanceInfo* in = hit.inst != kNoInstance ? &instances_[hit.inst] : nullptr;
+    InstanceInfo posed_instance;
+    const InstanceInfo* in =
+        hit.inst != kNoInstance ? &instance_at(hit.inst, s.time, posed_instance) : nullptr;
     const TriangleInfo* tri;
     const TriangleMesh* object;
+    TriangleInfo posed_triangle;
+    // A moving mesh's own tangents are those of its frame pose: its frame follows the posed
+    // triangle's texture coordinates instead.
+    bool own_tangents = true;
     if (in != nullptr) {
       const size_t mesh = group_first_mesh_[in->group] + hit.geom;
       tri = &group_triangles_[group_mesh_offset_[mesh] + hit.prim];
@@ -173,6 +180,18 @@ TangentFrame SceneData::tangent_frame(const RayHit& hit, const SurfaceHit& s) co
     } else {
       tri = &triangles_[mesh_offset_[hit.geom] + hit.prim];
       object = &scene_.meshes[hit.geom];
+      if (moves_ && mesh_motion_[hit.geom] >= 0) {
+        const auto& poses = scene_.motion->meshes[size_t(mesh_motion_[hit.geom])].positions;
+        const uint32_t* idx = &object->indices[3 * size_t(hit.prim)];
+        const PoseBlend b = pose_blend(poses_, s.time);
+        const auto at = [&](uint32_t v) { return blend(poses[b.i][v], poses[b.i + 1][v], b.f); };
+        posed_triangle = *tri;
+        posed_triangle.v0 = at(idx[0]);
+        posed_triangle.e1 = at(idx[1]) - posed_triangle.v0;
+        posed_triangle.e2 = at(idx[2]) - posed_triangle.v0;
+        tri = &posed_triangle;
+        own_tangents = false;
+      }
     }
     const TriangleMesh& mesh = *object;
     const auto place = [in](const Vec3& v) {
@@ -198,7 +217,7 @@ TangentFrame SceneData::tangent_frame(const RayHit& hit, const SurfaceHit& s) co
     }
     f.dpdu = place(f.dpdu);
     f.dpdv = place(f.dpdv);
-    if (!mesh.tangents.empty()) {
+    if (own_tangents && !mesh.tangents.empty()) {
       const float b0 = 1.f - hit.u - hit.v;
       const Vec4 &t0 = mesh.tangents[idx[0]], &t1 = mesh.tangents[idx[1]],
                  &t2 = mesh.tangents[idx[2]];

@@ -2,6 +2,7 @@
 
 #include "common/protocol/codec.h"
 #include "common/protocol/convert.h"
+#include "common/scene/motion.h"
 #include "common/scene/parser.h"
 #include "common/util/log.h"
 #include "worker/renderer.h"
@@ -129,6 +130,7 @@ std::shared_ptr<const UnitRunner::Prepared> UnitRunner::prepare(const wire::Work
     p->scene->film = {unit.film_width(), unit.film_height()};
   }
   const RenderSettings settings = protocol::settings_from_wire(unit.settings());
+  add_motion(*p->scene, settings, {}, bundle);  // the poses within an open shutter
   arena_.execute([&] { p->renderer = std::make_unique<Renderer>(*p->scene, settings); });
   drop_images(*p->scene);  // the renderer holds its own texels
   log()->info(

@@ -1,5 +1,7 @@
 #include "common/protocol/convert.h"
 
+#include "common/scene/motion.h"
+
 #include <bit>
 #include <cmath>
 #include <cstring>
@@ -66,6 +68,9 @@ wire::RenderSettings settings_to_wire(const RenderSettings& settings) {
   out.set_sampler(sampler_to_wire(settings.sampler));
   out.set_roulette(roulette_to_wire(settings.roulette));
   out.set_roulette_depth(settings.roulette_depth);
+  out.set_shutter_open(settings.shutter_open);
+  out.set_shutter_close(settings.shutter_close);
+  out.set_motion_steps(settings.motion_steps);
   return out;
 }
 
@@ -91,6 +96,12 @@ RenderSettings settings_from_wire(const wire::RenderSettings& settings) {
                         std::to_string(settings.roulette_depth()));
   }
   out.roulette_depth = settings.roulette_depth();
+  if (auto why = shutter_problem(settings.shutter_open(), settings.shutter_close(),
+                                 settings.motion_steps()))
+    throw ProtocolError("render settings with " + *why);
+  out.shutter_open = settings.shutter_open();
+  out.shutter_close = settings.shutter_close();
+  out.motion_steps = settings.motion_steps();
   return out;
 }
 

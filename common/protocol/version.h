@@ -17,7 +17,9 @@ namespace rayfarm::protocol {
 // UnitResult's sums are variable-length integers (pack_fixed) instead of 16 bytes each.
 // 6: WorkUnit carries the frame of an animated scene, which a version-5 worker would ignore,
 // rendering the first frame instead.
-inline constexpr uint32_t kProtocolVersion = 6;
+// 7: RenderSettings carries the shutter of motion blur, which a version-6 worker would ignore,
+// rendering the frame unblurred (the image would no longer be the local one).
+inline constexpr uint32_t kProtocolVersion = 7;
 
 /// Software version of this build, sent in Hello and Welcome for the logs.
 inline constexpr const char* kBuildVersion = "rayfarm 0.2.0";

@@ -383,6 +383,7 @@ int32_t Materials::texture(int index, int uv_set, const tinygltf::ExtensionMap& 
 }
 
 std::shared_ptr<const DecodedImage> Materials::image(int index, const std::string& where) {
+  if (images_ == SceneImages::kSkip) return nullptr;
   if (auto it = decoded_.find(index); it != decoded_.end()) return it->second;
   const tinygltf::Image& img = src_.model->images[static_cast<size_t>(index)];
   const std::string name = "images[" + std::to_string(index) + "]";

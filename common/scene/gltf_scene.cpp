@@ -40,7 +40,7 @@ Camera default_camera(const Scene& scene) {
 }  // namespace
 
 Scene load_gltf_scene(const fs::path& file, const SceneCheck& check, SceneImages images,
-                      GltfOptions options, std::optional<int64_t> frame) {
+                      GltfOptions options, std::optional<int64_t> frame, double frame_offset) {
   Scene scene;
   scene.source = file;
   // An animated file is a sequence of frames at kGltfFps from time 0 (frame 1) to its last key.
@@ -48,7 +48,7 @@ Scene load_gltf_scene(const fs::path& file, const SceneCheck& check, SceneImages
     throw SceneError(file.string() + ": frame " + std::to_string(*frame) +
                      " is out of range (frame numbers are within +-1000000000)");
   }
-  options.time = double(frame.value_or(1) - 1) / kGltfFps;
+  options.time = (double(frame.value_or(1) - 1) + frame_offset) / kGltfFps;
   const GltfResult result = load_gltf(file.parent_path(), file.filename(), options, images, scene);
   if (result.duration > 0.0) {
     const double frames =

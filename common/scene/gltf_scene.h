@@ -19,6 +19,7 @@ FilmSize default_gltf_film(double aspect);
 /// The glTF file `file` as a scene, at `frame` of its animation (frame 1, time 0, when nullopt;
 /// kGltfFps frames a second). Throws SceneError (SceneRefused when `check` refuses its film).
 Scene load_gltf_scene(const std::filesystem::path& file, const SceneCheck& check,
-                      SceneImages images, GltfOptions options, std::optional<int64_t> frame);
+                      SceneImages images, GltfOptions options, std::optional<int64_t> frame,
+                      double frame_offset = 0.0);
 
 }  // namespace rayfarm

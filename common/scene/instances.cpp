@@ -153,14 +153,17 @@ bool InstanceBudget::placed_in_range(const Scene& scene, uint32_t group, const T
   return box_placed_in_range(f.lo, f.hi, t);
 }
 
-size_t flatten_instances(Scene& scene, bool emissive_only) {
+size_t flatten_instances(Scene& scene, bool emissive_only, std::vector<uint32_t>* kept_from) {
   std::vector<bool> emits;
   for (const MeshGroup& g : scene.groups) emits.push_back(!emissive_only || group_emits(scene, g));
   std::vector<Instance> kept;
   size_t flattened = 0;
-  for (const Instance& instance : scene.instances) {
+  if (kept_from != nullptr) kept_from->clear();
+  for (uint32_t i = 0; i < scene.instances.size(); ++i) {
+    const Instance& instance = scene.instances[i];
     if (!emits.at(instance.group)) {
       kept.push_back(instance);
+      if (kept_from != nullptr) kept_from->push_back(i);
       continue;
     }
     const Transform t = instance_transform(instance);

@@ -62,7 +62,8 @@ TriangleMesh place_mesh(const TriangleMesh& mesh, const Transform& t);
 
 /// Replaces instances by world-space copies of their group's meshes appended to scene.meshes:
 /// every instance, or (`emissive_only`) those whose group has emissive triangles, since area
-/// lights need their triangles in world space. Returns the number of instances flattened.
-size_t flatten_instances(Scene& scene, bool emissive_only);
+/// lights need their triangles in world space. Returns the number of instances flattened;
+/// `kept`, when given, receives the index each instance left had before.
+size_t flatten_instances(Scene& scene, bool emissive_only, std::vector<uint32_t>* kept = nullptr);
 
 }  // namespace rayfarm

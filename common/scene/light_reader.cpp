@@ -104,6 +104,11 @@ EnvironmentMap read_environment(const Node& n, const fs::path& folder, SceneImag
   const auto relative = resolve_scene_path(fs::path(), read_string(file), &why);
   if (!relative) file.fail(as_written(file.json()) + ": " + why);
   env.file = *relative;
+  if (images == SceneImages::kSkip) {
+    if (auto s = n.find("scale")) env.scale = read_scale(*s);
+    if (auto t = n.find("transform")) env.rotation = read_rotation(*t);
+    return env;
+  }
   // Kept until its radiances are checked, whatever `images` says.
   env.image = decode_scene_image(file, folder, env.file, SceneImages::kKeep, "environment image");
   if (!(env.image->width > 0 && env.image->height > 0)) file.fail("the image is empty");

@@ -251,7 +251,7 @@ void read_emitter(Context& ctx, const XmlElement& e) {
       env.image = decode_scene_image(at.node, ctx.files.scene_dir, env.file, SceneImages::kKeep,
                                      "environment image");
       check_environment_radiance(at.node, env.file, *env.image, env.scale);
-      if (ctx.images == SceneImages::kCheckOnly) env.image.reset();
+      if (ctx.images != SceneImages::kKeep) env.image.reset();
     }
     p.finish();
     scene.environment = std::move(env);

@@ -2,6 +2,8 @@
 // read through json_reader.h so that every message can say where the problem is.
 #include "common/scene/parser.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <map>
@@ -37,10 +39,13 @@ double cross_length(const Vec3& a, const Vec3& b) { return length(cross(wide(a),
 
 /// Fills a Scene from the parsed JSON, one top-level section at a time.
 class SceneReader {
+  double frame_offset_;  // the pose's time after the frame, in frames (motion blur)
+
  public:
   SceneReader(Scene* scene, const Context& context, fs::path folder, const SceneCheck& check,
-              SceneImages images)
-      : scene_(*scene),
+              SceneImages images, double frame_offset)
+      : frame_offset_(frame_offset),
+        scene_(*scene),
         context_(context),
         folder_(std::move(folder)),
         check_(check),
@@ -173,7 +178,8 @@ class SceneReader {
     if (auto c = n.find("camera")) options.camera = read_string(*c);
     // An animated scene poses the file's nodes at its frame's time, its first frame at time 0.
     if (scene_.frame) {
-      options.time = double(*scene_.frame - scene_.animation->first) / scene_.animation->fps;
+      options.time =
+          (double(*scene_.frame - scene_.animation->first) + frame_offset_) / scene_.animation->fps;
     }
     if (materials)
       for (const auto& [name, value] : materials->object().items())
@@ -430,11 +436,13 @@ std::optional<FrameRange> load_scene_animation(const std::filesystem::path& file
   return read_animation(top);
 }
 
-Scene load_scene(const fs::path& file, const SceneCheck& check, SceneImages images,
-                 const GltfOptions& gltf, const fs::path& scene_root,
-                 std::optional<int64_t> frame) {
+namespace {
+
+Scene load_scene_at(const fs::path& file, const SceneCheck& check, SceneImages images,
+                    const GltfOptions& gltf, const fs::path& scene_root,
+                    std::optional<int64_t> frame, double frame_offset) {
   const std::string name = file.string();
-  if (is_gltf_path(file)) return load_gltf_scene(file, check, images, gltf, frame);
+  if (is_gltf_path(file)) return load_gltf_scene(file, check, images, gltf, frame, frame_offset);
   if (is_mitsuba_path(file)) {
     check_frame(name, std::nullopt, frame);
     return load_mitsuba_scene(file, check, images, scene_root);
@@ -448,19 +456,34 @@ Scene load_scene(const fs::path& file, const SceneCheck& check, SceneImages imag
   scene.animation = read_animation(parsed_top);
   check_frame(name, scene.animation, frame);
   if (scene.animation) scene.frame = frame ? *frame : scene.animation->first;
-  const std::optional<Json> resolved =
-      resolve_keyframes(parsed_top, scene.animation, double(scene.frame.value_or(0)));
+  const std::optional<Json> resolved = resolve_keyframes(
+      parsed_top, scene.animation, double(scene.frame.value_or(0)) + frame_offset);
   const Node top(resolved ? *resolved : parsed, context, "");
   try {
-    SceneReader(&scene, context, file.parent_path(), check, images).read(top);
+    SceneReader(&scene, context, file.parent_path(), check, images, frame_offset).read(top);
   } catch (const SceneRefused&) {
     throw;
   } catch (const SceneError& e) {
     if (!resolved) throw;
     // A keyframed value may be wrong at this frame alone: say which.
-    throw SceneError("frame " + std::to_string(*scene.frame) + " of " + e.what());
+    std::string when = "frame " + std::to_string(*scene.frame);
+    if (frame_offset != 0.0) when += fmt::format(" {:+g}", frame_offset);
+    throw SceneError(when + " of " + e.what());
   }
   return scene;
+}
+
+}  // namespace
+
+Scene load_scene(const fs::path& file, const SceneCheck& check, SceneImages images,
+                 const GltfOptions& gltf, const fs::path& scene_root,
+                 std::optional<int64_t> frame) {
+  return load_scene_at(file, check, images, gltf, scene_root, frame, 0.0);
+}
+
+Scene load_scene_pose(const fs::path& file, const GltfOptions& gltf, const fs::path& scene_root,
+                      std::optional<int64_t> frame, double frame_offset) {
+  return load_scene_at(file, {}, SceneImages::kSkip, gltf, scene_root, frame, frame_offset);
 }
 
 }  // namespace rayfarm

@@ -26,6 +26,12 @@ Scene load_scene(const std::filesystem::path& file, const SceneCheck& check = {}
                  const std::filesystem::path& root = {},
                  std::optional<int64_t> frame = std::nullopt);
 
+/// The scene of load_scene() posed `frame_offset` frames after `frame` (a fraction of a frame:
+/// the poses within an open shutter, common/scene/motion.h), its images not read.
+Scene load_scene_pose(const std::filesystem::path& file, const GltfOptions& gltf,
+                      const std::filesystem::path& root, std::optional<int64_t> frame,
+                      double frame_offset);
+
 /// The frames of the scene in `file` (its "animation" block, or a glTF file's animations),
 /// reading no more than that needs; nullopt for a still scene. Throws SceneError as load_scene()
 /// does.

@@ -4,6 +4,7 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <optional>
 #include <string>
 #include <variant>
@@ -30,9 +31,9 @@ struct Camera {
   Vec3 eye{0.f, 0.f, 0.f};
   Vec3 look_at{0.f, 0.f, 1.f};
   Vec3 up{0.f, 1.f, 0.f};
-  float fov_y_deg = 40.f;        ///< vertical field of view, degrees
-  float aperture_radius = 0.f;   ///< lens radius in scene units; 0 = pinhole
-  float focus_distance = 0.f;    ///< distance to the plane in focus; 0 = |look_at - eye|
+  float fov_y_deg = 40.f;       ///< vertical field of view, degrees
+  float aperture_radius = 0.f;  ///< lens radius in scene units; 0 = pinhole
+  float focus_distance = 0.f;   ///< distance to the plane in focus; 0 = |look_at - eye|
   /// A crop: the film is the window at (crop_x, crop_y) of an image of full_width x
   /// full_height pixels, whose aspect ratio the field of view refers to. 0: no crop.
   uint32_t full_width = 0, full_height = 0, crop_x = 0, crop_y = 0;
@@ -90,10 +91,10 @@ struct RoughConductorMaterial {
   /// commonly use for gold, reduced from Johnson and Christy's 1972 measurements.
   Vec3 eta{0.143119f, 0.374957f, 1.44248f};
   Vec3 k{3.98316f, 2.38572f, 1.60322f};
-  bool use_f0 = false;             ///< Schlick's approximation with f0 instead of eta, k
-  TexturedRgb f0{Vec3(1.f)};       ///< reflectance at normal incidence, when use_f0
-  TexturedFloat alpha_u = 0.1f;    ///< roughness along the surface tangent
-  TexturedFloat alpha_v = 0.1f;    ///< roughness along the bitangent
+  bool use_f0 = false;           ///< Schlick's approximation with f0 instead of eta, k
+  TexturedRgb f0{Vec3(1.f)};     ///< reflectance at normal incidence, when use_f0
+  TexturedFloat alpha_u = 0.1f;  ///< roughness along the surface tangent
+  TexturedFloat alpha_v = 0.1f;  ///< roughness along the bitangent
   TexturedRgb specular_reflectance{Vec3(1.f)};  ///< multiplier
   MicrofacetType distribution = MicrofacetType::kGgx;
   static constexpr auto textured() {
@@ -135,7 +136,7 @@ struct PlasticMaterial {
   TexturedRgb diffuse_reflectance{Vec3(0.5f)};
   float ior = 1.49f;          ///< of the coating (polypropylene)
   TexturedFloat alpha = 0.f;  ///< roughness of the coating; 0 = smooth
-  bool nonlinear = false;  ///< internal reflections darken and saturate the base's colour
+  bool nonlinear = false;     ///< internal reflections darken and saturate the base's colour
   MicrofacetType distribution = MicrofacetType::kGgx;
   /// What a rough coating lets through to the base, tabulated by the worker when it prepares
   /// the scene (worker/bsdfs/rough_coat.h); null until then, and for a smooth coating.
@@ -340,7 +341,7 @@ struct RenderSettings {
   /// kUnlimitedDepth = no cap (Russian roulette alone ends paths).
   uint32_t max_depth = kDefaultMaxDepth;
   IntegratorType integrator = IntegratorType::kMis;
-  uint64_t seed = 0;              ///< selects the random streams; same seed, same image
+  uint64_t seed = 0;  ///< selects the random streams; same seed, same image
   /// When positive, a sample whose largest component exceeds it is scaled down to it: fewer
   /// fireflies, at the cost of a bias (the image no longer converges to the true one). 0 = off.
   float clamp = 0.f;
@@ -348,12 +349,23 @@ struct RenderSettings {
   RouletteType roulette = RouletteType::kThroughput;
   /// kThroughput: the vertex (0 = the camera ray's hit) from which roulette may end a path.
   uint32_t roulette_depth = kDefaultRouletteDepth;
+  /// Motion blur: the shutter is open from frame + shutter_open to frame + shutter_close (in
+  /// frames, open <= close); each sample is taken at its own time within it. Closed (equal) by
+  /// default, and on a still scene nothing moves.
+  float shutter_open = 0.f, shutter_close = 0.f;
+  /// Times within an open shutter at which the scene is posed; moving shapes and the camera
+  /// move linearly between them.
+  uint32_t motion_steps = kDefaultMotionSteps;
+
+  bool shutter_is_open() const { return shutter_close > shutter_open; }
 };
 
 /// max_depth as written: a number or "unlimited".
 std::string depth_name(uint32_t max_depth);
 /// Parses a max_depth ("unlimited" or 0..kMaxDepth); nullopt when neither.
 std::optional<uint32_t> parse_depth(const std::string& text);
+
+struct SceneMotion;  // common/scene/motion.h
 
 struct Scene {
   Camera camera;
@@ -368,16 +380,19 @@ struct Scene {
   std::vector<SpotLight> spot_lights;
   std::vector<DirectionalLight> directional_lights;
   std::optional<EnvironmentMap> environment;  ///< at most one per scene
-  Vec3 background{0.f};  ///< radiance of rays that escape
+  Vec3 background{0.f};                       ///< radiance of rays that escape
   RenderSettings render;
   /// An animated scene's frames (its "animation" block), and the frame this Scene is of; both
   /// nullopt for a still scene.
   std::optional<FrameRange> animation;
   std::optional<int64_t> frame;
+  /// What moves while the shutter is open (add_motion(), common/scene/motion.h); null when
+  /// nothing does or nobody asked.
+  std::shared_ptr<const SceneMotion> motion;
 
-  std::filesystem::path source;                      ///< the scene file
-  std::vector<std::filesystem::path> referenced;     ///< files it uses, relative to its folder
-  std::vector<std::string> warnings;                 ///< non-fatal problems found while loading
+  std::filesystem::path source;                   ///< the scene file
+  std::vector<std::filesystem::path> referenced;  ///< files it uses, relative to its folder
+  std::vector<std::string> warnings;              ///< non-fatal problems found while loading
 };
 
 /// Releases the decoded texture images a loaded scene holds, once a renderer has taken its copy.

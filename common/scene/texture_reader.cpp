@@ -102,6 +102,7 @@ void TextureReader::read(const Node& n, std::vector<TextureDesc>& out,
 std::shared_ptr<const DecodedImage> decode_scene_image(const Node& n, const fs::path& folder,
                                                        const fs::path& file, SceneImages images,
                                                        const char* what, uint64_t* sample_bytes) {
+  if (images == SceneImages::kSkip) return nullptr;
   const fs::path full = folder / file;
   std::string bytes;
   try {

@@ -14,8 +14,9 @@ namespace rayfarm {
 
 /// What happens to the images a scene's textures name: every one is decoded (a broken image is
 /// a SceneError); kept in the Scene for rendering, or dropped once checked (the master, which
-/// only needs to know that they are sound).
-enum class SceneImages { kKeep, kCheckOnly };
+/// only needs to know that they are sound); or not read at all (kSkip: the extra poses of a
+/// scene within an open shutter, whose images the scene's own pose has already read).
+enum class SceneImages { kKeep, kCheckOnly, kSkip };
 
 /// Decodes the image `file` (relative to `folder`) that node n names; a file that cannot be read
 /// or decoded fails at n, naming the file. Null when `images` only asks for the check.

@@ -108,6 +108,29 @@ TEST_F(FramesTest, AFarmJobOfOneFrameEqualsTheLocalRenderOfThatFrame) {
   EXPECT_TRUE(nlohmann::json::parse(cli({"status", plain, "--json"}).out)["frame"].is_null());
 }
 
+// Motion blur on the farm: the worker poses the scene within the shutter as the CLI does, and
+// each sample's time is its own number: the farm's frame is the local one bit for bit.
+TEST_F(FramesTest, AMotionBlurredFrameOnTheFarmEqualsTheLocalRender) {
+  start_farm();
+  const fs::path scene = small_scene("animated-box", 24);
+  const std::vector<std::string> sharp{"--spp", "4", "--seed", "7", "--frame", "20"};
+  std::vector<std::string> blurred = sharp;
+  blurred.insert(blurred.end(), {"--shutter", "-0.5,0.5", "--motion-steps", "3"});
+  const std::string job = submit(scene, blurred);
+  wait_for_state(job, wire::JOB_DONE);
+  const auto shown = nlohmann::json::parse(cli({"status", job, "--json"}).out);
+  EXPECT_EQ(shown["shutter"], nlohmann::json::array({-0.5, 0.5})) << shown;
+  EXPECT_EQ(shown["motion_steps"], 3) << shown;
+  const fs::path farm = fetch(job);
+  EXPECT_TRUE(bit_identical(farm, local_render(scene, blurred)));
+  EXPECT_FALSE(bit_identical(farm, local_render(scene, sharp)));  // the blur is there
+
+  // A shutter that closes before it opens is refused by the CLI, naming the option.
+  const RunResult bad = cli({"submit", scene.string(), "--shutter", "0.5,-0.5"});
+  EXPECT_NE(bad.code, 0);
+  EXPECT_NE(bad.err.find("--shutter"), std::string::npos) << bad.err;
+}
+
 TEST_F(FramesTest, ASequenceRendersEveryFrameAsTheLocalRenderOfThatFrame) {
   start_farm();
   const fs::path scene = small_scene("animated-box", 16);

@@ -17,7 +17,8 @@ namespace rayfarm {
 namespace {
 
 void log_device_error(void* /*user*/, RTCError code, const char* message) {
-  get_logger("embree")->error("Embree error {}: {}", static_cast<int>(code), message ? message : "");
+  get_logger("embree")->error("Embree error {}: {}", static_cast<int>(code),
+                              message ? message : "");
 }
 
 // Embree's FLT_LARGE: a ray whose origin or direction has a component beyond it is invalid, and
@@ -55,7 +56,7 @@ bool to_embree(const Ray& ray, RTCRay& r, float& t_scale) {
   r.dir_z = dir.z;
   r.tnear = ray.tnear * t_scale;
   r.tfar = ray.tfar * t_scale;  // may become +inf, which Embree accepts
-  r.time = 0.f;
+  r.time = ray.time;
   r.mask = 0xffffffffu;
   r.id = 0;
   r.flags = 0;
@@ -99,7 +100,8 @@ void filter_hit(const RTCFilterFunctionNArguments* args) {
                RTCRayN_org_z(args->ray, args->N, 0) + t * RTCRayN_dir_z(args->ray, args->N, 0));
   if (!target->filter.keep(target->filter.context, target->geom,
                            RTCHitN_primID(args->hit, args->N, 0), RTCHitN_u(args->hit, args->N, 0),
-                           RTCHitN_v(args->hit, args->N, 0), p)) {
+                           RTCHitN_v(args->hit, args->N, 0), p,
+                           RTCRayN_time(args->ray, args->N, 0))) {
     args->valid[0] = 0;
   }
 }
@@ -136,22 +138,29 @@ struct Bvh::Impl {
   void add_mesh_to(RTCScene target, const Mesh& mesh, uint32_t id) {
     const GeometryHandle geometry =
         new_geometry(RTC_GEOMETRY_TYPE_TRIANGLE, "rtcNewGeometry(triangle)");
-    const size_t vertex_count = mesh.positions->size();
     const size_t triangle_count = mesh.indices->size() / 3;
-    // Embree reads 16 bytes per vertex; the extra float pads the last one.
-    auto* vertices = static_cast<float*>(
-        rtcSetNewGeometryBuffer(geometry.get(), RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                3 * sizeof(float), vertex_count + 1));
+    const size_t steps = mesh.poses != nullptr ? mesh.poses->size() : 1;
+    rtcSetGeometryTimeStepCount(geometry.get(), static_cast<unsigned>(steps));
+    for (size_t step = 0; step < steps; ++step) {
+      const std::vector<Vec3>& positions =
+          mesh.poses != nullptr ? (*mesh.poses)[step] : *mesh.positions;
+      const size_t vertex_count = positions.size();
+      // Embree reads 16 bytes per vertex; the extra float pads the last one.
+      auto* vertices = static_cast<float*>(rtcSetNewGeometryBuffer(
+          geometry.get(), RTC_BUFFER_TYPE_VERTEX, static_cast<unsigned>(step), RTC_FORMAT_FLOAT3,
+          3 * sizeof(float), vertex_count + 1));
+      if (!vertices) fail(device.get(), "triangle buffer allocation");
+      for (size_t i = 0; i < vertex_count; ++i) {
+        const Vec3& p = positions[i];
+        vertices[3 * i] = p.x;
+        vertices[3 * i + 1] = p.y;
+        vertices[3 * i + 2] = p.z;
+      }
+    }
     auto* indices = static_cast<uint32_t*>(
         rtcSetNewGeometryBuffer(geometry.get(), RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
                                 3 * sizeof(uint32_t), triangle_count));
-    if (!vertices || !indices) fail(device.get(), "triangle buffer allocation");
-    for (size_t i = 0; i < vertex_count; ++i) {
-      const Vec3& p = (*mesh.positions)[i];
-      vertices[3 * i] = p.x;
-      vertices[3 * i + 1] = p.y;
-      vertices[3 * i + 2] = p.z;
-    }
+    if (!indices) fail(device.get(), "triangle buffer allocation");
     std::copy(mesh.indices->begin(), mesh.indices->end(), indices);
     set_filter(geometry, mesh.filter, id);
     commit_and_attach_to(target, geometry, id);
@@ -173,24 +182,38 @@ struct Bvh::Impl {
     const GeometryHandle geometry =
         new_geometry(RTC_GEOMETRY_TYPE_INSTANCE, "rtcNewGeometry(instance)");
     rtcSetGeometryInstancedScene(geometry.get(), groups.at(instance.group).get());
-    rtcSetGeometryTimeStepCount(geometry.get(), 1);
-    rtcSetGeometryTransform(geometry.get(), 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR,
-                            instance.world_from_object.data());
+    if (instance.poses.empty()) {
+      rtcSetGeometryTimeStepCount(geometry.get(), 1);
+      rtcSetGeometryTransform(geometry.get(), 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR,
+                              instance.world_from_object.data());
+    } else {
+      rtcSetGeometryTimeStepCount(geometry.get(), static_cast<unsigned>(instance.poses.size()));
+      for (size_t step = 0; step < instance.poses.size(); ++step)
+        rtcSetGeometryTransform(geometry.get(), static_cast<unsigned>(step),
+                                RTC_FORMAT_FLOAT3X4_ROW_MAJOR, instance.poses[step].data());
+    }
     commit_and_attach(geometry, id);
   }
 
-  void add_spheres(const std::vector<SphereInput>& spheres, uint32_t id, const HitFilter* filter) {
+  void add_spheres(const std::vector<SphereInput>& spheres,
+                   const std::vector<std::vector<SphereInput>>& poses, uint32_t id,
+                   const HitFilter* filter) {
     const GeometryHandle geometry =
         new_geometry(RTC_GEOMETRY_TYPE_SPHERE_POINT, "rtcNewGeometry(sphere)");
-    auto* points = static_cast<float*>(
-        rtcSetNewGeometryBuffer(geometry.get(), RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4,
-                                4 * sizeof(float), spheres.size()));
-    if (!points) fail(device.get(), "sphere buffer allocation");
-    for (size_t i = 0; i < spheres.size(); ++i) {
-      points[4 * i] = spheres[i].center.x;
-      points[4 * i + 1] = spheres[i].center.y;
-      points[4 * i + 2] = spheres[i].center.z;
-      points[4 * i + 3] = spheres[i].radius;
+    const size_t steps = poses.empty() ? 1 : poses.size();
+    rtcSetGeometryTimeStepCount(geometry.get(), static_cast<unsigned>(steps));
+    for (size_t step = 0; step < steps; ++step) {
+      const std::vector<SphereInput>& at = poses.empty() ? spheres : poses[step];
+      auto* points = static_cast<float*>(rtcSetNewGeometryBuffer(
+          geometry.get(), RTC_BUFFER_TYPE_VERTEX, static_cast<unsigned>(step), RTC_FORMAT_FLOAT4,
+          4 * sizeof(float), at.size()));
+      if (!points) fail(device.get(), "sphere buffer allocation");
+      for (size_t i = 0; i < at.size(); ++i) {
+        points[4 * i] = at[i].center.x;
+        points[4 * i + 1] = at[i].center.y;
+        points[4 * i + 2] = at[i].center.z;
+        points[4 * i + 3] = at[i].radius;
+      }
     }
     sphere_id = id;
     set_filter(geometry, filter, kSphereGeometry);
@@ -210,7 +233,8 @@ struct Bvh::Impl {
 
 Bvh::Bvh(const std::vector<Mesh>& meshes, const std::vector<SphereInput>& spheres,
          const HitFilter* sphere_filter, const std::vector<std::vector<Mesh>>& groups,
-         const std::vector<InstanceInput>& instances)
+         const std::vector<InstanceInput>& instances,
+         const std::vector<std::vector<SphereInput>>& sphere_poses)
     : impl_(std::make_unique<Impl>()) {
   impl_->device.reset(rtcNewDevice(nullptr));
   if (!impl_->device) throw std::runtime_error("Embree: rtcNewDevice failed");
@@ -225,7 +249,7 @@ Bvh::Bvh(const std::vector<Mesh>& meshes, const std::vector<SphereInput>& sphere
   }
   // Embree sizes its geometry table by the largest id: keep ids dense.
   if (!spheres.empty())
-    impl_->add_spheres(spheres, static_cast<uint32_t>(meshes.size()), sphere_filter);
+    impl_->add_spheres(spheres, sphere_poses, static_cast<uint32_t>(meshes.size()), sphere_filter);
   impl_->instance_base = static_cast<uint32_t>(meshes.size() + (spheres.empty() ? 0 : 1));
   if (!instances.empty()) {
     for (const std::vector<Mesh>& group : groups) impl_->add_group(group);

@@ -10,12 +10,14 @@
 
 namespace rayfarm {
 
-/// A ray: origin, direction (need not be unit length) and the parametric interval (tnear, tfar).
+/// A ray: origin, direction (need not be unit length), the parametric interval (tnear, tfar),
+/// and the time within the shutter in [0, 1] at which it looks at moving geometry.
 struct Ray {
   Vec3 org;
   Vec3 dir;
   float tnear = 0.f;
   float tfar = 3.0e38f;
+  float time = 0.f;
 };
 
 /// A closest hit: which primitive, where along the ray, and its barycentrics (triangles).
@@ -36,19 +38,23 @@ inline constexpr uint32_t kSphereGeometry = 0xfffffffeu;
 /// Triangle meshes and spheres in one Embree BVH.
 class Bvh {
  public:
-  /// Decides whether a candidate hit counts (cut-outs): keep(context, geom, prim, u, v, p) with
-  /// geom as in RayHit, (u, v) a triangle's barycentrics and p the point on the ray.
+  /// Decides whether a candidate hit counts (cut-outs): keep(context, geom, prim, u, v, p, time)
+  /// with geom as in RayHit, (u, v) a triangle's barycentrics, p the point on the ray and time
+  /// the ray's.
   struct HitFilter {
-    bool (*keep)(const void* context, uint32_t geom, uint32_t prim, float u, float v,
-                 const Vec3& p) = nullptr;
+    bool (*keep)(const void* context, uint32_t geom, uint32_t prim, float u, float v, const Vec3& p,
+                 float time) = nullptr;
     const void* context = nullptr;
   };
   /// Triangle input: positions and 3 indices per triangle, and the filter of its hits (null:
-  /// every hit counts, and none is filtered at no cost).
+  /// every hit counts, and none is filtered at no cost). A moving mesh gives its positions at
+  /// each of the shutter's poses instead (at least two, evenly spaced in time from 0 to 1; its
+  /// vertices move linearly between them); `positions` is then not read.
   struct Mesh {
     const std::vector<Vec3>* positions;
     const std::vector<uint32_t>* indices;
     const HitFilter* filter = nullptr;
+    const std::vector<std::vector<Vec3>>* poses = nullptr;
   };
   /// Sphere input: centre and radius.
   struct SphereInput {
@@ -56,10 +62,12 @@ class Bvh {
     float radius;
   };
 
-  /// One placement of a group: its index in `groups`, and world from object as 3x4 rows.
+  /// One placement of a group: its index in `groups`, and world from object as 3x4 rows; a
+  /// moving one at each pose instead (interpolated linearly, element by element).
   struct InstanceInput {
     uint32_t group;
     std::array<float, 12> world_from_object;
+    std::vector<std::array<float, 12>> poses;
   };
 
   /// Builds the BVH. Mesh i gets geometry id i. Each group becomes one Embree scene, built
@@ -67,9 +75,11 @@ class Bvh {
   /// message.
   /// A group mesh's filter is called for hits through every instance of the group, with geom
   /// the mesh's index within the group.
+  /// `sphere_poses`, when not empty, gives every sphere at each pose (some sphere moves).
   Bvh(const std::vector<Mesh>& meshes, const std::vector<SphereInput>& spheres,
       const HitFilter* sphere_filter = nullptr, const std::vector<std::vector<Mesh>>& groups = {},
-      const std::vector<InstanceInput>& instances = {});
+      const std::vector<InstanceInput>& instances = {},
+      const std::vector<std::vector<SphereInput>>& sphere_poses = {});
   ~Bvh();
   Bvh(const Bvh&) = delete;
   Bvh& operator=(const Bvh&) = delete;

@@ -17,7 +17,8 @@ PathIntegratorFor<BsdfT>::PathIntegratorFor(const SceneData& data, const LightSe
   for (const Material& m : data.scene().materials)
     any_diffuse |= m.textured || !BsdfT(m).is_specular();
   // Light sampling only where there are lights and surfaces that light sampling can serve.
-  plan_.sample_lights = settings.integrator != IntegratorType::kNaive && !lights.empty() && any_diffuse;
+  plan_.sample_lights =
+      settings.integrator != IntegratorType::kNaive && !lights.empty() && any_diffuse;
   // MIS weights matter only when BSDF rays can also find the sampled emitters (area lights and
   // the environment).
   const bool hittable = lights.area_light_count() > 0 || lights.environment() != nullptr;
@@ -74,7 +75,8 @@ Vec3 PathIntegratorFor<BsdfT>::sample_light(const SurfaceHit& hit, const Vec3& s
   const Vec3 origin =
       offset_ray_origin(hit.p, hit.p_error, leaving_side(hit, flat, ls.wi, wi_local.z));
   ++rays;
-  const Ray shadow = ls.infinite ? Ray{origin, ls.wi} : Ray{origin, ls.target - origin, 0.f, 1.f};
+  Ray shadow = ls.infinite ? Ray{origin, ls.wi} : Ray{origin, ls.target - origin, 0.f, 1.f};
+  shadow.time = hit.time;
   if (data_.bvh().occluded(shadow)) return Vec3(0.f);
   const float w = (ls.delta || !plan_.weight_emission)
                       ? 1.f
@@ -214,6 +216,7 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, PathSampler& sampler, PathStats& s
     }
     const Vec3 wi = frame.to_world(bs.wi);
     ray = Ray{offset_ray_origin(hit.p, hit.p_error, leaving_side(hit, flat, wi, bs.wi.z)), wi};
+    ray.time = hit.time;
   }
   return radiance;
 }

@@ -6,7 +6,8 @@
 //    the path asks for them;
 //  - sobol: each group of numbers from its own scrambled four-dimensional Sobol' sequence
 //    (sobol.h) keyed by (seed, pixel, group), indexed by the sample number. The groups are fixed:
-//    the camera (pixel position x, y, lens u, v), and per scattering vertex up to
+//    the camera (pixel position x, y, lens u, v), the time within the shutter when something
+//    moves (a group of its own), and per scattering vertex up to
 //    kSobolVertices: the light (point u, v on Sobol' dimensions 0, 1; choice on 2) and the
 //    scattering (direction u, v on 0, 1; BSDF lobe on 2; roulette on 3). Deeper vertices, where
 //    stratification no longer shows, read the hashed stream as the independent sampler does.
@@ -43,6 +44,13 @@ class PathSampler {
     if (sobol_) return sobol::sample<4>(index_, key_);
     Pcg32& rng = stream();
     return {rng.next_float(), rng.next_float(), rng.next_float(), rng.next_float()};
+  }
+
+  /// The sample's time within the shutter, in [0, 1) (motion blur). Asked for, after camera(),
+  /// only when something moves, so that other scenes keep their numbers.
+  float time() {
+    if (sobol_) return sobol::sample<1>(index_, group_key(0))[0];
+    return stream().next_float();
   }
 
   /// Light choice and point on the light at vertex `depth`, as 32-bit numbers (light selection
