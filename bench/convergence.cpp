@@ -26,13 +26,14 @@
 #include <optional>
 #include <vector>
 
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <CLI/CLI.hpp>
 
 #include "common/image/exr.h"
 #include "common/image/film.h"
 #include "common/image/metrics.h"
 #include "common/report/plot.h"
+#include "common/scene/motion.h"
 #include "common/scene/parser.h"
 #include "worker/renderer.h"
 
@@ -74,7 +75,8 @@ std::vector<float> variance_of_mean(const Film& film) {
     const double n = film.spp()[p];
     for (int c = 0; c < 3; ++c) {
       const double s = from_fixed(film.sum()[p * 3 + c]), s2 = from_fixed(film.sum_sq()[p * 3 + c]);
-      var[p * 3 + c] = n > 1 ? static_cast<float>(std::max(0.0, s2 - s * s / n) / (n * (n - 1.0))) : 0.f;
+      var[p * 3 + c] =
+          n > 1 ? static_cast<float>(std::max(0.0, s2 - s * s / n) / (n * (n - 1.0))) : 0.f;
     }
   }
   return var;
@@ -91,8 +93,9 @@ Image film_image(const Film& film) {
 // Renders in passes of the schedule until the time budget is spent or `on_pass(pass, film,
 // seconds, wall_seconds)` (run untimed after each pass) returns false. Returns the render time.
 template <class OnPass>
-double render_passes(const Renderer& renderer, tbb::task_arena& arena, const std::vector<uint32_t>& schedule,
-                     Clock clock, double time_budget_s, OnPass&& on_pass) {
+double render_passes(const Renderer& renderer, tbb::task_arena& arena,
+                     const std::vector<uint32_t>& schedule, Clock clock, double time_budget_s,
+                     OnPass&& on_pass) {
   const FilmSize size = renderer.film();
   Film film(size.width, size.height);
   double elapsed = 0.0, wall = 0.0;
@@ -100,7 +103,9 @@ double render_passes(const Renderer& renderer, tbb::task_arena& arena, const std
   for (size_t k = 0; k < schedule.size() && elapsed < time_budget_s; ++k) {
     const double c0 = process_cpu_seconds();
     const auto t0 = std::chrono::steady_clock::now();
-    arena.execute([&] { film.add(renderer.render({0, 0, size.width, size.height}, {done, schedule[k]})); });
+    arena.execute([&] {
+      film.add(renderer.render({0, 0, size.width, size.height}, {done, schedule[k]}));
+    });
     const double dw = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     wall += dw;
     elapsed += clock == Clock::kCpu ? process_cpu_seconds() - c0 : dw;
@@ -118,7 +123,8 @@ std::optional<double> time_to_reach(const std::vector<Point>& curve, double targ
     if (i == 0) return curve[0].time_s;
     const Point& a = curve[i - 1];
     const Point& b = curve[i];
-    const double f = (std::log(target) - std::log(a.rel_mse)) / (std::log(b.rel_mse) - std::log(a.rel_mse));
+    const double f =
+        (std::log(target) - std::log(a.rel_mse)) / (std::log(b.rel_mse) - std::log(a.rel_mse));
     return std::exp(std::log(a.time_s) + f * (std::log(b.time_s) - std::log(a.time_s)));
   }
   return std::nullopt;
@@ -141,7 +147,8 @@ std::optional<double> error_at(const std::vector<Point>& curve, double t) {
 double error_time_product(const std::vector<Point>& curve) {
   double sum = 0.0;
   size_t n = 0;
-  for (size_t i = curve.size() / 2; i < curve.size(); ++i, ++n) sum += std::log(curve[i].rel_mse * curve[i].time_s);
+  for (size_t i = curve.size() / 2; i < curve.size(); ++i, ++n)
+    sum += std::log(curve[i].rel_mse * curve[i].time_s);
   return n ? std::exp(sum / double(n)) : 0.0;
 }
 
@@ -150,7 +157,8 @@ std::string seconds(std::optional<double> t) { return t ? fmt::format("{:.3g} s"
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"convergence: relMSE against time for naive, nee and mis against a high-spp reference"};
+  CLI::App app{
+      "convergence: relMSE against time for naive, nee and mis against a high-spp reference"};
   std::string scene_path, out_dir = "convergence-out", plot_path, reference_path;
   uint32_t threads = 2, reference_spp = 8192, max_spp = 1u << 16, size = 0;
   double budget_s = 60.0, stop_at = 5e-4;
@@ -160,15 +168,22 @@ int main(int argc, char** argv) {
   app.add_option("scene", scene_path, "Scene file")->required();
   app.add_option("--threads", threads, "Render threads")->capture_default_str();
   app.add_option("--budget", budget_s, "Render seconds per integrator")->capture_default_str();
-  app.add_option("--stop-at", stop_at, "Stop an integrator once its relMSE is below this")->capture_default_str();
-  app.add_option("--clock", clock_name, "cpu: process CPU seconds (robust on a shared machine); wall")
-      ->check(CLI::IsMember({"cpu", "wall"}))->capture_default_str();
+  app.add_option("--stop-at", stop_at, "Stop an integrator once its relMSE is below this")
+      ->capture_default_str();
+  app.add_option("--clock", clock_name,
+                 "cpu: process CPU seconds (robust on a shared machine); wall")
+      ->check(CLI::IsMember({"cpu", "wall"}))
+      ->capture_default_str();
   app.add_option("--max-spp", max_spp, "Stop an integrator at this spp")->capture_default_str();
-  app.add_option("--size", size, "Square film size instead of the scene's (0 = the scene's)")->capture_default_str();
+  app.add_option("--size", size, "Square film size instead of the scene's (0 = the scene's)")
+      ->capture_default_str();
   app.add_option("--reference", reference_path,
-                 "Reference EXR (with variance.R/G/B channels); made and cached when missing")->required();
-  app.add_option("--reference-spp", reference_spp, "spp of a reference made here (mis)")->capture_default_str();
-  app.add_option("--seed", seed, "Seed of the measured renders (the reference uses seed + 1000)")->capture_default_str();
+                 "Reference EXR (with variance.R/G/B channels); made and cached when missing")
+      ->required();
+  app.add_option("--reference-spp", reference_spp, "spp of a reference made here (mis)")
+      ->capture_default_str();
+  app.add_option("--seed", seed, "Seed of the measured renders (the reference uses seed + 1000)")
+      ->capture_default_str();
   app.add_option("--integrators", integrators, "Integrators to run")->capture_default_str();
   app.add_option("--out", out_dir, "Folder for the CSV files")->capture_default_str();
   app.add_option("--plot", plot_path, "Plot PNG (default OUT/convergence.png)");
@@ -177,6 +192,7 @@ int main(int argc, char** argv) {
   try {
     const Clock clock = clock_name == "cpu" ? Clock::kCpu : Clock::kWall;
     Scene scene = load_scene(scene_path);
+    add_motion(scene, scene.render);  // a scene's own shutter blurs what moves
     if (size > 0) scene.film = {size, size};
     tbb::task_arena arena(static_cast<int>(threads));
     fs::create_directories(out_dir);
@@ -206,23 +222,26 @@ int main(int argc, char** argv) {
         std::vector<float>& channel = image.extra[std::string("variance.") + "RGB"[c]];
         for (size_t p = 0; p < var.size() / 3; ++p) channel.push_back(var[p * 3 + c]);
       }
-      image.attributes["rayfarm:reference"] =
-          fmt::format("{} spp, mis, seed {}, max_depth {}", reference_spp, settings.seed, settings.max_depth);
+      image.attributes["rayfarm:reference"] = fmt::format(
+          "{} spp, mis, seed {}, max_depth {}", reference_spp, settings.seed, settings.max_depth);
       fs::create_directories(fs::path(reference_path).parent_path());
       write_exr(reference_path, image);
-      std::cout << fmt::format("reference made in {:.1f} s\n",
-                               std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+      std::cout << fmt::format(
+          "reference made in {:.1f} s\n",
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
     }
     const Image reference = read_exr(reference_path);
     if (reference.width != scene.film.width || reference.height != scene.film.height) {
-      throw std::runtime_error(fmt::format("{}: {}x{}, the film is {}x{}", reference_path, reference.width,
-                                           reference.height, scene.film.width, scene.film.height));
+      throw std::runtime_error(fmt::format("{}: {}x{}, the film is {}x{}", reference_path,
+                                           reference.width, reference.height, scene.film.width,
+                                           scene.film.height));
     }
     // The reference's own noise adds E[(b - mu)^2] / (b^2 + 1e-2) to each value's relMSE. Its
     // per-pixel variance is in channels variance.R/G/B (references made here) or, RGB, in a
     // sibling STEM-variance.exr (the Blender Cycles references of tests/data/references).
     std::vector<float> ref_var(reference.rgb.size(), 0.f);
-    const fs::path sibling = fs::path(reference_path).replace_extension().string() + "-variance.exr";
+    const fs::path sibling =
+        fs::path(reference_path).replace_extension().string() + "-variance.exr";
     if (reference.extra.count("variance.R")) {
       for (int c = 0; c < 3; ++c) {
         const std::vector<float>& v = reference.extra.at(std::string("variance.") + "RGB"[c]);
@@ -239,11 +258,12 @@ int main(int argc, char** argv) {
       ref_noise += ref_var[i] / (b * b + 1e-2);
     }
     ref_noise /= double(reference.rgb.size());
-    std::cout << fmt::format("scene {} {}x{}, max_depth {}, {} threads, at most {:.0f} {} s per integrator "
-                             "(or until relMSE < {:.1e}); reference {} (its own noise: relMSE {:.2e}, "
-                             "subtracted)\n",
-                             scene_path, scene.film.width, scene.film.height, scene.render.max_depth,
-                             threads, budget_s, clock_name, stop_at, reference_path, ref_noise);
+    std::cout << fmt::format(
+        "scene {} {}x{}, max_depth {}, {} threads, at most {:.0f} {} s per integrator "
+        "(or until relMSE < {:.1e}); reference {} (its own noise: relMSE {:.2e}, "
+        "subtracted)\n",
+        scene_path, scene.film.width, scene.film.height, scene.render.max_depth, threads, budget_s,
+        clock_name, stop_at, reference_path, ref_noise);
 
     const std::vector<uint32_t> schedule = pass_schedule(max_spp);
     std::map<std::string, std::vector<Point>> curves;
@@ -257,32 +277,35 @@ int main(int argc, char** argv) {
       settings.seed = seed;
       const Renderer renderer(scene, settings);
       std::vector<Point>& curve = curves[name];
-      const double total = render_passes(renderer, arena, schedule, clock, budget_s,
-                                         [&](uint32_t k, const Film& film, double t, double wall) {
-        const ImageDiff d = compare_images(film_image(film), reference);
-        // Kept positive for the logarithms; the subtraction is a small correction in practice.
-        const double corrected = std::max(d.rel_mse - ref_noise, 0.05 * d.rel_mse);
-        curve.push_back({k, film.min_spp(), t, wall, corrected, d.rel_mse, d.rmse});
-        return curve.back().rel_mse > stop_at;
-      });
+      const double total = render_passes(
+          renderer, arena, schedule, clock, budget_s,
+          [&](uint32_t k, const Film& film, double t, double wall) {
+            const ImageDiff d = compare_images(film_image(film), reference);
+            // Kept positive for the logarithms; the subtraction is a small correction in practice.
+            const double corrected = std::max(d.rel_mse - ref_noise, 0.05 * d.rel_mse);
+            curve.push_back({k, film.min_spp(), t, wall, corrected, d.rel_mse, d.rmse});
+            return curve.back().rel_mse > stop_at;
+          });
       samples_per_s[name] = double(curve.back().spp) * scene.film.width * scene.film.height / total;
       std::ofstream csv(fs::path(out_dir) / (name + ".csv"));
       csv << "integrator,pass,spp,time_s,wall_s,rel_mse,rel_mse_measured,rmse\n";
       for (const Point& p : curve) {
-        csv << fmt::format("{},{},{},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g}\n", name, p.pass, p.spp, p.time_s,
-                           p.wall_s, p.rel_mse, p.rel_mse_measured, p.rmse);
+        csv << fmt::format("{},{},{},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g}\n", name, p.pass, p.spp,
+                           p.time_s, p.wall_s, p.rel_mse, p.rel_mse_measured, p.rmse);
       }
-      std::cout << fmt::format("{:6}: {} passes, {} spp in {:.2f} {} s ({:.2f} wall s; {:.3g} Msamples per {} s), "
-                               "final relMSE {:.3e}\n",
-                               name, curve.size(), curve.back().spp, total, clock_name, curve.back().wall_s,
-                               samples_per_s[name] * 1e-6, clock_name, curve.back().rel_mse);
+      std::cout << fmt::format(
+          "{:6}: {} passes, {} spp in {:.2f} {} s ({:.2f} wall s; {:.3g} Msamples per {} s), "
+          "final relMSE {:.3e}\n",
+          name, curve.size(), curve.back().spp, total, clock_name, curve.back().wall_s,
+          samples_per_s[name] * 1e-6, clock_name, curve.back().rel_mse);
     }
 
     // The table: time to reach 1e-2 and 1e-3; where a curve stops short, the 1/t extrapolation
     // from its relMSE x time constant is given in brackets.
-    std::cout << fmt::format("\ntimes in {} seconds\n| integrator | Msamples/s | relMSE x time (s) | "
-                             "time to relMSE 1e-2 | time to relMSE 1e-3 |\n| --- | --- | --- | --- | --- |\n",
-                             clock_name);
+    std::cout << fmt::format(
+        "\ntimes in {} seconds\n| integrator | Msamples/s | relMSE x time (s) | "
+        "time to relMSE 1e-2 | time to relMSE 1e-3 |\n| --- | --- | --- | --- | --- |\n",
+        clock_name);
     for (const std::string& name : integrators) {
       const std::vector<Point>& c = curves[name];
       const double k = error_time_product(c);
@@ -290,8 +313,8 @@ int main(int argc, char** argv) {
         const std::optional<double> t = time_to_reach(c, target);
         return t ? seconds(t) : fmt::format("({:.3g} s by 1/t)", k / target);
       };
-      std::cout << fmt::format("| {} | {:.3g} | {:.3g} | {} | {} |\n", name, samples_per_s[name] * 1e-6, k,
-                               cell(1e-2), cell(1e-3));
+      std::cout << fmt::format("| {} | {:.3g} | {:.3g} | {} | {} |\n", name,
+                               samples_per_s[name] * 1e-6, k, cell(1e-2), cell(1e-3));
     }
     if (curves.count("naive") && curves.count("nee")) {
       const std::vector<Point>& naive = curves["naive"];
@@ -300,17 +323,20 @@ int main(int argc, char** argv) {
       const std::optional<double> e_naive = error_at(naive, t), e_nee = error_at(nee, t);
       if (e_naive && e_nee) {
         std::cout << fmt::format(
-            "\nequal time, {:.3g} s: naive relMSE {:.3e}, nee {:.3e}: naive's error is {:.1f}x NEE's; "
-            "naive needs about {:.1f}x NEE's time for the same error (relMSE x time {:.3g} vs {:.3g})\n",
-            t, *e_naive, *e_nee, *e_naive / *e_nee, error_time_product(naive) / error_time_product(nee),
-            error_time_product(naive), error_time_product(nee));
+            "\nequal time, {:.3g} s: naive relMSE {:.3e}, nee {:.3e}: naive's error is {:.1f}x "
+            "NEE's; "
+            "naive needs about {:.1f}x NEE's time for the same error (relMSE x time {:.3g} vs "
+            "{:.3g})\n",
+            t, *e_naive, *e_nee, *e_naive / *e_nee,
+            error_time_product(naive) / error_time_product(nee), error_time_product(naive),
+            error_time_product(nee));
       }
     }
 
     LogLogPlot plot;
     plot.title = fmt::format("{}: relMSE against render time ({}x{}, {} threads)",
-                             fs::path(scene_path).parent_path().filename().string(), scene.film.width,
-                             scene.film.height, threads);
+                             fs::path(scene_path).parent_path().filename().string(),
+                             scene.film.width, scene.film.height, threads);
     plot.x_label = clock == Clock::kCpu ? "render time (CPU s, all threads)" : "render time (s)";
     plot.y_label = "relMSE";
     const std::map<std::string, PlotColor> colours{

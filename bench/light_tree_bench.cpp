@@ -19,6 +19,7 @@
 
 #include "common/image/error_estimate.h"
 #include "common/image/fixed.h"
+#include "common/scene/motion.h"
 #include "common/scene/parser.h"
 #include "common/util/log.h"
 #include "worker/lights/light_tree.h"
@@ -105,6 +106,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   Scene scene = load_scene(path);
+  add_motion(scene, scene.render);  // a scene's own shutter blurs what moves
   if (width > 0) {
     scene.film.height = std::max<uint32_t>(1, scene.film.height * width / scene.film.width);
     scene.film.width = width;

@@ -7,9 +7,10 @@
 #include <iostream>
 #include <vector>
 
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <CLI/CLI.hpp>
 
+#include "common/scene/motion.h"
 #include "common/scene/parser.h"
 #include "worker/renderer.h"
 
@@ -32,7 +33,8 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
 
   try {
-    const rayfarm::Scene scene = rayfarm::load_scene(scene_path);
+    rayfarm::Scene scene = rayfarm::load_scene(scene_path);
+    rayfarm::add_motion(scene, scene.render);  // a scene's own shutter blurs what moves
     rayfarm::RenderSettings settings = scene.render;
     settings.spp = spp;
     if (max_depth) settings.max_depth = *max_depth;
@@ -53,10 +55,10 @@ int main(int argc, char** argv) {
       const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       spp_per_s.push_back(spp / s);
       mrays_per_s.push_back(double(film.rays()) / s * 1e-6);
-      std::cout << fmt::format("run {}: {:.3f} s, {:.2f} spp/s, {:.3f} Msamples/s, {:.2f} Mrays/s\n", r,
-                               s, spp_per_s.back(),
-                               spp_per_s.back() * scene.film.width * scene.film.height * 1e-6,
-                               mrays_per_s.back());
+      std::cout << fmt::format(
+          "run {}: {:.3f} s, {:.2f} spp/s, {:.3f} Msamples/s, {:.2f} Mrays/s\n", r, s,
+          spp_per_s.back(), spp_per_s.back() * scene.film.width * scene.film.height * 1e-6,
+          mrays_per_s.back());
     }
     auto median = [](std::vector<double> v) {
       std::sort(v.begin(), v.end());

@@ -14,6 +14,7 @@
 #include "common/image/film.h"
 #include "common/image/fixed.h"
 #include "common/protocol/convert.h"
+#include "common/scene/motion.h"
 #include "common/scene/parser.h"
 #include "worker/renderer.h"
 
@@ -64,7 +65,8 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   try {
-    const rayfarm::Scene scene = rayfarm::load_scene(scene_path);
+    rayfarm::Scene scene = rayfarm::load_scene(scene_path);
+    rayfarm::add_motion(scene, scene.render);  // a scene's own shutter blurs what moves
     rayfarm::RenderSettings settings = scene.render;
     settings.spp = spp;
     const rayfarm::Renderer renderer(scene, settings);

@@ -104,6 +104,10 @@ void render_one(const RenderArgs& args, std::optional<int64_t> frame,
   const size_t warned = scene.warnings.size();
   args.source.add_motion(scene, settings);  // the poses within an open shutter
   for (size_t i = warned; i < scene.warnings.size(); ++i) log->warn("{}", scene.warnings[i]);
+  if (settings.shutter_is_open() && !scene.animation) {
+    log->warn("{}: the shutter is open, but the scene is a still{}: nothing moves within it",
+              args.source.scene, args.source.is_list() ? " (a list's files are)" : "");
+  }
 
   LocalRenderOptions options;
   options.threads = args.threads;

@@ -199,9 +199,26 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
         scene =
             load_scene(dir / request.scene_path(), check, SceneImages::kCheckOnly, {}, dir, frame);
         // A sequence: its last frame loads too (every frame between is checked by the workers).
+        std::optional<Scene> last;
         if (frames && frames->count() > 1) {
-          (void)load_scene(dir / request.scene_path(), check, SceneImages::kCheckOnly, {}, dir,
-                           frames->last);
+          last = load_scene(dir / request.scene_path(), check, SceneImages::kCheckOnly, {}, dir,
+                            frames->last);
+        }
+        // With an open shutter, those frames' poses within it load too (motion.h).
+        RenderSettings shutter = scene.render;
+        const wire::JobOverrides& o = request.overrides();
+        if (o.has_shutter_open() && o.has_shutter_close()) {
+          shutter.shutter_open = o.shutter_open();
+          shutter.shutter_close = o.shutter_close();
+        }
+        if (o.has_motion_steps()) shutter.motion_steps = o.motion_steps();
+        if (!shutter_problem(shutter.shutter_open, shutter.shutter_close, shutter.motion_steps)) {
+          for (const Scene* s : {&scene, last ? &*last : nullptr}) {
+            if (s == nullptr) continue;
+            (void)find_motion(*s, shutter, [&](double offset) {
+              return load_scene_pose(dir / request.scene_path(), {}, dir, s->frame, offset);
+            });
+          }
         }
       }
     } catch (const std::exception& e) {

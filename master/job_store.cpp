@@ -130,7 +130,10 @@ JobRecord from_json(const json& j) {
     s.settings.shutter_open = (*it)[0].get<float>();
     s.settings.shutter_close = (*it)[1].get<float>();
   }
-  s.settings.motion_steps = j.value("motion_steps", kDefaultMotionSteps);
+  const int64_t steps = j.value("motion_steps", int64_t{kDefaultMotionSteps});
+  if (steps < kMinMotionSteps || steps > kMaxMotionSteps)
+    throw std::runtime_error("motion_steps out of range");
+  s.settings.motion_steps = static_cast<uint32_t>(steps);
   if (auto why = shutter_problem(s.settings.shutter_open, s.settings.shutter_close,
                                  s.settings.motion_steps))
     throw std::runtime_error(*why);

@@ -114,14 +114,15 @@ void SceneData::build_motion(const std::vector<uint32_t>& kept) {
     }
   }
   // Instances left after flattening (emissive groups' placements are world meshes now).
-  for (size_t i = 0; i < kept.size(); ++i) {
-    for (const SceneMotion::InstancePoses& p : motion->instances) {
-      if (p.instance != kept[i]) continue;
-      for (const std::array<double, 16>& m : p.poses) {
-        std::array<double, 12> rows;
-        std::copy(m.begin(), m.begin() + 12, rows.begin());
-        instance_poses_[i].push_back(instance_info(rows, scene_.instances[i].group));
-      }
+  std::vector<int64_t> left(scene_.instances.size() + flattened_, -1);  // scene index -> left
+  for (size_t i = 0; i < kept.size(); ++i) left.at(kept[i]) = static_cast<int64_t>(i);
+  for (const SceneMotion::InstancePoses& p : motion->instances) {
+    if (p.instance >= left.size() || left[p.instance] < 0) continue;  // flattened: still
+    const auto i = static_cast<size_t>(left[p.instance]);
+    for (const std::array<double, 16>& m : p.poses) {
+      std::array<double, 12> rows;
+      std::copy(m.begin(), m.begin() + 12, rows.begin());
+      instance_poses_[i].push_back(instance_info(rows, scene_.instances[i].group));
     }
   }
 }
@@ -203,7 +204,11 @@ SurfaceHit SceneData::resolve_moving(const Ray& ray, const RayHit& hit) const {
   (void)triangle_normal(v0, v1, v2, s.n);
   s.ns = s.n;
   s.uv = {hit.u, hit.v};
-  s.p_error = triangle_point_error(v0, v1, v2);
+  // The blend's own rounding follows the poses' magnitudes, which may exceed the blended
+  // triangle's where coordinates cancel: the larger bound of the three.
+  s.p_error = std::max({triangle_point_error(v0, v1, v2),
+                        triangle_point_error(p0[idx[0]], p0[idx[1]], p0[idx[2]]),
+                        triangle_point_error(p1[idx[0]], p1[idx[1]], p1[idx[2]])});
   s.material = tri.material;
   s.light = tri.light;  // -1: emitters do not move (common/scene/motion.h)
   s.time = ray.time;
@@ -303,9 +308,16 @@ void SceneData::set_light_index(uint32_t geom, uint32_t prim, int32_t light) {
 }
 
 SurfaceHit SceneData::resolve_sphere(const Ray& ray, const RayHit& hit) const {
+  if (moves_ && sphere_motion_[hit.prim] >= 0) {
+    Sphere posed;
+    return resolve_sphere(ray, hit, sphere_at(hit.prim, ray.time, posed));
+  }
+  return resolve_sphere(ray, hit, scene_.spheres[hit.prim]);
+}
+
+SurfaceHit SceneData::resolve_sphere(const Ray& ray, const RayHit& hit,
+                                     const Sphere& sphere) const {
   SurfaceHit s;
-  Sphere posed;
-  const Sphere& sphere = sphere_at(hit.prim, ray.time, posed);
   const Vec3 raw = ray.org + ray.dir * hit.t;
   Vec3 n = raw - sphere.center;
   const float len = length(n);

@@ -204,6 +204,7 @@ class SceneData {
     uint32_t group;
   };
   SurfaceHit resolve_sphere(const Ray& ray, const RayHit& hit) const;
+  SurfaceHit resolve_sphere(const Ray& ray, const RayHit& hit, const Sphere& sphere) const;
   SurfaceHit resolve_instanced(const Ray& ray, const RayHit& hit) const;
   // A hit on a moving world mesh: its triangle posed at the ray's time.
   SurfaceHit resolve_moving(const Ray& ray, const RayHit& hit) const;

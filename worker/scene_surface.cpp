@@ -134,10 +134,16 @@ bool SceneData::covered(uint32_t geom, uint32_t prim, float u, float v, const Ve
   uint32_t material;
   Vec2 uv;
   if (geom == kSphereGeometry) {
-    Sphere posed;
-    const Sphere& sphere = sphere_at(prim, time, posed);
-    material = sphere.material;
-    uv = sphere_uv(sphere, unit_or_zero(p - sphere.center));
+    const auto look_up = [&](const Sphere& sphere) {
+      material = sphere.material;
+      uv = sphere_uv(sphere, unit_or_zero(p - sphere.center));
+    };
+    if (moves_ && sphere_motion_[prim] >= 0) {
+      Sphere posed;
+      look_up(sphere_at(prim, time, posed));
+    } else {
+      look_up(scene_.spheres[prim]);
+    }
   } else {
     material = triangles_[mesh_offset_[geom] + prim].material;
     uv = triangle_uv(scene_.meshes[geom], prim, u, v);
@@ -148,7 +154,7 @@ bool SceneData::covered(uint32_t geom, uint32_t prim, float u, float v, const Ve
 TangentFrame SceneData::tangent_frame(const RayHit& hit, const SurfaceHit& s) const {
   TangentFrame f;
   if (hit.geom == kSphereGeometry) {
-    Sphere posed;
+    Sphere posed;  // tangent frames are needed only by some materials: the scratch is cheap here
     const Sphere& sphere = sphere_at(hit.prim, s.time, posed);
     // p = r (sin t cos f, sin t sin f, cos t) in the sphere's frame, u = f / 2pi, v = t / pi.
     const float x = dot(s.n, sphere.axis_x), y = dot(s.n, sphere.axis_y),
@@ -165,8 +171,9 @@ TangentFrame SceneData::tangent_frame(const RayHit& hit, const SurfaceHit& s) co
     // An instanced hit's frame is found in object space, then placed: vectors by the instance's
     // 3x3 part, as place_mesh places a world copy's positions and tangents.
     InstanceInfo posed_instance;
-    const InstanceInfo* in =
-        hit.inst != kNoInstance ? &instance_at(hit.inst, s.time, posed_instance) : nullptr;
+    const InstanceInfo* in = hit.inst == kNoInstance ? nullptr
+                             : moves_ ? &instance_at(hit.inst, s.time, posed_instance)
+                                      : &instances_[hit.inst];
     const TriangleInfo* tri;
     const TriangleMesh* object;
     TriangleInfo posed_triangle;

@@ -130,7 +130,10 @@ std::shared_ptr<const UnitRunner::Prepared> UnitRunner::prepare(const wire::Work
     p->scene->film = {unit.film_width(), unit.film_height()};
   }
   const RenderSettings settings = protocol::settings_from_wire(unit.settings());
+  const size_t warned = p->scene->warnings.size();
   add_motion(*p->scene, settings, {}, bundle);  // the poses within an open shutter
+  for (size_t i = warned; i < p->scene->warnings.size(); ++i)
+    log()->warn("job {}: {}", unit.job_id(), p->scene->warnings[i]);
   arena_.execute([&] { p->renderer = std::make_unique<Renderer>(*p->scene, settings); });
   drop_images(*p->scene);  // the renderer holds its own texels
   log()->info(

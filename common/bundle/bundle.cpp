@@ -87,8 +87,8 @@ std::string read_inside(const fs::path& root, const fs::path& rel) {
   }
   struct stat st {};
   if (::fstat(dir.fd, &st) != 0) {
-    throw BundleError(shown.string() + ": cannot read it for the scene bundle: " +
-                      errno_text(errno));
+    throw BundleError(shown.string() +
+                      ": cannot read it for the scene bundle: " + errno_text(errno));
   }
   if (!S_ISREG(st.st_mode)) {
     throw BundleError(shown.string() +
@@ -102,8 +102,8 @@ std::string read_inside(const fs::path& root, const fs::path& rel) {
     const ssize_t n = ::read(dir.fd, buf, sizeof buf);
     if (n < 0 && errno == EINTR) continue;
     if (n < 0) {
-      throw BundleError(shown.string() + ": read error while packing the scene bundle: " +
-                        errno_text(errno));
+      throw BundleError(shown.string() +
+                        ": read error while packing the scene bundle: " + errno_text(errno));
     }
     if (n == 0) break;
     data.append(buf, static_cast<size_t>(n));
@@ -258,7 +258,8 @@ PackedScene pack_scene(const fs::path& scene_file, const fs::path& scene_root) {
 PackedScene pack_gltf_scene(const fs::path& gltf_file, const std::string& camera) {
   GltfOptions options;
   options.camera = camera;
-  (void)load_scene(gltf_file, {}, SceneImages::kCheckOnly, options);  // the camera exists
+  // The camera exists; an animated file keeps its frames in the wrapper (below).
+  const Scene scene = load_scene(gltf_file, {}, SceneImages::kCheckOnly, options);
   PackedScene packed = pack_scene(gltf_file);
   std::string name;  // the camera's name as a JSON string
   for (const unsigned char c : camera) {
@@ -275,8 +276,15 @@ PackedScene pack_gltf_scene(const fs::path& gltf_file, const std::string& camera
     }
   }
   const fs::path gltf(packed.scene_path);
+  // An animated file's frames as the file itself plays them (kGltfFps from frame 1), so that a
+  // frame of the wrapper poses the file at the time the file rendered directly would.
+  const std::string animation =
+      scene.animation ? ", \"animation\": {\"frames\": [" + std::to_string(scene.animation->first) +
+                            ", " + std::to_string(scene.animation->last) +
+                            "], \"fps\": " + std::to_string(int(kGltfFps)) + "}"
+                      : "";
   const std::string json = "{\"gltf\": {\"file\": \"" + gltf.filename().generic_string() +
-                           "\", \"camera\": \"" + name + "\"}}\n";
+                           "\", \"camera\": \"" + name + "\"}" + animation + "}\n";
   add_wrapper(packed, (gltf.parent_path() / gltf.filename()).generic_string(), ".camera.json",
               json);
   return packed;

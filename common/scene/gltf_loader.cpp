@@ -178,8 +178,6 @@ void check_extensions(const gltf::Source& src) {
   if (!ignored.empty())
     src.warn("extensionsUsed",
              "extensions not supported, their data is ignored: " + printable(ignored));
-  if (!src.model->animations.empty())
-    src.warn("animations", "animations are not supported; the scene is rendered as it stands");
   if (!src.model->skins.empty())
     src.warn("skins", "skins are not supported; skinned meshes are rendered in their bind pose");
 }
@@ -258,7 +256,14 @@ GltfResult load_gltf(const fs::path& folder, const fs::path& relative, const Glt
   for (const fs::path& file : access.read) add_referenced(file);
 
   const double duration = gltf::animation_duration(src);
-  if (options.time) gltf::apply_animations(src, model, *options.time);
+  if (options.time) {
+    gltf::apply_animations(src, model, *options.time);
+  } else if (!model.animations.empty()) {
+    // A JSON scene without frames names an animated file: the file plays no part of it.
+    src.warn("animations",
+             "the scene has no \"animation\" block, so the file's animations are not played; "
+             "the file is rendered as it stands");
+  }
   gltf::Materials materials(src, scene, image_bytes, images, relative.lexically_normal());
   GltfResult result = gltf::read_nodes(src, materials, options, scene);
   result.duration = duration;

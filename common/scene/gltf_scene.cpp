@@ -63,9 +63,7 @@ Scene load_gltf_scene(const fs::path& file, const SceneCheck& check, SceneImages
   }
   if (!result.has_camera) {
     scene.camera = default_camera(scene);
-    scene.warnings.push_back(file.string() +
-                             ": the file has no camera; a default one looks down -z at the "
-                             "middle of the meshes");
+    scene.warnings.push_back(file.string() + kDefaultGltfCameraWarning);
   }
   return scene;
 }

@@ -16,6 +16,11 @@ namespace rayfarm {
 /// (16:9 when it says none).
 FilmSize default_gltf_film(double aspect);
 
+/// The end of the warning a glTF file without a camera gets: the default camera it gets
+/// instead is placed from its meshes' bounds at each frame (and kept still within a shutter).
+inline constexpr const char* kDefaultGltfCameraWarning =
+    ": the file has no camera; a default one looks down -z at the middle of the meshes";
+
 /// The glTF file `file` as a scene, at `frame` of its animation (frame 1, time 0, when nullopt;
 /// kGltfFps frames a second). Throws SceneError (SceneRefused when `check` refuses its film).
 Scene load_gltf_scene(const std::filesystem::path& file, const SceneCheck& check,

@@ -4,7 +4,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string_view>
 
+#include "common/scene/gltf_scene.h"
 #include "common/scene/instances.h"
 #include "common/scene/parser.h"
 
@@ -52,8 +54,12 @@ void check_topology(const Scene& frame, const Scene& pose, double offset) {
         frame.meshes.size(), frame.spheres.size(), frame.groups.size(), frame.instances.size()));
   const auto same_mesh = [&](const TriangleMesh& a, const TriangleMesh& b) {
     if (a.positions.size() != b.positions.size() || a.normals.size() != b.normals.size() ||
-        a.indices != b.indices)
+        a.indices.size() != b.indices.size())
       refuse("mesh " + b.origin + " changes its vertices or triangles");
+    if (a.indices != b.indices)  // the same count, another order: a mirror turned its corners
+      refuse("mesh " + b.origin +
+             " changes its triangles (a scale through zero mirrors it, which turns its "
+             "triangles' corners)");
   };
   for (size_t i = 0; i < frame.meshes.size(); ++i) same_mesh(pose.meshes[i], frame.meshes[i]);
   for (size_t g = 0; g < frame.groups.size(); ++g) {
@@ -90,73 +96,96 @@ std::shared_ptr<const SceneMotion> find_motion(const Scene& scene, const RenderS
   if (!settings.shutter_is_open() || !scene.animation) return nullptr;
   auto motion = std::make_shared<SceneMotion>();
   const uint32_t k = std::clamp(settings.motion_steps, kMinMotionSteps, kMaxMotionSteps);
-  std::vector<Scene> poses;
-  poses.reserve(k);
+  // A glTF file's default camera is placed from its meshes' bounds: it would chase them.
+  const bool default_camera =
+      std::any_of(scene.warnings.begin(), scene.warnings.end(), [](const std::string& w) {
+        const std::string_view end = kDefaultGltfCameraWarning;
+        return w.size() >= end.size() && w.compare(w.size() - end.size(), end.size(), end) == 0;
+      });
+  // One pose in memory at a time: what differs from the frame is kept, from the pose where it
+  // first differs (the poses before it are the frame's own values).
+  std::vector<int32_t> mesh_at(scene.meshes.size(), -1), sphere_at(scene.spheres.size(), -1),
+      instance_at(scene.instances.size(), -1);
+  std::vector<uint8_t> still_mesh(scene.meshes.size(), 0), still_sphere(scene.spheres.size(), 0),
+      still_instance(scene.instances.size(), 0), group_changes(scene.groups.size(), 0);
+  bool camera_moves = false;
   for (uint32_t i = 0; i < k; ++i) {
     // The ends exactly: the shutter's own numbers.
     const double open = settings.shutter_open, close = settings.shutter_close;
     const double offset = i + 1 == k ? close : open + (close - open) * double(i) / double(k - 1);
     motion->times.push_back(offset);
-    poses.push_back(load_pose(offset));
-    check_topology(scene, poses.back(), offset);
-  }
-  const auto moving = [&](const auto& pick) {
-    for (const Scene& pose : poses)
-      if (!same_pose(pick(pose), pick(scene))) return true;
-    return false;
-  };
+    Scene pose = load_pose(offset);
+    check_topology(scene, pose, offset);
 
-  if (moving([](const Scene& s) -> const Camera& { return s.camera; })) {
-    for (const Scene& pose : poses) motion->cameras.push_back(pose.camera);
-  }
-  for (uint32_t m = 0; m < scene.meshes.size(); ++m) {
-    if (!moving([m](const Scene& s) -> const TriangleMesh& { return s.meshes[m]; })) continue;
-    if (emits(scene, scene.meshes[m])) {
-      motion->still.push_back("mesh " + scene.meshes[m].origin +
-                              " emits light: it is drawn where the frame puts it");
-      continue;
+    if (!default_camera && (camera_moves || !same_pose(pose.camera, scene.camera))) {
+      if (!camera_moves) motion->cameras.assign(i, scene.camera);
+      camera_moves = true;
+      motion->cameras.push_back(pose.camera);
     }
-    SceneMotion::MeshPoses p{m, {}, {}};
-    for (Scene& pose : poses) {
+    for (uint32_t m = 0; m < scene.meshes.size(); ++m) {
+      if (still_mesh[m]) continue;
+      if (mesh_at[m] < 0) {
+        if (same_pose(pose.meshes[m], scene.meshes[m])) continue;
+        if (emits(scene, scene.meshes[m])) {
+          still_mesh[m] = 1;
+          motion->still.push_back("mesh " + scene.meshes[m].origin +
+                                  " emits light: it is drawn where the frame puts it");
+          continue;
+        }
+        mesh_at[m] = static_cast<int32_t>(motion->meshes.size());
+        SceneMotion::MeshPoses p{m, {}, {}};
+        p.positions.assign(i, scene.meshes[m].positions);
+        if (!scene.meshes[m].normals.empty()) p.normals.assign(i, scene.meshes[m].normals);
+        motion->meshes.push_back(std::move(p));
+      }
+      SceneMotion::MeshPoses& p = motion->meshes[size_t(mesh_at[m])];
       p.positions.push_back(std::move(pose.meshes[m].positions));
       if (!scene.meshes[m].normals.empty()) p.normals.push_back(std::move(pose.meshes[m].normals));
     }
-    motion->meshes.push_back(std::move(p));
-  }
-  for (uint32_t s = 0; s < scene.spheres.size(); ++s) {
-    if (!moving([s](const Scene& x) -> const Sphere& { return x.spheres[s]; })) continue;
-    if (scene.materials[scene.spheres[s].material].is_emissive()) {
-      motion->still.push_back("sphere " + std::to_string(s) +
-                              " emits light: it is drawn where the frame puts it");
-      continue;
+    for (uint32_t s = 0; s < scene.spheres.size(); ++s) {
+      if (still_sphere[s]) continue;
+      if (sphere_at[s] < 0) {
+        if (same_pose(pose.spheres[s], scene.spheres[s])) continue;
+        if (scene.materials[scene.spheres[s].material].is_emissive()) {
+          still_sphere[s] = 1;
+          motion->still.push_back("sphere " + std::to_string(s) +
+                                  " emits light: it is drawn where the frame puts it");
+          continue;
+        }
+        sphere_at[s] = static_cast<int32_t>(motion->spheres.size());
+        motion->spheres.push_back({s, std::vector<Sphere>(i, scene.spheres[s])});
+      }
+      motion->spheres[size_t(sphere_at[s])].poses.push_back(pose.spheres[s]);
     }
-    SceneMotion::SpherePoses p{s, {}};
-    for (const Scene& pose : poses) p.poses.push_back(pose.spheres[s]);
-    motion->spheres.push_back(std::move(p));
-  }
-  for (uint32_t g = 0; g < scene.groups.size(); ++g) {
-    for (uint32_t i = 0; i < scene.groups[g].meshes.size(); ++i) {
-      if (moving([g, i](const Scene& s) -> const TriangleMesh& { return s.groups[g].meshes[i]; })) {
+    for (uint32_t g = 0; g < scene.groups.size(); ++g) {
+      if (group_changes[g]) continue;
+      for (uint32_t m = 0; m < scene.groups[g].meshes.size(); ++m) {
+        if (same_pose(pose.groups[g].meshes[m], scene.groups[g].meshes[m])) continue;
+        group_changes[g] = 1;
         motion->still.push_back("group \"" + scene.groups[g].name +
                                 "\" changes shape: only its placements move");
         break;
       }
     }
-  }
-  for (uint32_t i = 0; i < scene.instances.size(); ++i) {
-    bool moves = false;
-    for (const Scene& pose : poses)
-      moves = moves || pose.instances[i].world_from_object != scene.instances[i].world_from_object;
-    if (!moves) continue;
-    const MeshGroup& group = scene.groups[scene.instances[i].group];
-    if (group_emits(scene, group)) {
-      motion->still.push_back("a placement of group \"" + group.name +
-                              "\" emits light: it is drawn where the frame puts it");
-      continue;
+    for (uint32_t n = 0; n < scene.instances.size(); ++n) {
+      if (still_instance[n]) continue;
+      const Instance& at = scene.instances[n];
+      if (instance_at[n] < 0) {
+        if (pose.instances[n].world_from_object == at.world_from_object) continue;
+        const MeshGroup& group = scene.groups[at.group];
+        if (group_emits(scene, group)) {
+          still_instance[n] = 1;
+          motion->still.push_back("a placement of group \"" + group.name +
+                                  "\" emits light: it is drawn where the frame puts it");
+          continue;
+        }
+        instance_at[n] = static_cast<int32_t>(motion->instances.size());
+        motion->instances.push_back(
+            {n, std::vector<std::array<double, 16>>(i, at.world_from_object)});
+      }
+      motion->instances[size_t(instance_at[n])].poses.push_back(
+          pose.instances[n].world_from_object);
     }
-    SceneMotion::InstancePoses p{i, {}};
-    for (const Scene& pose : poses) p.poses.push_back(pose.instances[i].world_from_object);
-    motion->instances.push_back(std::move(p));
   }
   return motion;
 }

@@ -442,7 +442,17 @@ Scene load_scene_at(const fs::path& file, const SceneCheck& check, SceneImages i
                     const GltfOptions& gltf, const fs::path& scene_root,
                     std::optional<int64_t> frame, double frame_offset) {
   const std::string name = file.string();
-  if (is_gltf_path(file)) return load_gltf_scene(file, check, images, gltf, frame, frame_offset);
+  if (is_gltf_path(file)) {
+    if (frame_offset == 0.0) return load_gltf_scene(file, check, images, gltf, frame);
+    try {
+      return load_gltf_scene(file, check, images, gltf, frame, frame_offset);
+    } catch (const SceneRefused&) {
+      throw;
+    } catch (const SceneError& e) {  // a pose within the shutter: say which
+      throw SceneError(
+          fmt::format("frame {} {:+g} of {}", frame.value_or(1), frame_offset, e.what()));
+    }
+  }
   if (is_mitsuba_path(file)) {
     check_frame(name, std::nullopt, frame);
     return load_mitsuba_scene(file, check, images, scene_root);

@@ -502,7 +502,15 @@ TEST(Gltf, UnsupportedFeaturesAreNamedInWarnings) {
   std::string all;
   for (const std::string& w : scene.warnings) all += w + "\n";
   EXPECT_NE(all.find("KHR_materials_clearcoat"), std::string::npos) << all;
-  EXPECT_NE(all.find("animations"), std::string::npos) << all;
+  // A file rendered directly plays its animations (gltf_animation_test.cpp); a JSON scene
+  // without frames that names it does not, and says so.
+  EXPECT_EQ(all.find("animations"), std::string::npos) << all;
+  const Scene named = load_scene(dir.write("s.json", R"({
+    "gltf": {"file": "w.glb"}, "camera": {"eye": [0, 0, 5], "look_at": [0, 0, 0], "fov_y": 40},
+    "film": {"width": 8, "height": 8}})"));
+  all.clear();
+  for (const std::string& w : named.warnings) all += w + "\n";
+  EXPECT_NE(all.find("animations: the scene has no \"animation\" block"), std::string::npos) << all;
 }
 
 TEST(Gltf, BlendIsPartialCoverage) {

@@ -16,6 +16,7 @@
 #include "common/image/decode_image.h"
 #include "common/util/read_file.h"
 #include "tests/e2e/farm_fixture.h"
+#include "tests/support/gltf_builder.h"
 
 namespace rayfarm::test {
 namespace {
@@ -124,6 +125,41 @@ TEST_F(FramesTest, AMotionBlurredFrameOnTheFarmEqualsTheLocalRender) {
   const fs::path farm = fetch(job);
   EXPECT_TRUE(bit_identical(farm, local_render(scene, blurred)));
   EXPECT_FALSE(bit_identical(farm, local_render(scene, sharp)));  // the blur is there
+
+  // An animated glTF file rendered through its named camera (`--camera`, which the CLI sends as
+  // a small JSON scene naming the file and its frames) and a film override: the worker poses the
+  // file at the frame's and the shutter's times as the CLI does.
+  testing::GltfBuilder b;
+  const int mesh = b.add_quad(-1);
+  b.push("nodes", {{"mesh", mesh}});  // sliding before a glowing backdrop (still)
+  const int glow = b.push("materials", {{"emissiveFactor", {1, 1, 1}}});
+  b.push("cameras", {{"type", "perspective"},
+                     {"perspective", {{"yfov", 0.8}, {"aspectRatio", 1.0}, {"znear", 0.1}}}});
+  b.push("nodes", {{"camera", 0}, {"name", "cam"}, {"translation", {0.5, 0.5, 4}}});
+  b.push("nodes",
+         {{"mesh", b.add_quad(glow)}, {"translation", {-4, -4, -1}}, {"scale", {9, 9, 1}}});
+  b.doc["scenes"] = {{{"nodes", {0, 1, 2}}}};
+  b.doc["scene"] = 0;
+  const int times = b.add_floats({0.f, 1.f}, "SCALAR");
+  const int moves = b.add_floats({-1, 0, 0, 1, 0, 0}, "VEC3");
+  b.push("animations",
+         {{"samplers", {{{"input", times}, {"output", moves}}}},
+          {"channels", {{{"sampler", 0}, {"target", {{"node", 0}, {"path", "translation"}}}}}}});
+  const fs::path glb = dir() / "slide.glb";
+  std::ofstream(glb, std::ios::binary) << b.glb();
+  const std::vector<std::string> gltf_blurred{"--camera", "cam",   "--frame", "7",         "--res",
+                                              "20x20",    "--spp", "4",       "--shutter", "0,3"};
+  const std::string gltf_job = submit(glb, gltf_blurred);
+  wait_for_state(gltf_job, wire::JOB_DONE);
+  const fs::path gltf_farm = fetch(gltf_job);
+  EXPECT_TRUE(bit_identical(gltf_farm, local_render(glb, gltf_blurred)));
+  const std::vector<std::string> gltf_sharp{"--camera", "cam",   "--frame", "7",
+                                            "--res",    "20x20", "--spp",   "4"};
+  EXPECT_FALSE(bit_identical(gltf_farm, local_render(glb, gltf_sharp)));
+  // The same frame sharp on the farm: posed at the frame's time as the file rendered directly.
+  const std::string sharp_job = submit(glb, gltf_sharp);
+  wait_for_state(sharp_job, wire::JOB_DONE);
+  EXPECT_TRUE(bit_identical(fetch(sharp_job), local_render(glb, gltf_sharp)));
 
   // A shutter that closes before it opens is refused by the CLI, naming the option.
   const RunResult bad = cli({"submit", scene.string(), "--shutter", "0.5,-0.5"});

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "common/scene/motion.h"
 #include "common/scene/parser.h"
 #include "tests/worker/mc_stats.h"
 #include "worker/renderer.h"
@@ -46,10 +47,14 @@ TEST(Integrators, AgreeOnTheCornellBoxWithinTheirStatisticalError) {
 class BundledScene : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(BundledScene, RendersFiniteNonBlackImage) {
-  Scene scene = load_scene(std::string(RAYFARM_SOURCE_DIR) + "/scenes/" + GetParam() + "/scene.json");
+  Scene scene =
+      load_scene(std::string(RAYFARM_SOURCE_DIR) + "/scenes/" + GetParam() + "/scene.json");
   EXPECT_TRUE(scene.warnings.empty());
   scene.film = {24, 24};
-  for (IntegratorType integrator : {IntegratorType::kNaive, IntegratorType::kNee, IntegratorType::kMis}) {
+  add_motion(scene, scene.render);  // a scene with an open shutter blurs what moves
+  EXPECT_TRUE(scene.warnings.empty());
+  for (IntegratorType integrator :
+       {IntegratorType::kNaive, IntegratorType::kNee, IntegratorType::kMis}) {
     RenderSettings settings = scene.render;
     settings.integrator = integrator;
     settings.spp = 4;
@@ -60,8 +65,9 @@ TEST_P(BundledScene, RendersFiniteNonBlackImage) {
     for (Fixed v : r.sum) total += v;
     // BSDF sampling alone cannot reach a point light: a scene lit only by point lights is
     // black under the naive integrator, and must be lit under the others.
-    const bool point_lit_only = !scene.point_lights.empty() && std::none_of(
-        scene.materials.begin(), scene.materials.end(), [](const Material& m) { return m.is_emissive(); });
+    const bool point_lit_only = !scene.point_lights.empty() &&
+                                std::none_of(scene.materials.begin(), scene.materials.end(),
+                                             [](const Material& m) { return m.is_emissive(); });
     if (integrator == IntegratorType::kNaive && point_lit_only) {
       EXPECT_EQ(total, 0);
     } else {

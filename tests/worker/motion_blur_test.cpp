@@ -7,12 +7,14 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <random>
 #include <string>
 
 #include "common/scene/motion.h"
 #include "mc_stats.h"
 #include "test_scenes.h"
 #include "worker/renderer.h"
+#include "worker/scene_data.h"
 
 namespace rayfarm {
 namespace {
@@ -164,6 +166,130 @@ TEST(MotionBlur, AClosedShutterRendersTheFrameSharp) {
     const double mean = from_fixed(r.sum[x * 3]) / 64;
     EXPECT_EQ(mean, x >= 2 && x < 6 ? 0.0 : 1.0) << "pixel " << x;
   }
+}
+
+// A floor lit by a slanted directional light under a black strip sliding above it: a pixel is
+// lit while neither its camera ray nor its shadow ray (which crosses the strip's height one unit
+// further along +x) meets the strip, at the sample's time. Light sampling's shadow rays must
+// look at the strip where it is at that time.
+Scene shadowed_floor(double offset) {
+  Scene s = sliding_scene(Mover::kMesh, offset);  // the black strip, made 0.5 wide and raised
+  TriangleMesh& strip = s.meshes[0];
+  for (Vec3& p : strip.positions) {
+    p.x = p.x > static_cast<float>(left_edge(offset)) + 0.5f ? p.x - 0.5f : p.x;
+    p.z = 1.f;
+  }
+  Material white;
+  white.kind = DiffuseMaterial{Vec3(1.f)};
+  s.materials.push_back(white);
+  TriangleMesh floor;
+  floor.positions = {{-10, -10, 0}, {10, -10, 0}, {10, 10, 0}, {-10, 10, 0}};
+  floor.indices = {0, 1, 2, 0, 2, 3};
+  floor.materials = {1, 1};
+  floor.origin = "floor";
+  s.meshes.push_back(floor);
+  s.background = Vec3(0.f);
+  // Travelling towards -x and -z at 45 degrees; irradiance pi: a lit floor point reads cos 45.
+  s.directional_lights.push_back({normalize(Vec3(-1.f, 0.f, -1.f)), Vec3(kPi)});
+  s.render.max_depth = 1;
+  s.render.integrator = IntegratorType::kNee;
+  return s;
+}
+
+TEST(MotionBlur, ShadowRaysSeeTheOccluderAtTheSamplesTime) {
+  constexpr uint32_t kSpp = 4096;
+  RenderSettings settings = shadowed_floor(0.0).render;
+  settings.spp = kSpp;
+  settings.shutter_open = 0.f;
+  settings.shutter_close = 1.5f;
+  settings.motion_steps = 2;
+  Scene scene = shadowed_floor(0.0);
+  scene.motion = find_motion(scene, settings, shadowed_floor);
+  ASSERT_EQ(scene.motion->meshes.size(), 1u);  // the strip; the floor keeps still
+  const TileResult r = Renderer(scene, settings).render({0, 0, kWidth, kHeight}, {0, kSpp});
+  const double lit = std::sqrt(0.5);
+  const double z_max = testing::bonferroni_z(kWidth);
+  size_t shaded = 0;
+  for (uint32_t x = 0; x < kWidth; ++x) {
+    // The fraction of (time, position in the pixel) at which both rays pass the strip.
+    constexpr int kSteps = 512;
+    double clear = 0.0;
+    for (int k = 0; k < kSteps; ++k) {
+      const double a = left_edge(1.5 * (k + 0.5) / kSteps);
+      for (int j = 0; j < kSteps / 8; ++j) {
+        const double px = -2.0 + (x + (j + 0.5) / (kSteps / 8)) * kPixel;
+        const auto blocked = [a](double at) { return at > a && at < a + 0.5; };
+        clear += !blocked(px) && !blocked(px + 1.0);
+      }
+    }
+    const double p = clear / (double(kSteps) * (kSteps / 8));
+    const double mean = from_fixed(r.sum[x * 3]) / kSpp / lit;  // row 0; every row is alike
+    const double se = std::sqrt(std::max(p * (1 - p), 1.0 / kSpp) / kSpp);
+    EXPECT_LT(std::fabs(mean - p) / se, z_max) << "pixel " << x << ": " << mean << " vs " << p;
+    shaded += p < 0.95;
+  }
+  EXPECT_GE(shaded, 8u);
+}
+
+// Where Embree finds a moving shape at a ray's time, the hit point the renderer shades is on
+// the ray: world meshes, spheres and placements (one placed after a flattened emissive one) are
+// posed at the ray's time, not the frame's.
+TEST(MotionBlur, HitsAreShadedWhereTheShapeIsAtTheRaysTime) {
+  const auto posed = [](double offset) {
+    Scene s;
+    s.animation = FrameRange{1, 10, 24.0};
+    s.frame = 1;
+    s.film = {8, 8};
+    Material grey, lamp;
+    lamp.emission = Vec3(1.f);
+    s.materials = {grey, lamp};
+    TriangleMesh quad;
+    quad.positions = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
+    quad.indices = {0, 1, 2, 0, 2, 3};
+    quad.materials = {0, 0};
+    quad.origin = "quad";
+    TriangleMesh lamp_quad = quad;
+    lamp_quad.materials = {1, 1};
+    s.groups.push_back({"lamp", {lamp_quad}});
+    s.groups.push_back({"box", {quad}});
+    const double o = offset;
+    // A lamp placed first (flattened into the world), then the box turning and sliding.
+    s.instances.push_back({0, {1, 0, 0, 5, 0, 1, 0, 5, 0, 0, 1, 0, 0, 0, 0, 1}});
+    const double c = std::cos(0.5 * o), sn = std::sin(0.5 * o);
+    s.instances.push_back({1, {c, -sn, 0, -3 + o, sn, c, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}});
+    TriangleMesh slider = quad;
+    for (Vec3& p : slider.positions) p = p + Vec3(0.f, static_cast<float>(-3 + o), 0.f);
+    s.meshes.push_back(slider);
+    s.spheres.push_back({Vec3(static_cast<float>(2 + o), 0.f, 0.f), 0.5f, 0});
+    return s;
+  };
+  Scene scene = posed(0.0);
+  RenderSettings settings;
+  settings.shutter_close = 2.f;
+  settings.motion_steps = 3;
+  scene.motion = find_motion(scene, settings, posed);
+  ASSERT_EQ(scene.motion->instances.size(), 1u);
+  EXPECT_EQ(scene.motion->instances[0].instance, 1u);
+  const SceneData data(scene);
+  ASSERT_EQ(data.instances(), 1u);
+  ASSERT_EQ(data.flattened_instances(), 1u);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> unit(0.f, 1.f);
+  int hits[3] = {0, 0, 0};  // mesh, sphere, instance
+  for (int i = 0; i < 20000; ++i) {
+    Ray ray;
+    ray.org = Vec3(-4.f + 8.f * unit(rng), -4.f + 8.f * unit(rng), 5.f);
+    ray.dir = Vec3(0.f, 0.f, -1.f);
+    ray.time = unit(rng);
+    const std::optional<RayHit> hit = data.bvh().intersect(ray);
+    if (!hit) continue;
+    const SurfaceHit s = data.resolve(ray, *hit);
+    const Vec3 on_ray = ray.org + ray.dir * hit->t;
+    ASSERT_LT(length(s.p - on_ray), 1e-4f)
+        << "geom " << hit->geom << " inst " << hit->inst << " at time " << ray.time;
+    ++hits[hit->geom == kSphereGeometry ? 1 : hit->inst != kNoInstance ? 2 : 0];
+  }
+  for (int h : hits) EXPECT_GT(h, 100);
 }
 
 // ---- the contract: (seed, pixel, sample) alone decide the image --------------------------------
