@@ -9,20 +9,13 @@
 #include <random>
 #include <stdexcept>
 
+#include "mc_stats.h"
 #include "test_scenes.h"
 #include "worker/renderer.h"
 #include "worker/scene_data.h"
 
 namespace rayfarm {
 namespace {
-
-Film render_with(const Renderer& renderer, uint32_t threads, uint32_t tile, uint32_t pass_spp) {
-  LocalRenderOptions options;
-  options.threads = threads;
-  options.tile_size = tile;
-  options.pass_spp = pass_spp;
-  return render_local(renderer, options);
-}
 
 void expect_identical(const Film& a, const Film& b) {
   ASSERT_EQ(a.width(), b.width());
@@ -43,17 +36,19 @@ TEST_P(DeterminismTest, ThreadsTilesAndPassesDoNotChangeTheImage) {
   settings.spp = 12;
   settings.seed = 42;
   Renderer renderer(scene, settings);
-  const Film reference = render_with(renderer, 1, 64, 12);
-  expect_identical(reference, render_with(renderer, 2, 64, 12));
-  expect_identical(reference, render_with(renderer, 2, 16, 4));
-  expect_identical(reference, render_with(renderer, 1, 7, 5));
+  const Film reference = testing::render_with(renderer, 1, 64, 12);
+  expect_identical(reference, testing::render_with(renderer, 2, 64, 12));
+  expect_identical(reference, testing::render_with(renderer, 2, 16, 4));
+  expect_identical(reference, testing::render_with(renderer, 1, 7, 5));
   EXPECT_GT(reference.rays(), 0u);
 }
 
 INSTANTIATE_TEST_SUITE_P(AllIntegrators, DeterminismTest,
                          ::testing::Values(IntegratorType::kNaive, IntegratorType::kNee,
                                            IntegratorType::kMis),
-                         [](const auto& test_info) { return std::string(integrator_name(test_info.param)); });
+                         [](const auto& test_info) {
+                           return std::string(integrator_name(test_info.param));
+                         });
 
 TEST(Determinism, ShuffledUnitsMergeToTheSameBits) {
   const Scene scene = testing::small_room_scene();
@@ -78,8 +73,8 @@ TEST(Determinism, SeedChangesTheImage) {
   RenderSettings a = scene.render, b = scene.render;
   a.spp = b.spp = 4;
   b.seed = a.seed + 1;
-  const Film fa = render_with(Renderer(scene, a), 1, 64, 4);
-  const Film fb = render_with(Renderer(scene, b), 1, 64, 4);
+  const Film fa = testing::render_with(Renderer(scene, a), 1, 64, 4);
+  const Film fb = testing::render_with(Renderer(scene, b), 1, 64, 4);
   EXPECT_FALSE(fa.sum() == fb.sum());
 }
 
@@ -90,8 +85,9 @@ TEST(Determinism, DiffuseOnlyRendererRendersTheSameBits) {
   RenderSettings settings = scene.render;
   settings.spp = 4;
   settings.max_depth = 8;
-  const Film all = render_with(Renderer(scene, settings), 1, 64, 4);
-  const Film diffuse = render_with(Renderer(scene, settings, BsdfKinds::kDiffuseOnly), 1, 64, 4);
+  const Film all = testing::render_with(Renderer(scene, settings), 1, 64, 4);
+  const Film diffuse =
+      testing::render_with(Renderer(scene, settings, BsdfKinds::kDiffuseOnly), 1, 64, 4);
   expect_identical(all, diffuse);
   EXPECT_THROW(Renderer(testing::small_room_scene(), settings, BsdfKinds::kDiffuseOnly),
                std::runtime_error);
@@ -106,8 +102,9 @@ TEST(Determinism, BasicKindsRendererRendersTheSameBits) {
     RenderSettings settings = scene.render;
     settings.spp = 4;
     settings.integrator = integrator;
-    const Film basic = render_with(Renderer(scene, settings), 1, 64, 4);
-    const Film every = render_with(Renderer(scene, settings, BsdfKinds::kEveryKind), 1, 64, 4);
+    const Film basic = testing::render_with(Renderer(scene, settings), 1, 64, 4);
+    const Film every =
+        testing::render_with(Renderer(scene, settings, BsdfKinds::kEveryKind), 1, 64, 4);
     expect_identical(basic, every);
   }
 }
@@ -143,9 +140,9 @@ TEST(Determinism, PlainGeneralAndSurfaceLoopsRenderTheSameBits) {
     RenderSettings settings = plain.render;
     settings.spp = 4;
     settings.integrator = integrator;
-    const Film reference = render_with(Renderer(plain, settings), 1, 64, 4);
-    expect_identical(reference, render_with(Renderer(general, settings), 1, 64, 4));
-    expect_identical(reference, render_with(Renderer(surface, settings), 1, 64, 4));
+    const Film reference = testing::render_with(Renderer(plain, settings), 1, 64, 4);
+    expect_identical(reference, testing::render_with(Renderer(general, settings), 1, 64, 4));
+    expect_identical(reference, testing::render_with(Renderer(surface, settings), 1, 64, 4));
   }
 }
 

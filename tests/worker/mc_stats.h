@@ -23,6 +23,16 @@ struct Estimate {
   RenderStats stats;
 };
 
+/// The whole image rendered as `rayfarm render` does, with these threads, tile size and pass size.
+inline Film render_with(const Renderer& renderer, uint32_t threads, uint32_t tile,
+                        uint32_t pass_spp) {
+  LocalRenderOptions options;
+  options.threads = threads;
+  options.tile_size = tile;
+  options.pass_spp = pass_spp;
+  return render_local(renderer, options);
+}
+
 /// Renders every pixel of `scene` with `settings` as one unit.
 inline TileResult render_all(const Scene& scene, const RenderSettings& settings,
                              RenderStats* stats = nullptr) {
@@ -123,8 +133,8 @@ inline size_t expect_same_within_noise(const BlockStats& a, const BlockStats& b,
       continue;
     }
     const double z = (a.mean[i] - b.mean[i]) / se;
-    EXPECT_LT(std::fabs(z), z_max) << what << ": block value " << i << ": " << a.mean[i]
-                                   << " vs " << b.mean[i] << " (se " << se << ")";
+    EXPECT_LT(std::fabs(z), z_max) << what << ": block value " << i << ": " << a.mean[i] << " vs "
+                                   << b.mean[i] << " (se " << se << ")";
     ++compared;
   }
   return compared;

@@ -311,14 +311,6 @@ Scene moving_room(double offset) {
   return s;
 }
 
-Film render_with(const Renderer& renderer, uint32_t threads, uint32_t tile, uint32_t pass_spp) {
-  LocalRenderOptions options;
-  options.threads = threads;
-  options.tile_size = tile;
-  options.pass_spp = pass_spp;
-  return render_local(renderer, options);
-}
-
 TEST(MotionBlur, ThreadsTilesAndPassesDoNotChangeABlurredImage) {
   for (SamplerType sampler : {SamplerType::kSobol, SamplerType::kIndependent}) {
     Scene scene = moving_room(0.0);
@@ -339,14 +331,14 @@ TEST(MotionBlur, ThreadsTilesAndPassesDoNotChangeABlurredImage) {
                                    "1 placements and the camera move"),
               std::string::npos)
         << renderer.plan();
-    const Film a = render_with(renderer, 1, 64, 8);
-    const Film b = render_with(renderer, 2, 7, 3);
+    const Film a = testing::render_with(renderer, 1, 64, 8);
+    const Film b = testing::render_with(renderer, 2, 7, 3);
     EXPECT_TRUE(a.sum() == b.sum()) << sampler_name(sampler);
     EXPECT_TRUE(a.sum_sq() == b.sum_sq()) << sampler_name(sampler);
     // And the blur is there: the closed shutter's image differs.
     RenderSettings closed = settings;
     closed.shutter_close = closed.shutter_open;
-    const Film sharp = render_with(Renderer(moving_room(0.0), closed), 2, 16, 8);
+    const Film sharp = testing::render_with(Renderer(moving_room(0.0), closed), 2, 16, 8);
     EXPECT_FALSE(a.sum() == sharp.sum()) << sampler_name(sampler);
   }
 }
@@ -365,10 +357,10 @@ TEST(MotionBlur, NothingMovingChangesNoBit) {
   animated.motion = find_motion(animated, open, [&](double) { return animated; });
   ASSERT_NE(animated.motion, nullptr);
   EXPECT_FALSE(animated.motion->moves());
-  const Film sharp = render_with(Renderer(testing::small_room_scene(), closed), 2, 16, 8);
-  const Film same = render_with(Renderer(animated, open), 2, 16, 8);
+  const Film sharp = testing::render_with(Renderer(testing::small_room_scene(), closed), 2, 16, 8);
+  const Film same = testing::render_with(Renderer(animated, open), 2, 16, 8);
   EXPECT_TRUE(sharp.sum() == same.sum());
-  const Film still = render_with(Renderer(testing::small_room_scene(), open), 2, 16, 8);
+  const Film still = testing::render_with(Renderer(testing::small_room_scene(), open), 2, 16, 8);
   EXPECT_TRUE(sharp.sum() == still.sum());
 }
 
