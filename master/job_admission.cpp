@@ -204,7 +204,7 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
           last = load_scene(dir / request.scene_path(), check, SceneImages::kCheckOnly, {}, dir,
                             frames->last);
         }
-        // With an open shutter, those frames' poses within it load too (motion.h).
+        // With an open shutter, those frames' poses at its ends load too (motion.h).
         RenderSettings shutter = scene.render;
         const wire::JobOverrides& o = request.overrides();
         if (o.has_shutter_open() && o.has_shutter_close()) {
@@ -215,7 +215,7 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
         if (!shutter_problem(shutter.shutter_open, shutter.shutter_close, shutter.motion_steps)) {
           for (const Scene* s : {&scene, last ? &*last : nullptr}) {
             if (s == nullptr) continue;
-            (void)find_motion(*s, shutter, [&](double offset) {
+            check_shutter_ends(*s, shutter, [&](double offset) {
               return load_scene_pose(dir / request.scene_path(), {}, dir, s->frame, offset);
             });
           }

@@ -276,15 +276,16 @@ PackedScene pack_gltf_scene(const fs::path& gltf_file, const std::string& camera
     }
   }
   const fs::path gltf(packed.scene_path);
-  // An animated file's frames as the file itself plays them (kGltfFps from frame 1), so that a
-  // frame of the wrapper poses the file at the time the file rendered directly would.
+  // Posed as the file rendered directly: an animated file over its own frames (kGltfFps from
+  // frame 1), any other at time 0 (an animation of one key still poses its nodes).
   const std::string animation =
       scene.animation ? ", \"animation\": {\"frames\": [" + std::to_string(scene.animation->first) +
                             ", " + std::to_string(scene.animation->last) +
                             "], \"fps\": " + std::to_string(int(kGltfFps)) + "}"
                       : "";
   const std::string json = "{\"gltf\": {\"file\": \"" + gltf.filename().generic_string() +
-                           "\", \"camera\": \"" + name + "\"}" + animation + "}\n";
+                           "\", \"camera\": \"" + name + "\"" +
+                           (scene.animation ? "" : ", \"time\": 0") + "}" + animation + "}\n";
   add_wrapper(packed, (gltf.parent_path() / gltf.filename()).generic_string(), ".camera.json",
               json);
   return packed;

@@ -262,7 +262,7 @@ GltfResult load_gltf(const fs::path& folder, const fs::path& relative, const Glt
     // A JSON scene without frames names an animated file: the file plays no part of it.
     src.warn("animations",
              "the scene has no \"animation\" block, so the file's animations are not played; "
-             "the file is rendered as it stands");
+             "the file is rendered as it stands (gltf.time poses it)");
   }
   gltf::Materials materials(src, scene, image_bytes, images, relative.lexically_normal());
   GltfResult result = gltf::read_nodes(src, materials, options, scene);

@@ -1,5 +1,7 @@
 #include "common/scene/gltf_scene.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 
@@ -39,7 +41,9 @@ Camera default_camera(const Scene& scene) {
 
 }  // namespace
 
-Scene load_gltf_scene(const fs::path& file, const SceneCheck& check, SceneImages images,
+namespace {
+
+Scene load_gltf_frame(const fs::path& file, const SceneCheck& check, SceneImages images,
                       GltfOptions options, std::optional<int64_t> frame, double frame_offset) {
   Scene scene;
   scene.source = file;
@@ -66,6 +70,22 @@ Scene load_gltf_scene(const fs::path& file, const SceneCheck& check, SceneImages
     scene.warnings.push_back(file.string() + kDefaultGltfCameraWarning);
   }
   return scene;
+}
+
+}  // namespace
+
+Scene load_gltf_scene(const fs::path& file, const SceneCheck& check, SceneImages images,
+                      GltfOptions options, std::optional<int64_t> frame, double frame_offset) {
+  if (frame_offset == 0.0)
+    return load_gltf_frame(file, check, images, std::move(options), frame, 0.0);
+  try {
+    return load_gltf_frame(file, check, images, std::move(options), frame, frame_offset);
+  } catch (const SceneRefused&) {
+    throw;
+  } catch (const SceneError& e) {  // a pose within the shutter: say which
+    throw SceneError(
+        fmt::format("frame {} {:+g} of {}", frame.value_or(1), frame_offset, e.what()));
+  }
 }
 
 }  // namespace rayfarm

@@ -190,6 +190,13 @@ std::shared_ptr<const SceneMotion> find_motion(const Scene& scene, const RenderS
   return motion;
 }
 
+void check_shutter_ends(const Scene& scene, const RenderSettings& settings,
+                        const PoseLoader& load_pose) {
+  if (!settings.shutter_is_open() || !scene.animation) return;
+  for (const double offset : {double(settings.shutter_open), double(settings.shutter_close)})
+    check_topology(scene, load_pose(offset), offset);
+}
+
 void add_motion(Scene& scene, const RenderSettings& settings, const GltfOptions& gltf,
                 const std::filesystem::path& root) {
   scene.motion = find_motion(scene, settings, [&](double offset) {

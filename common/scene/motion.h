@@ -78,6 +78,12 @@ using PoseLoader = std::function<Scene(double offset)>;
 std::shared_ptr<const SceneMotion> find_motion(const Scene& scene, const RenderSettings& settings,
                                                const PoseLoader& load_pose);
 
+/// What the master checks at admission, at the cost of two reads and one pose in memory: the
+/// poses at the shutter's opening and closing load, with the frame's shapes. Throws SceneError as
+/// find_motion() does; nothing when the shutter is closed or the scene a still.
+void check_shutter_ends(const Scene& scene, const RenderSettings& settings,
+                        const PoseLoader& load_pose);
+
 /// find_motion() for a scene that load_scene() read from scene.source (with these glTF options
 /// and root): sets scene.motion, and adds a warning for each thing that stays still. A Renderer
 /// refuses an animated scene with an open shutter whose motion was not found for its settings.

@@ -167,15 +167,22 @@ class SceneReader {
 
   // ---- glTF ----
 
-  /// "gltf": {"file": NAME, "camera": NAME}: the file's meshes, materials (which "materials"
-  /// may then override by name) and lights join the scene.
+  /// "gltf": {"file": NAME, "camera": NAME, "time": SECONDS}: the file's meshes, materials
+  /// (which "materials" may then override by name) and lights join the scene.
   GltfResult read_gltf(const Node& n, const std::optional<Node>& materials) {
-    n.allow_keys({"file", "camera"});
+    n.allow_keys({"file", "camera", "time"});
     const Node file = n.require("file");
     const fs::path relative = mesh_path(file);
     if (!is_gltf_path(relative)) file.fail("expected a .gltf or .glb file");
     GltfOptions options;
     if (auto c = n.find("camera")) options.camera = read_string(*c);
+    // A still scene may pose the file's animations at a time of its choosing.
+    if (auto t = n.find("time")) {
+      if (scene_.animation) t->fail("an animated scene poses the file at its frames' times");
+      const double seconds = read_number(*t);
+      if (!(seconds >= 0.0 && seconds <= 1e9)) t->fail("expected seconds from 0 to 1e9");
+      options.time = seconds;
+    }
     // An animated scene poses the file's nodes at its frame's time, its first frame at time 0.
     if (scene_.frame) {
       options.time =
@@ -442,17 +449,7 @@ Scene load_scene_at(const fs::path& file, const SceneCheck& check, SceneImages i
                     const GltfOptions& gltf, const fs::path& scene_root,
                     std::optional<int64_t> frame, double frame_offset) {
   const std::string name = file.string();
-  if (is_gltf_path(file)) {
-    if (frame_offset == 0.0) return load_gltf_scene(file, check, images, gltf, frame);
-    try {
-      return load_gltf_scene(file, check, images, gltf, frame, frame_offset);
-    } catch (const SceneRefused&) {
-      throw;
-    } catch (const SceneError& e) {  // a pose within the shutter: say which
-      throw SceneError(
-          fmt::format("frame {} {:+g} of {}", frame.value_or(1), frame_offset, e.what()));
-    }
-  }
+  if (is_gltf_path(file)) return load_gltf_scene(file, check, images, gltf, frame, frame_offset);
   if (is_mitsuba_path(file)) {
     check_frame(name, std::nullopt, frame);
     return load_mitsuba_scene(file, check, images, scene_root);

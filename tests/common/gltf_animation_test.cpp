@@ -134,6 +134,31 @@ TEST(GltfAnimation, TheLastFrameOfAKeyTimeThatFloatRoundsUpIsTheLastKey) {
   EXPECT_NEAR(min_x(load_at(glb, 5)), 1.5f, 1e-4);  // 4/24 s: half way
 }
 
+// A still JSON scene may pose the file at a time of its choosing (the wrapper `submit --camera`
+// sends poses a file whose animations have no length at time 0, as the direct render does).
+TEST(GltfAnimation, AStillJsonScenePosesTheFileAtItsTime) {
+  TempDir dir;
+  dir.write("m.glb", animated().glb());
+  const auto at = [&](const std::string& gltf) {
+    return load_scene(
+        dir.write("s.json", R"({"gltf": )" + gltf + R"(, "film": {"width": 8, "height": 8}})"));
+  };
+  const Scene posed = at(R"({"file": "m.glb", "time": 0.5})");
+  EXPECT_NEAR(min_x(posed), 1.f, 1e-5);
+  EXPECT_NEAR(max_x(posed), 4.f, 1e-5);
+  EXPECT_FALSE(posed.animation.has_value());
+  const Scene as_written = at(R"({"file": "m.glb"})");
+  EXPECT_NEAR(min_x(as_written), 0.f, 1e-6);
+  try {
+    (void)load_scene(dir.write("a.json", R"({"animation": {"frames": [1, 5]},
+      "gltf": {"file": "m.glb", "time": 0.5}, "film": {"width": 8, "height": 8}})"));
+    ADD_FAILURE() << "a time in an animated scene was accepted";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("/gltf/time"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW((void)at(R"({"file": "m.glb", "time": -1})"), SceneError);
+}
+
 TEST(GltfAnimation, AJsonSceneNamingAnAnimatedFilePlaysItOverItsOwnFrames) {
   TempDir dir;
   dir.write("m.glb", animated().glb());

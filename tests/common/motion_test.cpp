@@ -86,6 +86,30 @@ TEST(Motion, JsonKeyframesArePosedAcrossTheShutter) {
   }));
 }
 
+// A camera (or shape) that first differs from the frame at a later pose keeps the frame's value
+// at the poses before: a shutter opening at the frame itself.
+TEST(Motion, PosesBeforeTheFirstChangeAreTheFrames) {
+  TempDir dir;
+  const auto file = dir.write("s.json", sliding(R"({"shutter": [0, 1], "motion_steps": 3})"));
+  Scene scene = load_scene(file, {}, SceneImages::kKeep, {}, {}, 4);
+  add_motion(scene, scene.render);
+  ASSERT_NE(scene.motion, nullptr);
+  const SceneMotion& m = *scene.motion;
+  ASSERT_EQ(m.cameras.size(), 3u);
+  EXPECT_EQ(m.cameras[0].look_at, scene.camera.look_at);
+  EXPECT_FLOAT_EQ(m.cameras[2].look_at.x, 4.f);
+  ASSERT_EQ(m.meshes.size(), 1u);
+  EXPECT_EQ(m.meshes[0].positions[0], scene.meshes[1].positions);
+  EXPECT_FLOAT_EQ(min_x(m.meshes[0].positions[1]), 3.5f);
+  ASSERT_EQ(m.spheres.size(), 1u);
+  EXPECT_EQ(m.spheres[0].poses.size(), 3u);
+  EXPECT_EQ(m.spheres[0].poses[0].center, scene.spheres[0].center);
+  // The ends alone, as the master checks them at admission.
+  EXPECT_NO_THROW(check_shutter_ends(scene, scene.render, [&](double offset) {
+    return load_scene_pose(file, {}, {}, scene.frame, offset);
+  }));
+}
+
 TEST(Motion, AClosedShutterOrAStillSceneHasNoMotion) {
   TempDir dir;
   Scene closed = load_scene(dir.write("c.json", sliding("{}")), {}, SceneImages::kKeep, {}, {}, 4);
@@ -147,6 +171,9 @@ TEST(Motion, GltfAnimationsArePosedAcrossTheShutter) {
   ASSERT_EQ(direct.motion->meshes.size(), 1u);
   EXPECT_NEAR(min_x(direct.motion->meshes[0].positions[0]), 6.f, 1e-4);
   EXPECT_NEAR(min_x(direct.motion->meshes[0].positions[1]), 6.5f, 1e-4);
+  // The file has no camera: the default one, placed from the meshes' bounds at the frame, keeps
+  // still instead of chasing the quad.
+  EXPECT_TRUE(direct.motion->cameras.empty());
 
   // Named by a JSON scene with frames of its own (12 a second from frame 10): frame 16 is t = 0.5
   // s.
