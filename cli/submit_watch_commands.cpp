@@ -22,6 +22,7 @@
 #include "common/bundle/bundle.h"
 #include "common/limits.h"
 #include "common/protocol/convert.h"
+#include "common/scene/animation.h"
 #include "common/scene/frames.h"
 #include "common/scene/parser.h"
 #include "common/util/read_file.h"
@@ -125,6 +126,12 @@ int run_submit(const SubmitArgs& args) {
     frames = check_frames_option(*args.frames, args.source, args.stop.reference.has_value());
   }
   const bool list = args.source.is_list();
+  // One frame of a scene is checked against its animation here too, naming the scene the user
+  // gave (the master would name the bundle's file, e.g. a glTF camera's wrapper).
+  if (!list && args.frame) {
+    args.source.check();
+    check_frame(args.source.scene, load_scene_animation(args.source.scene), args.frame);
+  }
   // A list without frames is refused (load says why); one frame of it must be a still.
   if (list && !frames) (void)args.source.load(SceneImages::kCheckOnly, args.frame);
   std::vector<fs::path> files;

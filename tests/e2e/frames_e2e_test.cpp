@@ -161,6 +161,14 @@ TEST_F(FramesTest, AMotionBlurredFrameOnTheFarmEqualsTheLocalRender) {
   wait_for_state(sharp_job, wire::JOB_DONE);
   EXPECT_TRUE(bit_identical(fetch(sharp_job), local_render(glb, gltf_sharp)));
 
+  // A frame the file does not have is refused naming the file the user gave.
+  const RunResult beyond = cli({"submit", glb.string(), "--camera", "cam", "--frame", "99"});
+  EXPECT_EQ(beyond.code, 1);
+  EXPECT_NE(beyond.err.find("slide.glb: /animation/frames: frame 99 is outside the scene's "
+                            "frames 1-25"),
+            std::string::npos)
+      << beyond.err;
+
   // A shutter that closes before it opens is refused by the CLI, naming the option.
   const RunResult bad = cli({"submit", scene.string(), "--shutter", "0.5,-0.5"});
   EXPECT_NE(bad.code, 0);
