@@ -163,14 +163,14 @@ wire::ImageData JobManager::image(const std::string& id, bool movie, bool sheet)
       out.set_mp4(std::move(*mp4));
       return out;
     }
-    auto sheet = read(SequencePreviews::kSheetName);
-    if (!sheet) {
+    auto png = read(SequencePreviews::kSheetName);
+    if (!png) {
       throw JobRejected(
           fmt::format("sequence {} has no contact sheet yet (no frame is done); its frames: "
                       "--frame N or --all",
                       id));
     }
-    out.set_png(std::move(*sheet));
+    out.set_png(std::move(*png));
     return out;
   }
   auto it = jobs_.find(id);
