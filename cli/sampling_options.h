@@ -2,34 +2,34 @@
 // How paths are sampled and ended, as `rayfarm render` and `rayfarm submit` both take it:
 // --max-depth (a number or "unlimited"), --sampler, --roulette, --roulette-depth; and the
 // shutter of motion blur, --shutter OPEN,CLOSE and --motion-steps.
-#include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <optional>
 #include <string>
+#include <tuple>
 #include <utility>
 
 #include <CLI/CLI.hpp>
 
+#include "common/scene/motion.h"
 #include "common/scene/scene.h"
 
 namespace rayfarm::cli {
 
-/// "OPEN,CLOSE" in frames after the frame (OPEN <= CLOSE, both within +-kMaxShutterFrames);
-/// nullopt when malformed.
+/// "OPEN,CLOSE" in frames after the frame, a shutter that shutter_problem() accepts; nullopt
+/// when malformed or not.
 inline std::optional<std::pair<float, float>> parse_shutter(const std::string& text) {
   const size_t comma = text.find(',');
   if (comma == std::string::npos) return std::nullopt;
-  const auto number = [](const std::string& t) -> std::optional<double> {
-    if (t.empty()) return std::nullopt;
+  const auto number = [](const std::string& t) -> std::optional<float> {
     char* end = nullptr;
     const double v = std::strtod(t.c_str(), &end);
-    if (end != t.c_str() + t.size() || !(std::fabs(v) <= kMaxShutterFrames)) return std::nullopt;
-    return v;
+    if (t.empty() || end != t.c_str() + t.size()) return std::nullopt;
+    return static_cast<float>(v);
   };
   const auto open = number(text.substr(0, comma)), close = number(text.substr(comma + 1));
-  if (!open || !close || *close < *open) return std::nullopt;
-  return std::make_pair(static_cast<float>(*open), static_cast<float>(*close));
+  if (!open || !close || shutter_problem(*open, *close, kDefaultMotionSteps)) return std::nullopt;
+  return std::make_pair(*open, *close);
 }
 
 struct SamplingArgs {

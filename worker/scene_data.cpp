@@ -77,8 +77,7 @@ SceneData::SceneData(const Scene& scene) : scene_(scene) {
   std::vector<Bvh::InstanceInput> placements;
   for (size_t i = 0; i < instances_.size(); ++i) {
     placements.push_back({instances_[i].group, instances_[i].m, {}});
-    if (moves_)
-      for (const InstanceInfo& pose : instance_poses_[i]) placements.back().poses.push_back(pose.m);
+    if (moves_) placements.back().poses = instance_poses_[i];
   }
   const auto none = [](const std::vector<uint8_t>& v) {
     return std::none_of(v.begin(), v.end(), [](uint8_t x) { return x != 0; });
@@ -119,10 +118,11 @@ void SceneData::build_motion(const std::vector<uint32_t>& kept) {
   for (const SceneMotion::InstancePoses& p : motion->instances) {
     if (p.instance >= left.size() || left[p.instance] < 0) continue;  // flattened: still
     const auto i = static_cast<size_t>(left[p.instance]);
+    // World from object as 3x4 float rows, as the frame's placement is stored (instance_info).
     for (const std::array<double, 16>& m : p.poses) {
-      std::array<double, 12> rows;
-      std::copy(m.begin(), m.begin() + 12, rows.begin());
-      instance_poses_[i].push_back(instance_info(rows, scene_.instances[i].group));
+      std::array<float, 12> rows;
+      for (size_t e = 0; e < 12; ++e) rows[e] = static_cast<float>(m[e]);
+      instance_poses_[i].push_back(rows);
     }
   }
 }
@@ -155,12 +155,12 @@ SceneData::InstanceInfo SceneData::instance_info(const std::array<double, 12>& r
 
 const SceneData::InstanceInfo& SceneData::instance_at(uint32_t index, float time,
                                                       InstanceInfo& scratch) const {
-  const std::vector<InstanceInfo>& poses = instance_poses_[index];
+  const std::vector<std::array<float, 12>>& poses = instance_poses_[index];
   if (poses.empty()) return instances_[index];
   // The placement Embree traced: the poses' matrices blended element by element.
   const PoseBlend b = pose_blend(poses_, time);
   std::array<double, 12> rows;
-  for (size_t e = 0; e < 12; ++e) rows[e] = blend(poses[b.i].m[e], poses[b.i + 1].m[e], b.f);
+  for (size_t e = 0; e < 12; ++e) rows[e] = blend(poses[b.i][e], poses[b.i + 1][e], b.f);
   scratch = instance_info(rows, instances_[index].group);
   return scratch;
 }

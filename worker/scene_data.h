@@ -262,7 +262,7 @@ class SceneData {
   uint32_t poses_ = 0;
   std::vector<int32_t> mesh_motion_;
   std::vector<int32_t> sphere_motion_;
-  std::vector<std::vector<InstanceInfo>> instance_poses_;
+  std::vector<std::vector<std::array<float, 12>>> instance_poses_;
   std::vector<std::vector<Bvh::SphereInput>> sphere_poses_;
   static InstanceInfo instance_info(const std::array<double, 12>& rows, uint32_t group);
 };

@@ -171,7 +171,7 @@ TEST_F(FramesTest, AMotionBlurredFrameOnTheFarmEqualsTheLocalRender) {
 
   // A shutter that closes before it opens is refused by the CLI, naming the option.
   const RunResult bad = cli({"submit", scene.string(), "--shutter", "0.5,-0.5"});
-  EXPECT_NE(bad.code, 0);
+  EXPECT_EQ(bad.code, 2);  // a usage error
   EXPECT_NE(bad.err.find("--shutter"), std::string::npos) << bad.err;
 }
 
