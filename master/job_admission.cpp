@@ -26,6 +26,17 @@ using namespace detail;
 
 namespace {
 
+/// The job's shutter overrides applied to `s`; false when only one end is given.
+bool apply_shutter_overrides(const wire::JobOverrides& o, RenderSettings& s) {
+  if (o.has_shutter_open() != o.has_shutter_close()) return false;
+  if (o.has_shutter_open()) {
+    s.shutter_open = o.shutter_open();
+    s.shutter_close = o.shutter_close();
+  }
+  if (o.has_motion_steps()) s.motion_steps = o.motion_steps();
+  return true;
+}
+
 constexpr uint64_t kMaxUnits = uint64_t{1} << 26;
 
 int64_t unix_ms_now() {
@@ -204,21 +215,18 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
           last = load_scene(dir / request.scene_path(), check, SceneImages::kCheckOnly, {}, dir,
                             frames->last);
         }
-        // With an open shutter, those frames' poses at its ends load too (motion.h).
+        // With an open shutter, those frames' poses at its ends load too (motion.h); a shutter
+        // that cannot be is refused with the other settings below.
         RenderSettings shutter = scene.render;
-        const wire::JobOverrides& o = request.overrides();
-        if (o.has_shutter_open() && o.has_shutter_close()) {
-          shutter.shutter_open = o.shutter_open();
-          shutter.shutter_close = o.shutter_close();
-        }
-        if (o.has_motion_steps()) shutter.motion_steps = o.motion_steps();
-        if (!shutter_problem(shutter.shutter_open, shutter.shutter_close, shutter.motion_steps)) {
-          for (const Scene* s : {&scene, last ? &*last : nullptr}) {
-            if (s == nullptr) continue;
-            check_shutter_ends(*s, shutter, [&](double offset) {
-              return load_scene_pose(dir / request.scene_path(), {}, dir, s->frame, offset);
+        if (apply_shutter_overrides(request.overrides(), shutter) &&
+            !shutter_problem(shutter.shutter_open, shutter.shutter_close, shutter.motion_steps)) {
+          const auto check_ends = [&](const Scene& at) {
+            check_shutter_ends(at, shutter, [&](double offset) {
+              return load_scene_pose(dir / request.scene_path(), {}, dir, at.frame, offset);
             });
-          }
+          };
+          check_ends(scene);
+          if (last) check_ends(*last);
         }
       }
     } catch (const std::exception& e) {
@@ -286,13 +294,8 @@ JobManager::PreparedJob JobManager::prepare(const wire::SubmitJob& request,
     throw JobRejected(fmt::format("roulette depth must be at most {}, got {}", kMaxRouletteDepth,
                                   spec.settings.roulette_depth));
   }
-  if (o.has_shutter_open() != o.has_shutter_close())
+  if (!apply_shutter_overrides(o, spec.settings))
     throw JobRejected("the shutter override needs both ends (open and close)");
-  if (o.has_shutter_open()) {
-    spec.settings.shutter_open = o.shutter_open();
-    spec.settings.shutter_close = o.shutter_close();
-  }
-  if (o.has_motion_steps()) spec.settings.motion_steps = o.motion_steps();
   if (auto why = shutter_problem(spec.settings.shutter_open, spec.settings.shutter_close,
                                  spec.settings.motion_steps))
     throw JobRejected("motion blur: " + *why);
