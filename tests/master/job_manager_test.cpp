@@ -4,15 +4,17 @@
 // inconsistent results lose nothing already merged; unfinished jobs restart after a restart.
 #include <gtest/gtest.h>
 
+#include <functional>
+
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
-#include <algorithm>
 #include <cmath>
-#include <thread>
 #include <fstream>
 #include <iterator>
+#include <thread>
 
 #include "common/bundle/bundle.h"
 #include "common/image/exr.h"
@@ -26,10 +28,10 @@ namespace {
 namespace fs = std::filesystem;
 namespace protocol = rayfarm::protocol;
 
-using testing::read_file;
-using testing::TempDir;
 using test_jobs::furnace_job;
 using test_jobs::result_for;
+using testing::read_file;
+using testing::TempDir;
 
 wire::SubmitJob job_with_scene_text(const std::string& text) {
   wire::SubmitJob request;
@@ -75,6 +77,45 @@ TEST_F(JobManagerTest, ABadBundleOrBadOverridesAreRejected) {
   EXPECT_THROW(jobs.submit(request), JobRejected);
   request = furnace_job(4, 5000, 4);
   EXPECT_THROW(jobs.submit(request), JobRejected);
+}
+
+// A client's shutter overrides are checked as the scene's are, each refusal naming the cause.
+TEST_F(JobManagerTest, BadShutterOverridesAreRejectedNamingTheCause) {
+  const auto refused = [&](const std::function<void(wire::JobOverrides&)>& set,
+                           const std::string& words) {
+    wire::SubmitJob request = furnace_job(4, 16, 4);
+    set(*request.mutable_overrides());
+    try {
+      (void)jobs.submit(request);
+      ADD_FAILURE() << words << ": accepted";
+    } catch (const JobRejected& e) {
+      EXPECT_NE(std::string(e.what()).find(words), std::string::npos) << e.what();
+    }
+  };
+  refused([](wire::JobOverrides& o) { o.set_shutter_open(0.f); }, "needs both ends");
+  refused([](wire::JobOverrides& o) { o.set_shutter_close(1.f); }, "needs both ends");
+  refused(
+      [](wire::JobOverrides& o) {
+        o.set_shutter_open(1.f);
+        o.set_shutter_close(0.f);
+      },
+      "closes (0) before it opens (1)");
+  refused(
+      [](wire::JobOverrides& o) {
+        o.set_shutter_open(0.f);
+        o.set_shutter_close(std::nanf(""));
+      },
+      "beyond +-100 frames");
+  refused([](wire::JobOverrides& o) { o.set_motion_steps(65); }, "65 motion steps");
+  wire::SubmitJob good = furnace_job(4, 16, 4);
+  good.mutable_overrides()->set_shutter_open(-0.25f);
+  good.mutable_overrides()->set_shutter_close(0.25f);
+  good.mutable_overrides()->set_motion_steps(3);
+  const auto st = jobs.status(jobs.submit(good), 1);
+  ASSERT_TRUE(st);
+  EXPECT_EQ(st->settings().shutter_open(), -0.25f);
+  EXPECT_EQ(st->settings().shutter_close(), 0.25f);
+  EXPECT_EQ(st->settings().motion_steps(), 3u);
 }
 
 TEST_F(JobManagerTest, AJobRunsToCompletionAndWritesItsImage) {
@@ -281,7 +322,8 @@ TEST_F(JobManagerTest, ATargetErrorStopsConvergedTilesAndSaysWhy) {
   EXPECT_EQ(jobs.on_result("w1", result_for(never)), MergeOutcome::kUnleased);
 
   // Constant samples have no variance: every tile meets the target after its minimum.
-  for (const auto& unit : units) EXPECT_EQ(jobs.on_result("w1", result_for(unit)), MergeOutcome::kMerged);
+  for (const auto& unit : units)
+    EXPECT_EQ(jobs.on_result("w1", result_for(unit)), MergeOutcome::kMerged);
   const auto st = jobs.status(id, 1);
   EXPECT_EQ(st->state(), wire::JOB_DONE);
   EXPECT_EQ(st->stop_reason(), "target error");
@@ -400,7 +442,8 @@ std::vector<float> pixels_of(const fs::path& data, const std::string& id) {
 }
 
 /// The same job rendered without interruption, in a data dir of its own: its final pixels.
-std::vector<float> uninterrupted(const wire::SubmitJob& request, wire::JobStatus* status = nullptr) {
+std::vector<float> uninterrupted(const wire::SubmitJob& request,
+                                 wire::JobStatus* status = nullptr) {
   TempDir other;
   JobStore other_store(other.path() / "data");
   JobManager manager(other_store);
@@ -555,7 +598,7 @@ TEST_F(JobManagerTest, ShutdownCheckpointsEveryRunningJob) {
   const std::string a = jobs.submit(with_priority(furnace_job(16, 8, 4), 2));
   const std::string b = jobs.submit(with_priority(furnace_job(8, 8, 4), 1));
   const std::string c = jobs.submit(furnace_job(8, 8, 4));  // queued: nothing to checkpoint
-  merge_units(jobs, 70);  // all of a (64) and 6 of b
+  merge_units(jobs, 70);                                    // all of a (64) and 6 of b
   EXPECT_EQ(jobs.status(a, 0)->state(), wire::JOB_DONE);
   EXPECT_EQ(jobs.shutdown(), 1u);
   JobStore s(dir.path() / "data");
