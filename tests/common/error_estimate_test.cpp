@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <utility>
 
 #include "common/image/error_estimate.h"
 
@@ -120,8 +121,8 @@ TEST(ErrorEstimate, AFireflyIsJudgedAgainstItsNeighboursNotItself) {
   EXPECT_GT(estimate_error(film).rel_mse, 100 * var / (mean * mean + kRelMseEpsilon) / 9.0)
       << "dividing by the firefly's own mean would understate its error";
   // A tile's estimate reads only its own pixels: the centre alone is judged by itself.
-  EXPECT_NEAR(estimate_error(film, {1, 1, 2, 2}).rel_mse,
-              var / (mean * mean + kRelMseEpsilon), 1e-9 * var);
+  EXPECT_NEAR(estimate_error(film, {1, 1, 2, 2}).rel_mse, var / (mean * mean + kRelMseEpsilon),
+              1e-9 * var);
 }
 
 TEST(ErrorEstimate, UnknownWhileAPixelHasFewerThanTwoSamples) {
@@ -139,12 +140,12 @@ TEST(ErrorEstimate, UnknownWhileAPixelHasFewerThanTwoSamples) {
 
 /// The estimate as its definition reads, pixel by pixel with nth_element: what the fast one in
 /// error_estimate.cpp (means converted once, a median network) must reproduce.
-double plain_rel_mse(const Film& film, const TileRect& rect) {
+std::pair<double, double> plain_rel_mse_and_mse(const Film& film, const TileRect& rect) {
   const auto mean = [&](uint32_t x, uint32_t y, int c) {
     const size_t p = size_t{y} * film.width() + x;
     return from_fixed(film.sum()[p * 3 + c]) / film.spp()[p];
   };
-  long double rel = 0;
+  long double rel = 0, mse = 0;
   for (uint32_t y = rect.y0; y < rect.y1; ++y) {
     for (uint32_t x = rect.x0; x < rect.x1; ++x) {
       const size_t p = size_t{y} * film.width() + x;
@@ -158,32 +159,47 @@ double plain_rel_mse(const Film& film, const TileRect& rect) {
             variance_of_mean(film.sum()[p * 3 + c], film.sum_sq()[p * 3 + c], film.spp()[p]);
         const double value = std::max(v[v.size() / 2], mean(x, y, c) - 2.0 * std::sqrt(var));
         rel += var / (value * value + kRelMseEpsilon);
+        mse += var;
       }
     }
   }
-  return static_cast<double>(rel / (3.0L * rect.pixel_count()));
+  const long double values = 3.0L * rect.pixel_count();
+  return {static_cast<double>(rel / values), static_cast<double>(mse / values)};
 }
 
 TEST(ErrorEstimate, EqualsItsDefinitionBitForBitOnRandomFilms) {
   std::mt19937_64 rng(11);
   std::uniform_int_distribution<int> level(0, 5);  // few levels: ties in the medians
   std::exponential_distribution<double> heavy(1.0);
-  for (int trial = 0; trial < 20; ++trial) {
-    const uint32_t w = 1 + trial % 7, h = 1 + (trial * 3) % 5;
-    TileResult r({0, 0, w, h}, {0, 8});
-    for (size_t i = 0; i < r.sum.size(); ++i) {
-      for (int s = 0; s < 8; ++s) {
-        const double x = trial % 2 ? level(rng) * 0.25 : heavy(rng);
-        r.sum[i] += to_fixed(x);
-        r.sum_sq[i] += to_fixed(x * x);
+  std::uniform_int_distribution<uint32_t> count(2, 9);
+  // Small films (every pixel on a border) and wider ones whose inner pixels take the median
+  // network several at a time; pixels with different sample counts, and huge sums (beyond 64
+  // bits of fixed point) in some.
+  for (int trial = 0; trial < 40; ++trial) {
+    const uint32_t w = trial < 20 ? 1 + trial % 7 : 3 + (trial * 7) % 37;
+    const uint32_t h = trial < 20 ? 1 + (trial * 3) % 5 : 3 + trial % 6;
+    Film film(w, h);
+    for (uint32_t y = 0; y < h; ++y) {
+      for (uint32_t x = 0; x < w; ++x) {
+        const uint32_t n = trial % 3 == 0 ? count(rng) : 8;
+        const double scale = trial % 5 == 4 && (x + y) % 4 == 0 ? 1e9 : 1.0;
+        TileResult r({x, y, x + 1, y + 1}, {0, n});
+        for (size_t i = 0; i < r.sum.size(); ++i) {
+          for (uint32_t s = 0; s < n; ++s) {
+            const double v = scale * (trial % 2 ? level(rng) * 0.25 : heavy(rng));
+            r.sum[i] += to_fixed(v);
+            r.sum_sq[i] += to_fixed(v * v);
+          }
+        }
+        film.add(r);
       }
     }
-    Film film(w, h);
-    film.add(r);
-    for (const TileRect& rect : {TileRect{0, 0, w, h}, TileRect{0, 0, (w + 1) / 2, h},
-                                 TileRect{w / 2, h / 2, w, h}}) {
-      EXPECT_EQ(estimate_error(film, rect).rel_mse, plain_rel_mse(film, rect))
-          << "film " << w << "x" << h << ", trial " << trial;
+    for (const TileRect& rect :
+         {TileRect{0, 0, w, h}, TileRect{0, 0, (w + 1) / 2, h}, TileRect{w / 2, h / 2, w, h}}) {
+      const ErrorEstimate e = estimate_error(film, rect);
+      const auto [rel, mse] = plain_rel_mse_and_mse(film, rect);
+      EXPECT_EQ(e.rel_mse, rel) << "film " << w << "x" << h << ", trial " << trial;
+      EXPECT_EQ(e.mse, mse) << "film " << w << "x" << h << ", trial " << trial;
     }
   }
 }
