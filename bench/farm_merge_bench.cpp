@@ -127,7 +127,8 @@ void bench_broker(const BrokerRun& run) {
   options.worker_endpoint = "tcp://127.0.0.1:0";
   options.client_endpoint = "tcp://127.0.0.1:0";
   options.data_dir = dir / "data";
-  options.image_interval = std::chrono::hours(1);  // images only after each pass, as in production
+  // The master's defaults: an image and a checkpoint after a round of passes, at most every 3 s
+  // and every 2 s.
   rayfarm::master::Broker broker(options);
   std::atomic<bool> stop_master{false};
   std::atomic<pid_t> master_tid{0};

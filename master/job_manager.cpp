@@ -249,8 +249,17 @@ void JobManager::on_round_done(Job& job) {
           : "",
       row.ref_rel_mse ? fmt::format(", measured relMSE {:.3g}", *row.ref_rel_mse) : "",
       human_rate(row.samples_per_s), eta, workers_active(a));
-  write_image(job);
-  checkpoint(job);
+  // A round's image and checkpoint are written now unless one was written within its interval
+  // (the first round's image always is, the first whole picture): a large farm completes rounds
+  // of a large image several times a second, and each image or checkpoint is a pass over the
+  // whole film on this thread. Until then they are due (dirty, checkpoint_due) and tick() writes
+  // them when the interval is up.
+  const Clock::time_point now = Clock::now();
+  if (a.rounds_recorded == 1 || now - a.last_write >= options_.image_interval) write_image(job);
+  if (options_.checkpoint_interval.count() == 0 ||
+      now - a.last_checkpoint >= options_.checkpoint_interval) {
+    checkpoint(job);
+  }
 }
 
 bool JobManager::on_unit_failed(const WorkerId& worker, const wire::UnitFailed& failed,

@@ -79,6 +79,8 @@ class JobManager {
   size_t shutdown();
   /// Returns once every checkpoint queued so far is on disk (tests, benchmarks).
   void wait_for_checkpoints() { checkpoints_.flush(); }
+  /// Waits until every image handed to the writer is on disk (tests).
+  void wait_for_images() { writer_.flush(); }
 
   /// A submission checked and stored, not yet scheduled.
   struct PreparedJob {

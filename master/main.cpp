@@ -45,7 +45,8 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 100))
       ->capture_default_str();
   app.add_option("--image-interval-ms", image_interval_ms,
-                 "rewrite a running job's image at least this often (milliseconds)")
+                 "rewrite a running job's image at least this often while results arrive, and "
+                 "at a completed pass if none is newer (milliseconds)")
       ->check(CLI::Range(int64_t{100}, int64_t{3600000}))
       ->capture_default_str();
   // Durability: checkpoints, failing workers, stragglers (docs/reliability.md).
@@ -53,8 +54,9 @@ int main(int argc, char** argv) {
   int64_t checkpoint_interval_ms = durability.checkpoint_interval.count();
   int64_t straggler_min_ms = durability.stragglers.floor.count();
   app.add_option("--checkpoint-interval-ms", checkpoint_interval_ms,
-                 "checkpoint a running job at least this often while results arrive, besides "
-                 "every completed pass (milliseconds; 0 = only at passes and shutdown)")
+                 "checkpoint a running job at least this often while results arrive, and at a "
+                 "completed pass if none is newer (milliseconds; 0 = only at every pass and "
+                 "shutdown)")
       ->check(CLI::Range(int64_t{0}, int64_t{3600000}))
       ->capture_default_str();
   app.add_option("--max-worker-failures", durability.max_worker_failures,

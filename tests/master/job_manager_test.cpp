@@ -466,6 +466,44 @@ void checkpoint_now(JobManager& jobs) {
   jobs.wait_for_checkpoints();
 }
 
+TEST_F(JobManagerTest, RoundsWithinTheirIntervalsLeaveTheImageAndCheckpointToTheTick) {
+  // A large farm completes rounds of passes many times a second, and each image or checkpoint is
+  // a pass over the whole film: a round writes them only when their interval is up (the first
+  // round's image at once), and the tick writes what is still due when it is.
+  JobManagerOptions o;
+  o.image_interval = std::chrono::milliseconds{1000};
+  o.checkpoint_interval = std::chrono::milliseconds{1000};
+  JobManager jobs(store, o);
+  const std::string id = jobs.submit(furnace_job(16, 8, 4));  // 16 tiles x 4 passes of 4 spp
+  const fs::path job_dir = dir.path() / "data" / "jobs" / id;
+  const auto image_spp = [&] {
+    jobs.wait_for_images();
+    return read_exr(job_dir / "image.exr").attributes.at("rayfarm:spp");
+  };
+  const auto wait_out_intervals = [] {
+    std::this_thread::sleep_for(std::chrono::milliseconds{1100});
+  };
+  ASSERT_EQ(merge_units(jobs, 16), 16u);  // the first round
+  EXPECT_EQ(image_spp(), "4");
+  jobs.wait_for_checkpoints();
+  EXPECT_FALSE(fs::exists(job_dir / "checkpoint-0.bin")) << "checkpointed within its interval";
+  ASSERT_EQ(merge_units(jobs, 16), 16u);  // the second, at once
+  EXPECT_EQ(image_spp(), "4") << "the image rewritten within its interval";
+
+  wait_out_intervals();
+  jobs.tick();
+  EXPECT_EQ(image_spp(), "8");
+  jobs.wait_for_checkpoints();
+  EXPECT_TRUE(fs::exists(job_dir / "checkpoint-0.bin"));
+
+  // A round after the intervals writes both itself.
+  wait_out_intervals();
+  ASSERT_EQ(merge_units(jobs, 16), 16u);
+  EXPECT_EQ(image_spp(), "12");
+  jobs.wait_for_checkpoints();
+  EXPECT_TRUE(fs::exists(job_dir / "checkpoint-1.bin"));
+}
+
 TEST_F(JobManagerTest, AJobResumesFromItsCheckpointAndEndsBitIdentical) {
   const wire::SubmitJob request = furnace_job(16, 8, 4);  // 16 tiles x 4 passes = 64 units
   const std::vector<float> expected = uninterrupted(request);
@@ -554,7 +592,9 @@ TEST_F(JobManagerTest, ACorruptCheckpointFallsBackToThePreviousOneOrToTheStart) 
   const std::string id = first.submit(request);
   merge_units(first, 10);
   checkpoint_now(first);
-  merge_units(first, 10);  // a round completes at 16: a checkpoint there, and one at 20
+  // The interval is up by the round that completes at 16: a checkpoint there, and one at 20.
+  std::this_thread::sleep_for(std::chrono::milliseconds{3});
+  merge_units(first, 10);
   checkpoint_now(first);
   const fs::path job_dir = dir.path() / "data" / "jobs" / id;
   const Checkpoint c0 = read_checkpoint(checkpoint_path(job_dir, 0));

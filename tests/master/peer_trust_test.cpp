@@ -46,11 +46,19 @@ wire::UnitFailed failure_of(const wire::WorkUnit& unit, const std::string& why) 
 // ---------------------------------------------------------------------------------------------
 // Results and failures, without sockets
 
+/// Checkpoints at every completed round of passes (and at shutdown) only: the tests of a full
+/// disk stop the disk right after the first round's checkpoint.
+JobManagerOptions round_checkpoints() {
+  JobManagerOptions o;
+  o.checkpoint_interval = std::chrono::milliseconds{0};
+  return o;
+}
+
 class PeerTrustTest : public ::testing::Test {
  protected:
   TempDir dir;
   JobStore store{dir.path() / "data"};
-  JobManager jobs{store};
+  JobManager jobs{store, round_checkpoints()};
 };
 
 TEST_F(PeerTrustTest, AResultCountsOnlyFromTheConnectionThatWasLeasedTheUnit) {
@@ -338,7 +346,7 @@ TEST_F(PeerTrustTest, AMasterRestartedWhileTheDiskIsFullResumesFromItsLastCheckp
   std::string id;
   {
     JobStore store2(data);
-    JobManager first(store2);
+    JobManager first(store2, round_checkpoints());
     id = first.submit(furnace_job(8, 16, 4));
     render_first_round(first);
     DiskFault full(data);
