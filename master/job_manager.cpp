@@ -214,7 +214,8 @@ MergeOutcome JobManager::on_result(const WorkerId& worker, const wire::UnitResul
                       name_of(worker), result.render_seconds());
   a.tracker.update_tile(a.merger.film(), a.grid().tile_of(result.unit_id()));
   PassPlanner& planner = a.planner;
-  planner.on_merged(result.unit_id(), a.merger.merged_units(), a.merger.film());
+  planner.on_merged(result.unit_id(), a.merger.merged_units(), a.merger.film(),
+                    &a.tracker.estimate());
   scheduler_.release(id, planner.take_released());
   if (planner.rounds_complete(a.merger.merged_units()) > a.rounds_recorded) on_round_done(job);
   if (planner.finished()) finish(job, wire::JOB_DONE, "", planner.reason());

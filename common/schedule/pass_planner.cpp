@@ -56,11 +56,14 @@ void PassPlanner::close(uint32_t tile, bool converged) {
   if (converged) ++tiles_converged_;
 }
 
-void PassPlanner::on_merged(uint64_t unit, const MergedUnits& merged, const Film& film) {
+void PassPlanner::on_merged(uint64_t unit, const MergedUnits& merged, const Film& film,
+                            const TiledErrorEstimate* current) {
   const uint32_t tile = grid_.tile_of(unit);
   TileState& s = state_[tile];
   RAYFARM_CHECK(s.open && is_released(unit) && merged.contains(unit),
                 "merged a unit the planner did not release");
+  RAYFARM_CHECK(!current || current->tiles().size() == tile_count(),
+                "the estimate given to the planner is not over its tiles");
   if (!caught_up(tile, merged)) return;  // the tile still has released passes in flight
 
   if (!gated_) {
@@ -68,7 +71,8 @@ void PassPlanner::on_merged(uint64_t unit, const MergedUnits& merged, const Film
     return;
   }
   if (rules_.adaptive) {
-    s.error = estimate_error(film, grid_.tile(tile)).rel_mse;
+    s.error =
+        current ? current->tile(tile).rel_mse : estimate_error(film, grid_.tile(tile)).rel_mse;
     if (s.budget >= 0) {
       decide(tile);
       return;
@@ -86,9 +90,14 @@ void PassPlanner::on_merged(uint64_t unit, const MergedUnits& merged, const Film
     if (!caught_up(t, merged)) return;
   }
   // The image's figure as the render reports it: the pixel-weighted mean of the tiles'.
-  TiledErrorEstimate image(grid_.tiles());
-  image.update_all(film);
-  const double error = image.whole().rel_mse;
+  double error = 0;
+  if (current) {
+    error = current->whole().rel_mse;
+  } else {
+    TiledErrorEstimate image(grid_.tiles());
+    image.update_all(film);
+    error = image.whole().rel_mse;
+  }
   for (uint32_t t = 0; t < tile_count(); ++t) {
     state_[t].error = error;
     if (error <= rules_.target_error) {

@@ -26,6 +26,8 @@
 
 namespace rayfarm {
 
+class TiledErrorEstimate;
+
 /// Everything a PassPlanner decided so far, for a checkpoint: decisions read the film at the time
 /// they were made, so they cannot be rebuilt from the film afterwards.
 struct PlannerState {
@@ -52,8 +54,11 @@ class PassPlanner {
   /// Units released since the last call, ascending.
   std::vector<uint64_t> take_released();
   /// Unit `unit` was merged into `film` (and recorded in `merged`). Releases the tile's next
-  /// pass, or stops the tile.
-  void on_merged(uint64_t unit, const MergedUnits& merged, const Film& film);
+  /// pass, or stops the tile. `current`, when given, is the film's estimate over the grid's tiles,
+  /// up to date with `film` (the master keeps one): its figures are used instead of estimating
+  /// the tile, or the whole image, again.
+  void on_merged(uint64_t unit, const MergedUnits& merged, const Film& film,
+                 const TiledErrorEstimate* current = nullptr);
 
   /// Every needed unit is merged.
   bool finished() const { return tiles_open_ == 0; }

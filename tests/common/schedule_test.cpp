@@ -180,6 +180,44 @@ TEST(PassPlanner, WholePassesWaitForTheWholeImage) {
       << "the quiet tile goes on with the image";
 }
 
+TEST(PassPlanner, AnEstimateKeptByTheCallerGivesTheSameDecisions) {
+  // The master keeps the film's estimate tile by tile and hands it to the planner, which then
+  // estimates nothing itself: every release and stop must be the one it would have made.
+  const Strip strip{{0.01, 0.04, 0.16, 0.0, 0.08}};
+  for (const bool adaptive : {true, false}) {
+    StopRules rules;
+    rules.target_error = 2e-4;
+    rules.adaptive = adaptive;
+    rules.min_passes = 1;
+    const UnitGrid grid = strip.grid(40, 8);
+    PassPlanner own(grid, rules), given(grid, rules);
+    MergedUnits merged(grid);
+    Film film(5, 1);
+    TiledErrorEstimate current(grid.tiles());
+    std::vector<uint64_t> ready = own.take_released();
+    ASSERT_EQ(given.take_released(), ready);
+    size_t merges = 0;
+    while (!ready.empty()) {
+      const uint64_t u = ready.front();
+      ready.erase(ready.begin());
+      film.add(strip.unit(u, 8));
+      merged.add(u);
+      current.update(film, grid.tile_of(u));
+      own.on_merged(u, merged, film);
+      given.on_merged(u, merged, film, &current);
+      ++merges;
+      const std::vector<uint64_t> next = own.take_released();
+      ASSERT_EQ(given.take_released(), next) << "after unit " << u << ", adaptive " << adaptive;
+      ready.insert(ready.end(), next.begin(), next.end());
+    }
+    EXPECT_GT(merges, 5u * 2) << "the target took more than a pass";
+    EXPECT_TRUE(own.finished());
+    EXPECT_TRUE(given.finished());
+    EXPECT_EQ(given.reason(), own.reason());
+    for (uint32_t t = 0; t < 5; ++t) EXPECT_EQ(given.tile_error(t), own.tile_error(t));
+  }
+}
+
 TEST(PassPlanner, ImportedDecisionsMustAgreeWithWhatIsMerged) {
   const Strip strip{{0.0, 0.5}};
   StopRules rules;
