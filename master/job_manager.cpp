@@ -227,6 +227,7 @@ void JobManager::on_round_done(Job& job) {
   const Merger& m = a.merger;
   const PassPlanner& planner = a.planner;
   const JobSpec& s = job.record.spec;
+  const uint32_t rounds_before = a.rounds_recorded;
   a.rounds_recorded = planner.rounds_complete(m.merged_units());
   const double seconds = a.elapsed();
   const ErrorRow& row = a.record_row();
@@ -256,7 +257,7 @@ void JobManager::on_round_done(Job& job) {
   // whole film on this thread. Until then they are due (dirty, checkpoint_due) and tick() writes
   // them when the interval is up.
   const Clock::time_point now = Clock::now();
-  if (a.rounds_recorded == 1 || now - a.last_write >= options_.image_interval) write_image(job);
+  if (rounds_before == 0 || now - a.last_write >= options_.image_interval) write_image(job);
   if (options_.checkpoint_interval.count() == 0 ||
       now - a.last_checkpoint >= options_.checkpoint_interval) {
     checkpoint(job);

@@ -39,15 +39,16 @@ class JobRejected : public std::runtime_error {
 };
 
 struct JobManagerOptions {
-  /// While results arrive, the image is rewritten at least this often (besides every pass).
+  /// While results arrive, the image is rewritten at least this often, and at a completed round
+  /// of passes if none was written within it (the first round's always).
   std::chrono::milliseconds image_interval{3000};
   /// A unit that fails on this many different workers fails its job (a failure is a UnitFailed
   /// or a result rejected as malformed).
   int max_unit_failures = 3;
   /// How workers are named in logs; by default the hex of their id.
   std::function<std::string(const WorkerId&)> worker_name;
-  /// While results arrive, a running job is checkpointed at least this often (besides every
-  /// completed round of passes); 0 = only at rounds and at shutdown.
+  /// While results arrive, a running job is checkpointed at least this often, and at a completed
+  /// round of passes if none was written within it; 0 = at every round (and at shutdown) only.
   std::chrono::milliseconds checkpoint_interval{2000};
   /// A worker that fails this many times on a job is given no more of its units.
   int max_worker_failures = 3;

@@ -106,10 +106,9 @@ ErrorEstimate estimate_error(const Film& film, const TileRect& rect_in) {
   // per-value arithmetic below runs over whole rows.
   const size_t pixels = e.pixels;
   thread_local EstimateScratch scratch;
-  if (scratch.mean.size() < pixels * 3) {
-    scratch.mean.resize(pixels * 3);
-    scratch.var.resize(pixels * 3);
-    scratch.median.resize(pixels * 3);
+  // Each checked on its own: a resize that ran out of memory leaves the others as they were.
+  for (std::vector<double>* v : {&scratch.mean, &scratch.var, &scratch.median}) {
+    if (v->size() < pixels * 3) v->resize(pixels * 3);
   }
   double* const mean = scratch.mean.data();
   double* const var = scratch.var.data();

@@ -466,41 +466,49 @@ void checkpoint_now(JobManager& jobs) {
   jobs.wait_for_checkpoints();
 }
 
+/// The rayfarm:spp attribute of a job's image, once every image handed to the writer is on disk.
+std::string image_spp(JobManager& jobs, const fs::path& job_dir) {
+  jobs.wait_for_images();
+  return read_exr(job_dir / "image.exr").attributes.at("rayfarm:spp");
+}
+
 TEST_F(JobManagerTest, RoundsWithinTheirIntervalsLeaveTheImageAndCheckpointToTheTick) {
   // A large farm completes rounds of passes many times a second, and each image or checkpoint is
-  // a pass over the whole film: a round writes them only when their interval is up (the first
-  // round's image at once), and the tick writes what is still due when it is.
+  // a pass over the whole film: a round within the intervals writes neither (the first round's
+  // image excepted); they stay due, for the tick or for shutdown.
   JobManagerOptions o;
-  o.image_interval = std::chrono::milliseconds{1000};
-  o.checkpoint_interval = std::chrono::milliseconds{1000};
+  o.image_interval = std::chrono::hours{1};
+  o.checkpoint_interval = std::chrono::hours{1};
   JobManager jobs(store, o);
   const std::string id = jobs.submit(furnace_job(16, 8, 4));  // 16 tiles x 4 passes of 4 spp
   const fs::path job_dir = dir.path() / "data" / "jobs" / id;
-  const auto image_spp = [&] {
-    jobs.wait_for_images();
-    return read_exr(job_dir / "image.exr").attributes.at("rayfarm:spp");
-  };
-  const auto wait_out_intervals = [] {
-    std::this_thread::sleep_for(std::chrono::milliseconds{1100});
-  };
   ASSERT_EQ(merge_units(jobs, 16), 16u);  // the first round
-  EXPECT_EQ(image_spp(), "4");
+  EXPECT_EQ(image_spp(jobs, job_dir), "4");
+  ASSERT_EQ(merge_units(jobs, 16), 16u);  // the second
+  jobs.tick();
+  EXPECT_EQ(image_spp(jobs, job_dir), "4") << "the image rewritten within its interval";
   jobs.wait_for_checkpoints();
   EXPECT_FALSE(fs::exists(job_dir / "checkpoint-0.bin")) << "checkpointed within its interval";
-  ASSERT_EQ(merge_units(jobs, 16), 16u);  // the second, at once
-  EXPECT_EQ(image_spp(), "4") << "the image rewritten within its interval";
+  // What is due is written at shutdown.
+  EXPECT_EQ(jobs.shutdown(), 1u);
+  EXPECT_EQ(image_spp(jobs, job_dir), "8");
+  EXPECT_TRUE(fs::exists(job_dir / "checkpoint-0.bin"));
+}
 
-  wait_out_intervals();
-  jobs.tick();
-  EXPECT_EQ(image_spp(), "8");
+TEST_F(JobManagerTest, RoundsAfterTheirIntervalsWriteTheImageAndCheckpointThemselves) {
+  JobManagerOptions o;
+  o.image_interval = std::chrono::milliseconds{1};
+  o.checkpoint_interval = std::chrono::milliseconds{1};
+  JobManager jobs(store, o);
+  const std::string id = jobs.submit(furnace_job(16, 8, 4));
+  const fs::path job_dir = dir.path() / "data" / "jobs" / id;
+  for (const std::string spp : {"4", "8"}) {
+    std::this_thread::sleep_for(std::chrono::milliseconds{3});  // the intervals are up
+    ASSERT_EQ(merge_units(jobs, 16), 16u);                      // a round, and no tick
+    EXPECT_EQ(image_spp(jobs, job_dir), spp);
+  }
   jobs.wait_for_checkpoints();
   EXPECT_TRUE(fs::exists(job_dir / "checkpoint-0.bin"));
-
-  // A round after the intervals writes both itself.
-  wait_out_intervals();
-  ASSERT_EQ(merge_units(jobs, 16), 16u);
-  EXPECT_EQ(image_spp(), "12");
-  jobs.wait_for_checkpoints();
   EXPECT_TRUE(fs::exists(job_dir / "checkpoint-1.bin"));
 }
 
