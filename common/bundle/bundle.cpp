@@ -87,8 +87,8 @@ std::string read_inside(const fs::path& root, const fs::path& rel) {
   }
   struct stat st {};
   if (::fstat(dir.fd, &st) != 0) {
-    throw BundleError(shown.string() +
-                      ": cannot read it for the scene bundle: " + errno_text(errno));
+    throw BundleError(shown.string() + ": cannot read it for the scene bundle: " +
+                      errno_text(errno));
   }
   if (!S_ISREG(st.st_mode)) {
     throw BundleError(shown.string() +
@@ -102,8 +102,8 @@ std::string read_inside(const fs::path& root, const fs::path& rel) {
     const ssize_t n = ::read(dir.fd, buf, sizeof buf);
     if (n < 0 && errno == EINTR) continue;
     if (n < 0) {
-      throw BundleError(shown.string() +
-                        ": read error while packing the scene bundle: " + errno_text(errno));
+      throw BundleError(shown.string() + ": read error while packing the scene bundle: " +
+                        errno_text(errno));
     }
     if (n == 0) break;
     data.append(buf, static_cast<size_t>(n));

@@ -22,23 +22,10 @@ double ErrorEstimate::rmse() const { return std::sqrt(mse); }
 
 namespace {
 
-/// The median of the first `k` (1 to 9) values: the value nth_element would give, since the
-/// median of a set does not depend on how it is found. Nine values (a pixel away from the
-/// rectangle's border) go through a branch-free network of 19 min/max exchanges; fewer through an
-/// insertion sort.
+/// The median of the first `k` (1 to 8) values, by insertion sort: the value nth_element would
+/// give, since the median of a set does not depend on how it is found. Pixels on a rectangle's
+/// border have fewer than nine neighbours; the others go through interior_medians().
 double median_of(double* v, int k) {
-  if (k == 9) {
-    const auto exchange = [v](int a, int b) {
-      const double lo = std::min(v[a], v[b]), hi = std::max(v[a], v[b]);
-      v[a] = lo;
-      v[b] = hi;
-    };
-    exchange(1, 2), exchange(4, 5), exchange(7, 8), exchange(0, 1), exchange(3, 4);
-    exchange(6, 7), exchange(1, 2), exchange(4, 5), exchange(7, 8), exchange(0, 3);
-    exchange(5, 8), exchange(4, 7), exchange(3, 6), exchange(1, 4), exchange(2, 5);
-    exchange(4, 7), exchange(2, 4), exchange(4, 6), exchange(2, 4);
-    return v[4];
-  }
   for (int i = 1; i < k; ++i) {
     const double x = v[i];
     int j = i - 1;
@@ -56,8 +43,8 @@ inline void exchange(double& a, double& b) {
 }
 
 /// The medians of the full 3x3 neighbourhoods along one row of a channel's means (pixels 1 to
-/// w - 2; `up` and `down` the rows above and below): median_of's network, elementwise, so that
-/// the compiler can run it on several pixels at once.
+/// w - 2; `up` and `down` the rows above and below): a branch-free network of 19 min/max
+/// exchanges, pixel by pixel with no branch, so that the compiler runs it on several at once.
 void interior_medians(const double* up, const double* mid, const double* down, double* out,
                       uint32_t w) {
   for (uint32_t x = 1; x + 1 < w; ++x) {
