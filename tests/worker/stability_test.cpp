@@ -656,5 +656,45 @@ TEST(DegenerateGeometry, CoordinatesBeyondEmbreeRangeDoNotAbort) {
   expect_renders_finite(eye_far, 2, "camera beyond 1.8e18");
 }
 
+// The conversion of rays into Embree's form: the usual ray goes through unchanged; a direction
+// beyond 2^60 is divided by a power of two and the hit's t multiplied back; an origin
+// beyond Embree's range, a non-finite component or a NaN interval finds nothing and counts as
+// blocked.
+TEST(DegenerateGeometry, RaysAreCheckedAndRescaledExactly) {
+  Scene s = testing::empty_scene({0.f, 0.f, -4.f}, {0.f, 0.f, 0.f}, 40.f, 8);
+  const uint32_t white = testing::add_material(s, testing::diffuse(Vec3(0.5f)));
+  testing::add_quad(s, {-1.f, -1.f, 10.f}, {2.f, 0.f, 0.f}, {0.f, 2.f, 0.f}, white);
+  const SceneData data(s);
+  const Bvh& bvh = data.bvh();
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+
+  const std::optional<RayHit> plain = bvh.intersect(Ray{{0.f, 0.f, 0.f}, {0.f, 0.f, 1.f}});
+  ASSERT_TRUE(plain.has_value());
+  EXPECT_NEAR(plain->t, 10.f, 1e-5f);
+  for (const float scale : {0x1p60f, 0x1p61f, 0x1p100f, 0x1p127f}) {
+    const std::optional<RayHit> huge = bvh.intersect(Ray{{0.f, 0.f, 0.f}, {0.f, 0.f, scale}});
+    ASSERT_TRUE(huge.has_value()) << scale;
+    // The same distance in units of the longer direction, to Embree's float precision.
+    EXPECT_NEAR(huge->t * scale, plain->t, 1e-5f) << scale;
+    EXPECT_EQ(huge->prim, plain->prim);
+    // A segment reaching past the quad is blocked, one stopping short is not.
+    EXPECT_TRUE(bvh.occluded(Ray{{0.f, 0.f, 0.f}, {0.f, 0.f, scale}, 0.f, 11.f / scale}));
+    EXPECT_FALSE(bvh.occluded(Ray{{0.f, 0.f, 0.f}, {0.f, 0.f, scale}, 0.f, 9.f / scale}));
+  }
+  const Ray refused[] = {
+      Ray{{0.f, 0.f, -2e18f}, {0.f, 0.f, 1.f}},  // origin beyond Embree's range
+      Ray{{nan, 0.f, 0.f}, {0.f, 0.f, 1.f}},
+      Ray{{0.f, 0.f, 0.f}, {0.f, 0.f, inf}},
+      Ray{{0.f, 0.f, 0.f}, {0.f, nan, 1.f}},
+      Ray{{0.f, 0.f, 0.f}, {0.f, 0.f, 1.f}, nan, 20.f},
+      Ray{{0.f, 0.f, 0.f}, {0.f, 0.f, 1.f}, 0.f, nan},
+  };
+  for (size_t i = 0; i < std::size(refused); ++i) {
+    EXPECT_FALSE(bvh.intersect(refused[i]).has_value()) << "ray " << i;
+    EXPECT_TRUE(bvh.occluded(refused[i])) << "ray " << i;
+  }
+}
+
 }  // namespace
 }  // namespace rayfarm

@@ -36,17 +36,26 @@ bool within_embree_range(const Vec3& v) {
 /// the factor that Embree's t must be divided by.
 bool to_embree(const Ray& ray, RTCRay& r, float& t_scale) {
   t_scale = 1.f;
-  if (!is_finite(ray.org) || !is_finite(ray.dir) || !within_embree_range(ray.org) ||
-      std::isnan(ray.tnear) || std::isnan(ray.tfar)) {
-    return false;
-  }
+  constexpr float kUnscaled = 0x1p60f;  // larger direction components are rescaled
   Vec3 dir = ray.dir;
-  const float largest = max_component(abs(dir));
-  if (largest > 0x1p60f) {
-    int exponent = 0;
-    std::frexp(largest, &exponent);
-    t_scale = std::ldexp(1.f, exponent - 60);  // largest / t_scale <= 2^60
-    dir = dir / t_scale;
+  // Nearly every ray passes all the checks at once: origin within Embree's range and a direction
+  // that needs no rescaling (both comparisons false for NaN and infinities), t not NaN.
+  const bool plain = std::fabs(ray.org.x) <= kEmbreeLarge && std::fabs(ray.org.y) <= kEmbreeLarge &&
+                     std::fabs(ray.org.z) <= kEmbreeLarge && std::fabs(dir.x) <= kUnscaled &&
+                     std::fabs(dir.y) <= kUnscaled && std::fabs(dir.z) <= kUnscaled &&
+                     !std::isnan(ray.tnear) && !std::isnan(ray.tfar);
+  if (!plain) {
+    if (!is_finite(ray.org) || !is_finite(ray.dir) || !within_embree_range(ray.org) ||
+        std::isnan(ray.tnear) || std::isnan(ray.tfar)) {
+      return false;
+    }
+    const float largest = max_component(abs(dir));
+    if (largest > kUnscaled) {
+      int exponent = 0;
+      std::frexp(largest, &exponent);
+      t_scale = std::ldexp(1.f, exponent - 60);  // largest / t_scale <= 2^60
+      dir = dir / t_scale;
+    }
   }
   r.org_x = ray.org.x;
   r.org_y = ray.org.y;
