@@ -44,6 +44,34 @@ TEST(Sobol, ReversedTablesAreTheGeneratorMatrices) {
   }
 }
 
+TEST(Sobol, LanesComputeTheScalarDefinition) {
+  // sample_bits() works on four coordinates at once; each must be the definition written with
+  // the scalar pieces: the index shuffled by an Owen scramble under the key's low half, then
+  // Sobol' coordinate d of it Owen-scrambled under the high half plus d golden-ratio steps.
+  uint64_t key = 0x0123456789abcdefull;
+  uint32_t index = 0;
+  for (int i = 0; i < 20000; ++i) {
+    key = mix64(key + uint64_t(i));
+    // Small indices (the usual case) and indices with random high bits.
+    index = i % 2 == 0 ? uint32_t(i) : static_cast<uint32_t>(key >> 17);
+    const auto shuffle_key = static_cast<uint32_t>(key), scramble_key = uint32_t(key >> 32);
+    const uint32_t shuffled = sobol::owen_scramble(index, shuffle_key);
+    const std::array<uint32_t, 4> bits = sobol::sample_bits<4>(index, key);
+    const std::array<float, 4> floats = sobol::sample<4>(index, key);
+    const std::array<uint32_t, 3> three = sobol::sample_bits<3>(index, key);
+    for (int d = 0; d < 4; ++d) {
+      const uint32_t want = sobol::owen_scramble(sobol::sobol_bits(shuffled, d),
+                                                 scramble_key + 0x9e3779b9u * uint32_t(d));
+      ASSERT_EQ(bits[d], want) << "index " << index << ", key " << key << ", dimension " << d;
+      ASSERT_EQ(floats[d], sobol::to_unit_float(want)) << "index " << index << ", dimension " << d;
+      if (d < 3) {
+        ASSERT_EQ(three[d], want);
+      }
+    }
+    ASSERT_EQ(sobol::sample_bits_reversed<4>(sobol::reverse_bits(index), key), bits);
+  }
+}
+
 TEST(Sobol, FirstDimensionsAreTheKnownSequence) {
   // Dimension 0 is van der Corput; dimension 1 the standard second Sobol' dimension (direction
   // numbers 1/2, 3/4, 5/8, in index order, not Gray-code order).

@@ -165,13 +165,18 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, PathSampler& sampler, PathStats& s
     const Vec3 select_n = plan_.light_tree && bsdf.reflects_only()
                               ? (dot(wo, hit.n) >= 0.f ? hit.n : -hit.n)
                               : Vec3(0.f);
-    if (plan_.sample_lights && !bsdf.is_specular()) {
-      radiance += beta * sample_light(hit, select_n, flat, wo, wo_local, frame, bsdf,
-                                      sampler.light_bits(depth), rays);
+    // The vertex's numbers are drawn before the light is sampled (light first, in the order the
+    // independent sampler reads its stream): the BSDF's are ready when its sampling needs them.
+    const bool sample_light_here = plan_.sample_lights && !bsdf.is_specular();
+    const std::array<uint32_t, 3> light_u =
+        sample_light_here ? sampler.light_bits(depth) : std::array<uint32_t, 3>{};
+    const std::array<float, 3> u = sampler.scatter(depth);
+    if (sample_light_here) {
+      radiance +=
+          beta * sample_light(hit, select_n, flat, wo, wo_local, frame, bsdf, light_u, rays);
     }
 
     // BSDF sampling for the next direction.
-    const std::array<float, 3> u = sampler.scatter(depth);
     BsdfSample bs;
     if (!bsdf.sample(wo_local, u[0], u[1], u[2], bs)) break;
     if (!same_sides(hit, flat, wo, frame.to_world(bs.wi), wo_local, bs.wi)) break;

@@ -34,6 +34,7 @@ class PathSampler {
       : seed_(seed), pixel_(pixel), index_(sample), sobol_(type == SamplerType::kSobol) {
     if (sobol_) {
       key_ = mix64(seed ^ mix64(pixel ^ 0x50b01u));
+      reversed_index_ = sobol::reverse_bits(sample);
     } else {
       rng_.emplace(sample_stream(seed, pixel, sample));
     }
@@ -41,7 +42,7 @@ class PathSampler {
 
   /// Pixel offset x, y in [0, 1)^2, then lens u, v.
   std::array<float, 4> camera() {
-    if (sobol_) return sobol::sample<4>(index_, key_);
+    if (sobol_) return sobol::sample_reversed<4>(reversed_index_, key_);
     Pcg32& rng = stream();
     return {rng.next_float(), rng.next_float(), rng.next_float(), rng.next_float()};
   }
@@ -49,7 +50,7 @@ class PathSampler {
   /// The sample's time within the shutter, in [0, 1) (motion blur). Asked for, after camera(),
   /// only when something moves, so that other scenes keep their numbers.
   float time() {
-    if (sobol_) return sobol::sample<1>(index_, group_key(0))[0];
+    if (sobol_) return sobol::sample_reversed<1>(reversed_index_, group_key(0))[0];
     return stream().next_float();
   }
 
@@ -58,7 +59,8 @@ class PathSampler {
   /// numbers are Sobol' dimensions 0 and 1, the pair whose prefixes are (0, m, 2)-nets.
   std::array<uint32_t, 3> light_bits(uint32_t depth) {
     if (sobol_ && depth < kSobolVertices) {
-      const std::array<uint32_t, 3> u = sobol::sample_bits<3>(index_, group_key(2 * depth + 1));
+      const std::array<uint32_t, 3> u =
+          sobol::sample_bits_reversed<3>(reversed_index_, group_key(2 * depth + 1));
       return {u[2], u[0], u[1]};
     }
     Pcg32& rng = stream();
@@ -76,7 +78,8 @@ class PathSampler {
   std::array<float, 3> scatter(uint32_t depth) {
     if (sobol_ && depth < kSobolVertices) {
       // The direction on dimensions 0 and 1, as for the light.
-      const std::array<float, 4> u = sobol::sample<4>(index_, group_key(2 * depth + 2));
+      const std::array<float, 4> u =
+          sobol::sample_reversed<4>(reversed_index_, group_key(2 * depth + 2));
       roulette_ = u[3];
       return {u[2], u[0], u[1]};
     }
@@ -100,6 +103,7 @@ class PathSampler {
   uint64_t seed_, pixel_;
   uint64_t key_ = 0;
   uint32_t index_;
+  uint32_t reversed_index_ = 0;  ///< the Sobol' sampler's index, bits reversed once per sample
   bool sobol_;
   float roulette_ = -1.f;
 };

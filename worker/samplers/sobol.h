@@ -11,6 +11,7 @@
 // pair forms a (0, m, 2)-net); between groups the shuffles make them independent ("padding").
 #include <array>
 #include <cstdint>
+#include <cstring>
 
 namespace rayfarm::sobol {
 
@@ -123,35 +124,116 @@ constexpr uint32_t sobol_reversed(uint32_t y, int dim) {
 /// 32 scrambled bits to a float in [0, 1): the top 24 bits, so that rounding never gives 1.
 constexpr float to_unit_float(uint32_t bits) { return static_cast<float>(bits >> 8) * 0x1p-24f; }
 
-/// Point `index` of the scrambled four-dimensional sequence of `key` (a well-mixed 64-bit hash):
-/// the index shuffled by a nested permutation (which maps every aligned block of 2^m indices onto
-/// one such block, so the first 2^m samples stay a net), then each Sobol' coordinate
-/// Owen-scrambled.
-template <int kDims = 4>
-constexpr std::array<uint32_t, kDims> sample_bits(uint32_t index, uint64_t key) {
-  static_assert(kDims >= 1 && kDims <= 4);
+// The four coordinates of a point are computed side by side, one per lane of a 128-bit vector
+// (GCC's and Clang's vector extensions: SSE2 on x86-64, NEON on arm64). Each lane does exactly
+// the scalar operations above, so the bits are those of reverse_bits(), lk_permute() and
+// sobol_reversed() applied coordinate by coordinate (tests/worker/sampler_test.cpp checks it).
+using Lanes = uint32_t __attribute__((vector_size(16)));
+using SignedLanes = int32_t __attribute__((vector_size(16)));
+using FloatLanes = float __attribute__((vector_size(16)));
+
+/// reverse_bits() in each lane.
+inline Lanes reverse_lanes(Lanes x) {
+  x = ((x >> 1) & 0x55555555u) | ((x & 0x55555555u) << 1);
+  x = ((x >> 2) & 0x33333333u) | ((x & 0x33333333u) << 2);
+  x = ((x >> 4) & 0x0f0f0f0fu) | ((x & 0x0f0f0f0fu) << 4);
+  x = ((x >> 8) & 0x00ff00ffu) | ((x & 0x00ff00ffu) << 8);
+  return (x >> 16) | (x << 16);
+}
+
+/// lk_permute() in each lane, each with its own key.
+inline Lanes lk_permute_lanes(Lanes x, Lanes key) {
+  x ^= x * 0x3d20adeau;
+  x += key;
+  x *= (key >> 16) | 1u;
+  x ^= x * 0x05526c56u;
+  x ^= x * 0x53a22864u;
+  return x;
+}
+
+/// kReversedTables with the four dimensions side by side: entry [byte][b] holds
+/// kReversedTables.t[d][byte][b] for d = 0..3, so that one 16-byte load serves all four.
+struct LaneTables {
+  std::array<std::array<std::array<uint32_t, 4>, 256>, 4> t{};
+};
+
+constexpr LaneTables make_lane_tables() {
+  LaneTables out;
+  for (int byte = 0; byte < 4; ++byte) {
+    for (int b = 0; b < 256; ++b) {
+      for (int d = 0; d < 4; ++d) out.t[byte][b][d] = kReversedTables.t[d][byte][b];
+    }
+  }
+  return out;
+}
+
+alignas(16) inline constexpr LaneTables kLaneTables = make_lane_tables();
+
+inline Lanes load_lanes(const std::array<uint32_t, 4>& entry) {
+  Lanes v;
+  std::memcpy(&v, entry.data(), sizeof v);
+  return v;
+}
+
+/// sobol_reversed(y, d) for d = 0..3, one per lane.
+inline Lanes sobol_reversed_lanes(uint32_t y) {
+  const auto& t = kLaneTables.t;
+  return load_lanes(t[0][y & 0xffu]) ^ load_lanes(t[1][(y >> 8) & 0xffu]) ^
+         load_lanes(t[2][(y >> 16) & 0xffu]) ^ load_lanes(t[3][y >> 24]);
+}
+
+/// The four scrambled coordinates of point `index` of the sequence of `key` (a well-mixed 64-bit
+/// hash), given reverse_bits(index): the index shuffled by a nested permutation (which maps every
+/// aligned block of 2^m indices onto one such block, so the first 2^m samples stay a net), then
+/// each Sobol' coordinate Owen-scrambled. A caller that draws several groups for one sample
+/// reverses its index once.
+inline Lanes sample_lanes(uint32_t reversed_index, uint64_t key) {
   // The shuffle and the scrambles both act on reversed bits; staying there between them leaves
   // one reversal per coordinate (owen_scramble(sobol_bits(owen_scramble(index)))).
   // `key` is already a hash: its low half keys the shuffle, its high half (offset per dimension
   // by the golden ratio) the coordinates' scrambles.
   const auto shuffle_key = static_cast<uint32_t>(key),
              scramble_key = static_cast<uint32_t>(key >> 32);
-  const uint32_t y = lk_permute(reverse_bits(index), shuffle_key);
-  std::array<uint32_t, kDims> out{};
-  for (int d = 0; d < kDims; ++d) {
-    const uint32_t k = scramble_key + 0x9e3779b9u * static_cast<uint32_t>(d);
-    out[d] = reverse_bits(lk_permute(sobol_reversed(y, d), k));
-  }
+  const uint32_t y = lk_permute(reversed_index, shuffle_key);
+  const Lanes keys = scramble_key + Lanes{0u, 0x9e3779b9u, 0x9e3779b9u * 2u, 0x9e3779b9u * 3u};
+  return reverse_lanes(lk_permute_lanes(sobol_reversed_lanes(y), keys));
+}
+
+/// The first kDims coordinates of sample_lanes() as 32 bits each (bit 31 = 1/2).
+template <int kDims = 4>
+inline std::array<uint32_t, kDims> sample_bits_reversed(uint32_t reversed_index, uint64_t key) {
+  static_assert(kDims >= 1 && kDims <= 4);
+  const Lanes v = sample_lanes(reversed_index, key);
+  std::array<uint32_t, kDims> out;
+  for (int d = 0; d < kDims; ++d) out[d] = v[d];
   return out;
+}
+
+/// The first kDims coordinates of sample_lanes() as floats in [0, 1), to_unit_float() of each.
+template <int kDims = 4>
+inline std::array<float, kDims> sample_reversed(uint32_t reversed_index, uint64_t key) {
+  static_assert(kDims >= 1 && kDims <= 4);
+  // The top 24 bits are below 2^24: exact as signed integers and as floats.
+  const FloatLanes f =
+      __builtin_convertvector(reinterpret_cast<SignedLanes>(sample_lanes(reversed_index, key) >> 8),
+                              FloatLanes) *
+      0x1p-24f;
+  std::array<float, kDims> out;
+  for (int d = 0; d < kDims; ++d) out[d] = f[d];
+  return out;
+}
+
+/// Point `index` of the scrambled four-dimensional sequence of `key`, its first kDims
+/// coordinates as 32 bits.
+template <int kDims = 4>
+inline std::array<uint32_t, kDims> sample_bits(uint32_t index, uint64_t key) {
+  return sample_bits_reversed<kDims>(reverse_bits(index), key);
 }
 
 /// sample_bits() as floats in [0, 1) (their top 24 bits).
 template <int kDims = 4>
-constexpr std::array<float, kDims> sample(uint32_t index, uint64_t key) {
-  const std::array<uint32_t, kDims> bits = sample_bits<kDims>(index, key);
-  std::array<float, kDims> out{};
-  for (int d = 0; d < kDims; ++d) out[d] = to_unit_float(bits[d]);
-  return out;
+inline std::array<float, kDims> sample(uint32_t index, uint64_t key) {
+  return sample_reversed<kDims>(reverse_bits(index), key);
 }
 
 }  // namespace rayfarm::sobol
