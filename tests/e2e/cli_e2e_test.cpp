@@ -141,8 +141,11 @@ TEST_F(CliTest, UsageErrorsExit2WithTheUsageLineAndANearMiss) {
                         Case{{"list", "--frobnicate"}, "", "Usage: rayfarm list"}}) {
     const RunResult r = cli(c.args, false);
     EXPECT_EQ(r.code, 2) << c.args[0] << ": " << r.err;
-    if (!c.suggestion.empty()) EXPECT_NE(r.err.find(c.suggestion), std::string::npos) << r.err;
-    if (c.suggestion.empty()) EXPECT_EQ(r.err.find("did you mean"), std::string::npos) << r.err;
+    if (!c.suggestion.empty()) {
+      EXPECT_NE(r.err.find(c.suggestion), std::string::npos) << r.err;
+    } else {
+      EXPECT_EQ(r.err.find("did you mean"), std::string::npos) << r.err;
+    }
     EXPECT_NE(r.err.find(c.usage), std::string::npos) << r.err;
   }
   const RunResult unknown = cli({"frobnicate"}, false);
@@ -377,7 +380,7 @@ TEST_F(CliTest, JsonOutputIsOneObjectPerLine) {
   EXPECT_EQ(one[0].at("state"), "done");
   EXPECT_EQ(one[0].at("passes_done"), one[0].at("passes_total"));
   // Every process names its version in its first log line.
-  for (const std::string log : {master().log(), read_file(dir() / "w1.log")}) {
+  for (const std::string& log : {master().log(), read_file(dir() / "w1.log")}) {
     EXPECT_NE(log.substr(0, log.find('\n')).find(protocol::kBuildVersion), std::string::npos)
         << log.substr(0, 300);
   }
