@@ -38,9 +38,8 @@ void JobManager::finish(Job& job, wire::JobState state, const std::string& error
   r.error = error;
   r.units_done = a.merger.merged_count();
   r.spp_min = a.merger.min_spp();
-  // Leading passes every pixel has (a converged tile skips the later ones).
-  r.passes_done = r.spp_min >= s.settings.spp ? a.grid().pass_count()
-                                              : r.spp_min / std::max<uint32_t>(1, s.pass_spp);
+  // Passes every pixel has (a converged tile skips the later ones), as the live status counts.
+  r.passes_done = a.grid().passes_within(r.spp_min);
   r.spp_mean =
       static_cast<double>(a.merger.samples_merged()) / (double(s.film.width) * s.film.height);
   r.tiles_converged = a.planner.tiles_converged();

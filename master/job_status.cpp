@@ -74,7 +74,7 @@ wire::JobStatus JobManager::make_status(const Job& job, uint32_t workers_total) 
     const ActiveJob& a = *job.active;
     const Merger& m = a.merger;
     const auto counts = scheduler_.counts(s.id);
-    st.set_passes_done(a.planner.rounds_complete(m.merged_units()));
+    st.set_passes_done(grid.passes_within(m.min_spp()));
     st.set_tiles_converged(a.planner.tiles_converged());
     st.set_spp_mean(static_cast<double>(m.samples_merged()) /
                     (double(s.film.width) * s.film.height));

@@ -64,7 +64,7 @@ struct JobRecord {
   std::string stop_reason;       ///< once finished: stop_reason_name() of why
   // Once finished: the final image's figures.
   uint64_t units_done = 0;
-  uint32_t passes_done = 0;      ///< leading passes merged over the whole image
+  uint32_t passes_done = 0;      ///< passes every pixel has (UnitGrid::passes_within)
   uint32_t spp_min = 0;          ///< fewest samples of any pixel
   double spp_mean = 0.0;
   uint32_t tiles_converged = 0;

@@ -47,6 +47,12 @@ class UnitGrid {
   uint64_t samples_in(uint64_t id) const;
   /// Pixel samples of the whole render.
   uint64_t samples_total() const;
+  /// Passes' worth of samples that every pixel has, given the fewest any pixel has: every pass
+  /// once it has all spp samples, else whole passes of pass_spp(). What "pass N/M" shows while a
+  /// job runs and in its finished record alike.
+  uint32_t passes_within(uint32_t min_spp) const {
+    return min_spp >= spp_ ? pass_count() : min_spp / (pass_spp_ > 0 ? pass_spp_ : 1u);
+  }
 
  private:
   FilmSize film_;

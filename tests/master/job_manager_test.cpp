@@ -353,6 +353,48 @@ TEST_F(JobManagerTest, ATargetErrorStopsConvergedTilesAndSaysWhy) {
   EXPECT_DOUBLE_EQ(restarted.status(id, 0)->spp_mean(), 8.0);
 }
 
+TEST_F(JobManagerTest, PassesDoneCountsThePassesEveryPixelHasWhileRunningAndWhenDone) {
+  // Tile 0 (constant samples) meets the target after its minimum of 2 passes; the other three
+  // (noisy samples) never do and run all 16. "pass N/M" must count the passes every pixel has
+  // (spp_done / pass_spp) while the job runs, as its finished record does, not the rounds that
+  // the open tiles have reached.
+  wire::SubmitJob request = furnace_job(64, 16, 4);  // 4 tiles x 16 passes of 4 spp
+  request.mutable_overrides()->set_target_error(1e-3);
+  request.mutable_overrides()->set_min_passes(2);
+  const std::string id = jobs.submit(request);
+  const auto result = [](const wire::WorkUnit& unit) {
+    const TileRect rect = protocol::rect_from_wire(unit.tile());
+    TileResult r(rect, {unit.sample_begin(), unit.sample_end()});
+    const double n = unit.sample_end() - unit.sample_begin();
+    // Samples of mean 0.5: all 0.5 in tile 0; 0.5 +- 0.87 elsewhere (relMSE ~3 per sample).
+    const double mean_square = unit.unit_id() % 4 == 0 ? 0.25 : 1.0;
+    for (auto& s : r.sum) s = to_fixed(0.5 * n);
+    for (auto& s : r.sum_sq) s = to_fixed(mean_square * n);
+    return protocol::result_to_wire(unit.job_id(), unit.unit_id(), r, 0.01);
+  };
+  uint32_t checked = 0;
+  for (int round = 0; round < 32; ++round) {
+    std::vector<wire::WorkUnit> units;
+    while (auto unit = jobs.next_unit("w1")) units.push_back(*unit);
+    if (units.empty()) break;
+    for (const auto& unit : units)
+      ASSERT_EQ(jobs.on_result("w1", result(unit)), MergeOutcome::kMerged);
+    const auto st = jobs.status(id, 1);
+    if (st->state() != wire::JOB_RUNNING) break;
+    EXPECT_EQ(st->passes_done(), st->spp_done() / 4) << "round " << round;
+    EXPECT_LE(st->passes_done(), 2u) << "tile 0 stopped after 2 passes; round " << round;
+    ++checked;
+  }
+  EXPECT_GT(checked, 4u) << "the open tiles went on past tile 0 while running";
+  const auto st = jobs.status(id, 1);
+  EXPECT_EQ(st->state(), wire::JOB_DONE);
+  EXPECT_EQ(st->tiles_converged(), 1u);
+  EXPECT_EQ(st->spp_done(), 8u);
+  EXPECT_EQ(st->passes_done(), 2u);
+  EXPECT_EQ(st->passes_total(), 16u);
+  EXPECT_DOUBLE_EQ(st->spp_mean(), (8.0 + 3 * 64.0) / 4);
+}
+
 TEST_F(JobManagerTest, ATimeLimitEndsTheJobWithWhatIsMerged) {
   wire::SubmitJob request = furnace_job(64, 16, 4);
   request.mutable_overrides()->set_time_limit_s(4.0);  // longer than a stall of a loaded machine
@@ -479,19 +521,19 @@ TEST_F(JobManagerTest, RoundsWithinTheirIntervalsLeaveTheImageAndCheckpointToThe
   JobManagerOptions o;
   o.image_interval = std::chrono::hours{1};
   o.checkpoint_interval = std::chrono::hours{1};
-  JobManager jobs(store, o);
-  const std::string id = jobs.submit(furnace_job(16, 8, 4));  // 16 tiles x 4 passes of 4 spp
+  JobManager paced(store, o);
+  const std::string id = paced.submit(furnace_job(16, 8, 4));  // 16 tiles x 4 passes of 4 spp
   const fs::path job_dir = dir.path() / "data" / "jobs" / id;
-  ASSERT_EQ(merge_units(jobs, 16), 16u);  // the first round
-  EXPECT_EQ(image_spp(jobs, job_dir), "4");
-  ASSERT_EQ(merge_units(jobs, 16), 16u);  // the second
-  jobs.tick();
-  EXPECT_EQ(image_spp(jobs, job_dir), "4") << "the image rewritten within its interval";
-  jobs.wait_for_checkpoints();
+  ASSERT_EQ(merge_units(paced, 16), 16u);  // the first round
+  EXPECT_EQ(image_spp(paced, job_dir), "4");
+  ASSERT_EQ(merge_units(paced, 16), 16u);  // the second
+  paced.tick();
+  EXPECT_EQ(image_spp(paced, job_dir), "4") << "the image rewritten within its interval";
+  paced.wait_for_checkpoints();
   EXPECT_FALSE(fs::exists(job_dir / "checkpoint-0.bin")) << "checkpointed within its interval";
   // What is due is written at shutdown.
-  EXPECT_EQ(jobs.shutdown(), 1u);
-  EXPECT_EQ(image_spp(jobs, job_dir), "8");
+  EXPECT_EQ(paced.shutdown(), 1u);
+  EXPECT_EQ(image_spp(paced, job_dir), "8");
   EXPECT_TRUE(fs::exists(job_dir / "checkpoint-0.bin"));
 }
 
@@ -499,15 +541,15 @@ TEST_F(JobManagerTest, RoundsAfterTheirIntervalsWriteTheImageAndCheckpointThemse
   JobManagerOptions o;
   o.image_interval = std::chrono::milliseconds{1};
   o.checkpoint_interval = std::chrono::milliseconds{1};
-  JobManager jobs(store, o);
-  const std::string id = jobs.submit(furnace_job(16, 8, 4));
+  JobManager paced(store, o);
+  const std::string id = paced.submit(furnace_job(16, 8, 4));
   const fs::path job_dir = dir.path() / "data" / "jobs" / id;
   for (const std::string spp : {"4", "8"}) {
     std::this_thread::sleep_for(std::chrono::milliseconds{3});  // the intervals are up
-    ASSERT_EQ(merge_units(jobs, 16), 16u);                      // a round, and no tick
-    EXPECT_EQ(image_spp(jobs, job_dir), spp);
+    ASSERT_EQ(merge_units(paced, 16), 16u);                      // a round, and no tick
+    EXPECT_EQ(image_spp(paced, job_dir), spp);
   }
-  jobs.wait_for_checkpoints();
+  paced.wait_for_checkpoints();
   EXPECT_TRUE(fs::exists(job_dir / "checkpoint-0.bin"));
   EXPECT_TRUE(fs::exists(job_dir / "checkpoint-1.bin"));
 }
