@@ -10,6 +10,7 @@
 #   - each of naive, nee and mis at N/2 spp;
 #   - mis with --clamp 4 (the clamped path);
 #   - adaptive: --target-error 0.05 with --spp 8N in 16-pixel tiles (the pass planner's stopping);
+#   - the independent sampler at N/2 spp, also with update roulette and nee;
 # and compares each pair with `rayfarm compare` (exit 0 = bit-identical). Each binary renders the
 # scene of its own tree. Prints one line per render and a summary; exit 0 when every pair is
 # bit-identical, 1 when any differs or fails to render, 2 on a usage or build error.
@@ -92,6 +93,14 @@ settings=(
   "clamp:--spp $half --integrator mis --clamp 4"
   "adaptive:--spp $((spp * 8)) --target-error 0.05 --tile 16"
 )
+# The independent sampler reads one stream in the order the path asks for numbers: a change to
+# that order shows only here. (Commits before the sampler option skip these.)
+if "$old_cli" render --help 2>/dev/null | grep -q -- '--sampler'; then
+  settings+=(
+    "independent:--spp $half --sampler independent"
+    "independent-update:--spp $half --sampler independent --roulette update --integrator nee"
+  )
+fi
 
 pairs=0
 identical=0
