@@ -48,8 +48,9 @@ class UnitGrid {
   /// Pixel samples of the whole render.
   uint64_t samples_total() const;
   /// Passes' worth of samples that every pixel has, given the fewest any pixel has: every pass
-  /// once it has all spp samples, else whole passes of pass_spp(). What "pass N/M" shows while a
-  /// job runs and in its finished record alike.
+  /// once it has all spp samples, else whole passes of pass_spp(). A farm job's "pass N/M"
+  /// (status, watch, list), while it runs and in its finished record alike. (The master's log and
+  /// `rayfarm render`'s progress count rounds of the tiles still open: the pass being rendered.)
   uint32_t passes_within(uint32_t min_spp) const {
     return min_spp >= spp_ ? pass_count() : min_spp / (pass_spp_ > 0 ? pass_spp_ : 1u);
   }
