@@ -67,6 +67,7 @@ Scene load_gltf_frame(const fs::path& file, const SceneCheck& check, SceneImages
   }
   if (!result.has_camera) {
     scene.camera = default_camera(scene);
+    scene.default_camera = true;
     scene.warnings.push_back(file.string() + kDefaultGltfCameraWarning);
   }
   return scene;

@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <string_view>
 
 #include "common/scene/gltf_scene.h"
 #include "common/scene/instances.h"
@@ -97,11 +96,7 @@ std::shared_ptr<const SceneMotion> find_motion(const Scene& scene, const RenderS
   auto motion = std::make_shared<SceneMotion>();
   const uint32_t k = std::clamp(settings.motion_steps, kMinMotionSteps, kMaxMotionSteps);
   // A glTF file's default camera is placed from its meshes' bounds: it would chase them.
-  const bool default_camera =
-      std::any_of(scene.warnings.begin(), scene.warnings.end(), [](const std::string& w) {
-        const std::string_view end = kDefaultGltfCameraWarning;
-        return w.size() >= end.size() && w.compare(w.size() - end.size(), end.size(), end) == 0;
-      });
+  const bool default_camera = scene.default_camera;
   // One pose in memory at a time: what differs from the frame is kept, from the pose where it
   // first differs (the poses before it are the frame's own values).
   std::vector<int32_t> mesh_at(scene.meshes.size(), -1), sphere_at(scene.spheres.size(), -1),

@@ -393,6 +393,9 @@ struct Scene {
   std::filesystem::path source;                   ///< the scene file
   std::vector<std::filesystem::path> referenced;  ///< files it uses, relative to its folder
   std::vector<std::string> warnings;              ///< non-fatal problems found while loading
+  /// The camera is a default placed from the meshes' bounds (a glTF file without one): it is
+  /// placed anew at each frame, and kept still within a shutter rather than chasing the meshes.
+  bool default_camera = false;
 };
 
 /// Releases the decoded texture images a loaded scene holds, once a renderer has taken its copy.
