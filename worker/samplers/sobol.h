@@ -15,22 +15,18 @@
 
 namespace rayfarm::sobol {
 
-/// Reverses the 32 bits of x (bit 0 becomes bit 31).
-constexpr uint32_t reverse_bits(uint32_t x) {
+/// reverse_bits() and lk_permute() on a 32-bit word or, the same operations in each lane, on a
+/// vector of them (Lanes, below).
+template <class Word>
+constexpr Word reverse_word(Word x) {
   x = ((x >> 1) & 0x55555555u) | ((x & 0x55555555u) << 1);
   x = ((x >> 2) & 0x33333333u) | ((x & 0x33333333u) << 2);
   x = ((x >> 4) & 0x0f0f0f0fu) | ((x & 0x0f0f0f0fu) << 4);
   x = ((x >> 8) & 0x00ff00ffu) | ((x & 0x00ff00ffu) << 8);
   return (x >> 16) | (x << 16);
 }
-
-/// A random permutation of 32-bit words in which each output bit depends only on the input bit
-/// at its place and those below it: x * even, x + c and x * odd carry information only upwards.
-/// Applied to bit-reversed fractions it becomes a nested uniform (Owen) scramble: the first
-/// digit of a fraction is flipped at random, each later digit by a choice that depends on the
-/// digits before it. The multipliers are those published for this purpose (a hash-based
-/// Laine-Karras permutation with good avalanche between bits).
-constexpr uint32_t lk_permute(uint32_t x, uint32_t key) {
+template <class Word>
+constexpr Word lk_permute_word(Word x, Word key) {
   x ^= x * 0x3d20adeau;
   x += key;
   x *= (key >> 16) | 1u;
@@ -38,6 +34,17 @@ constexpr uint32_t lk_permute(uint32_t x, uint32_t key) {
   x ^= x * 0x53a22864u;
   return x;
 }
+
+/// Reverses the 32 bits of x (bit 0 becomes bit 31).
+constexpr uint32_t reverse_bits(uint32_t x) { return reverse_word(x); }
+
+/// A random permutation of 32-bit words in which each output bit depends only on the input bit
+/// at its place and those below it: x * even, x + c and x * odd carry information only upwards.
+/// Applied to bit-reversed fractions it becomes a nested uniform (Owen) scramble: the first
+/// digit of a fraction is flipped at random, each later digit by a choice that depends on the
+/// digits before it. The multipliers are those published for this purpose (a hash-based
+/// Laine-Karras permutation with good avalanche between bits).
+constexpr uint32_t lk_permute(uint32_t x, uint32_t key) { return lk_permute_word(x, key); }
 
 /// Nested uniform scramble of a fraction in [0, 1) written as 32 bits (bit 31 = 1/2).
 constexpr uint32_t owen_scramble(uint32_t x, uint32_t key) {
@@ -126,30 +133,12 @@ constexpr float to_unit_float(uint32_t bits) { return static_cast<float>(bits >>
 
 // The four coordinates of a point are computed side by side, one per lane of a 128-bit vector
 // (GCC's and Clang's vector extensions: SSE2 on x86-64, NEON on arm64). Each lane does exactly
-// the scalar operations above, so the bits are those of reverse_bits(), lk_permute() and
-// sobol_reversed() applied coordinate by coordinate (tests/worker/sampler_test.cpp checks it).
+// the scalar operations (reverse_word() and lk_permute_word() serve both), so the bits are those
+// of reverse_bits(), lk_permute() and sobol_reversed() applied coordinate by coordinate
+// (tests/worker/sampler_test.cpp checks it).
 using Lanes = uint32_t __attribute__((vector_size(16)));
 using SignedLanes = int32_t __attribute__((vector_size(16)));
 using FloatLanes = float __attribute__((vector_size(16)));
-
-/// reverse_bits() in each lane.
-inline Lanes reverse_lanes(Lanes x) {
-  x = ((x >> 1) & 0x55555555u) | ((x & 0x55555555u) << 1);
-  x = ((x >> 2) & 0x33333333u) | ((x & 0x33333333u) << 2);
-  x = ((x >> 4) & 0x0f0f0f0fu) | ((x & 0x0f0f0f0fu) << 4);
-  x = ((x >> 8) & 0x00ff00ffu) | ((x & 0x00ff00ffu) << 8);
-  return (x >> 16) | (x << 16);
-}
-
-/// lk_permute() in each lane, each with its own key.
-inline Lanes lk_permute_lanes(Lanes x, Lanes key) {
-  x ^= x * 0x3d20adeau;
-  x += key;
-  x *= (key >> 16) | 1u;
-  x ^= x * 0x05526c56u;
-  x ^= x * 0x53a22864u;
-  return x;
-}
 
 /// kReversedTables with the four dimensions side by side: entry [byte][b] holds
 /// kReversedTables.t[d][byte][b] for d = 0..3, so that one 16-byte load serves all four.
@@ -196,7 +185,7 @@ inline Lanes sample_lanes(uint32_t reversed_index, uint64_t key) {
              scramble_key = static_cast<uint32_t>(key >> 32);
   const uint32_t y = lk_permute(reversed_index, shuffle_key);
   const Lanes keys = scramble_key + Lanes{0u, 0x9e3779b9u, 0x9e3779b9u * 2u, 0x9e3779b9u * 3u};
-  return reverse_lanes(lk_permute_lanes(sobol_reversed_lanes(y), keys));
+  return reverse_word(lk_permute_word(sobol_reversed_lanes(y), keys));
 }
 
 /// The first kDims coordinates of sample_lanes() as 32 bits each (bit 31 = 1/2).
