@@ -2,7 +2,7 @@
 # The farm's overhead over `rayfarm render`, and how it scales from 1 to 2 workers.
 #
 #   bench/farm_overhead.sh [--scene FILE] [--size N] [--spp N] [--threads T] [--repeat R] [--build DIR]
-#                          [--insecure]
+#                          [--insecure] [--master-arg ARG]...
 #
 # Defaults: scenes/cornell-box/scene.json at 512x512, 256 spp, T = 2, binaries from ./build (or
 # $RAYFARM_BIN). Runs, on this machine, the same job:
@@ -13,8 +13,9 @@
 # (`rayfarm submit --wait` from start to exit). Every farm image is compared with the reference;
 # they must be bit-identical. With --repeat R each figure is the fastest of R runs, which tames the
 # noise of a shared machine. The farm uses CURVE keys made for the run (as deployed); --insecure
-# runs it on plain sockets instead, to measure what encryption costs. Prints figures only; nothing
-# here is a test.
+# runs it on plain sockets instead, to measure what encryption costs. --master-arg passes one
+# argument to the master (repeat it: --master-arg --unit-seconds --master-arg 0). Prints figures
+# only; nothing here is a test.
 set -euo pipefail
 
 repo_root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -25,6 +26,7 @@ threads=2
 repeat=1
 build="${RAYFARM_BIN:-$repo_root/build}"
 insecure=0
+master_args=()
 
 while [ $# -gt 0 ]; do
   case $1 in
@@ -35,6 +37,7 @@ while [ $# -gt 0 ]; do
     --repeat) repeat=$2; shift 2 ;;
     --build) build=$2; shift 2 ;;
     --insecure) insecure=1; shift ;;
+    --master-arg) master_args+=("$2"); shift 2 ;;
     -h|--help) sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "farm_overhead: unknown option '$1'" >&2; exit 2 ;;
   esac
@@ -113,7 +116,8 @@ run_farm() {
   wport=$(free_port); cport=$(free_port)
   data=$(mktemp -d "$work/data-$n-$t.XXXX")
   "$master_bin" --worker-endpoint "tcp://127.0.0.1:$wport" --client-endpoint "tcp://127.0.0.1:$cport" \
-    --data-dir "$data" --log-level warn "${master_auth[@]}" >"$work/master-$n-$t.log" 2>&1 &
+    --data-dir "$data" --log-level warn "${master_auth[@]}" ${master_args[@]+"${master_args[@]}"} \
+    >"$work/master-$n-$t.log" 2>&1 &
   pids+=($!)
   local farm_pids=($!)
   for i in $(seq 1 "$n"); do

@@ -1,6 +1,6 @@
-// The job lifecycle: making a job active, leasing its units, merging results, counting failures,
-// and cancel, remove and retry. Admission, recovery, status and the end of a job have files of
-// their own (job_manager.h).
+// The job lifecycle: making a job active, rounds of passes, counting failures, and cancel, remove
+// and retry. Leasing units and merging their results (job_units.cpp), admission, recovery, status
+// and the end of a job have files of their own (job_manager.h).
 #include <algorithm>
 
 #include "common/net/frames.h"
@@ -46,6 +46,7 @@ void JobManager::schedule(Job& job) {
   const std::string& id = job.record.spec.id;
   ActiveJob& a = *job.active;
   scheduler_.add_job(id, job.record.spec.sequence, job.record.spec.frame.value_or(0));
+  scheduler_.set_run_stride(id, a.grid().tile_count());
   scheduler_.set_priority(id, job.record.priority);
   scheduler_.set_paused(id, job.record.paused);
   if (job.record.paused) a.pause(Clock::now());
@@ -59,167 +60,6 @@ void JobManager::schedule(Job& job) {
     if (a.planner.is_released(unit) && !a.merger.merged(unit)) units.push_back(unit);
   }
   scheduler_.release(id, units);
-}
-
-std::optional<wire::WorkUnit> JobManager::next_unit(const WorkerId& worker,
-                                                    const std::string& key) {
-  const auto now = Clock::now();
-  auto ref = scheduler_.lease(worker, now, key);
-  if (!ref) {
-    const auto straggler = scheduler_.lease_straggler(worker, options_.stragglers, now, key);
-    if (!straggler) return std::nullopt;
-    ref = straggler->unit;
-    log_scheduler()->info(
-        "job {} unit {} is a straggler: leased to {} for {:.1f} s, the job's median unit takes "
-        "{:.2f} s; also leased to {}, the first result is merged",
-        ref->job, ref->unit, name_of(straggler->first), straggler->leased_seconds,
-        straggler->median_seconds, name_of(worker));
-  }
-  Job& job = jobs_.at(ref->job);
-  ActiveJob& a = *job.active;
-  const JobSpec& s = job.record.spec;
-  {
-    // The unit's past holders: kept until it merges, the latest few (a unit handed out again and
-    // again to reconnecting workers must not grow without bound).
-    constexpr size_t kHoldersKept = 8;
-    auto& holders = a.lease_history[ref->unit];
-    const std::pair<WorkerId, std::string> holder{worker, key};
-    if (std::find(holders.begin(), holders.end(), holder) == holders.end()) {
-      if (holders.size() >= kHoldersKept) holders.erase(holders.begin());
-      holders.push_back(holder);
-    }
-  }
-  if (!a.started()) {
-    a.start_time = Clock::now();
-    a.last_write = *a.start_time;
-    job.record.state = wire::JOB_RUNNING;
-    save(job);
-    log_jobs()->info("job {} started", s.id);
-  }
-  const UnitGrid::Unit u = a.grid().unit(ref->unit);
-  wire::WorkUnit out;
-  out.set_job_id(s.id);
-  out.set_unit_id(u.id);
-  *out.mutable_tile() = protocol::rect_to_wire(u.rect);
-  out.set_sample_begin(u.samples.begin);
-  out.set_sample_end(u.samples.end);
-  *out.mutable_settings() = protocol::settings_to_wire(s.settings);
-  out.set_bundle_hash(s.bundle_hash);
-  out.set_scene_path(s.scene_path);
-  out.set_pass(u.pass);
-  out.set_film_width(s.film.width);  // the job's film, which may override the scene's
-  out.set_film_height(s.film.height);
-  if (s.frame && !s.frame_file) out.set_frame(*s.frame);  // a list's file is a still
-  log_scheduler()->debug("job {} unit {} (pass {}) leased to {}", s.id, u.id, u.pass,
-                         name_of(worker));
-  return out;
-}
-
-MergeOutcome JobManager::on_result(const WorkerId& worker, const wire::UnitResult& result,
-                                   const std::string& key) {
-  const std::string& id = result.job_id();
-  auto it = jobs_.find(id);
-  if (it == jobs_.end()) {
-    log_merger()->debug("result for unknown job '{}' from {} dropped", protocol::printable(id),
-                        name_of(worker));
-    return MergeOutcome::kUnleased;  // no job, so nothing was leased
-  }
-  Job& job = it->second;
-  const UnitRef ref{id, result.unit_id()};
-  // Lines about dropped results are a peer's to cause: a burst per key, then one a second.
-  // (Taken only when a result is dropped: merged results spend nothing.)
-  auto level = [&] {
-    return log_budget_.take(key.empty() ? worker : key) ? spdlog::level::info
-                                                        : spdlog::level::debug;
-  };
-  if (!job.active) {
-    if (job.record.state == wire::JOB_DONE) {
-      log_merger()->log(level(), "job {} unit {}: duplicate result from {} dropped (the job is done)",
-                        id, result.unit_id(), name_of(worker));
-      return MergeOutcome::kDuplicate;
-    }
-    log_merger()->log(level(), "job {} unit {}: result from {} dropped (the job is {})", id,
-                      result.unit_id(), name_of(worker),
-                      protocol::job_state_name(job.record.state));
-    return MergeOutcome::kRejected;
-  }
-  ActiveJob& a = *job.active;
-  if (a.finishing) {
-    log_merger()->log(level(), "job {} unit {}: result from {} dropped (the job's work is done)", id,
-                      result.unit_id(), name_of(worker));
-    return MergeOutcome::kDuplicate;
-  }
-  auto reject = [&](const std::string& why) {
-    log_merger()->warn("job {} unit {}: result from {} rejected: {}", id, result.unit_id(),
-                       name_of(worker), why);
-    scheduler_.requeue(ref, worker);
-    note_failure(job, worker, key, result.unit_id(), "result rejected: " + why);
-    return MergeOutcome::kRejected;
-  };
-  if (a.merger.merged(result.unit_id())) {
-    log_merger()->log(level(), "job {} unit {}: duplicate result from {} dropped (merged before)", id,
-                      result.unit_id(), name_of(worker));
-    return MergeOutcome::kDuplicate;
-  }
-  // Only the connection that was leased the unit may return it: another peer's result, even with
-  // a valid worker key, is dropped and counts against nobody (it cannot fail the job either).
-  const auto history = a.lease_history.find(result.unit_id());
-  if (history == a.lease_history.end() ||
-      std::find(history->second.begin(), history->second.end(), std::pair{worker, key}) ==
-          history->second.end()) {
-    log_merger()->debug("job {} unit {}: result from {} dropped: the unit was never leased to it",
-                        id, result.unit_id(), name_of(worker));
-    return MergeOutcome::kUnleased;
-  }
-  if (!a.planner.is_released(result.unit_id())) {
-    return reject("the unit was never handed out (the job's stopping rules have not released it)");
-  }
-  TileResult tile;
-  std::string why;
-  try {
-    // The tile sizes the decoding of the sums (a packed value may take one byte): it must be the
-    // unit's before anything is decoded, or a small message claiming a huge tile would make the
-    // master allocate many times its size.
-    if (!a.merger.covers(result.unit_id(), protocol::rect_from_wire(result.tile()),
-                         SampleRange{result.sample_begin(), result.sample_end()}, &why)) {
-      return reject(why);
-    }
-    tile = protocol::result_from_wire(result);
-  } catch (const protocol::ProtocolError& e) {
-    return reject(e.what());
-  }
-  MergeOutcome outcome;
-  try {
-    outcome = a.merger.add(result.unit_id(), tile, &why);  // the first allocates the film
-  } catch (const std::bad_alloc&) {
-    // The master cannot hold the job's image: the job fails, saying so, instead of leasing the
-    // unit again and again.
-    log_merger()->error("job {}: no memory for its {}x{} film", id, a.grid().film().width,
-                        a.grid().film().height);
-    finish(job, wire::JOB_FAILED,
-           fmt::format("the master has no memory for the job's {}x{} image", a.grid().film().width,
-                       a.grid().film().height),
-           StopReason::kFailed);
-    return MergeOutcome::kRejected;
-  }
-  if (outcome == MergeOutcome::kRejected) return reject(why);
-  if (outcome == MergeOutcome::kDuplicate) return outcome;  // checked above; kept for clarity
-
-  scheduler_.complete(ref, worker);
-  a.lease_history.erase(result.unit_id());
-  a.dirty = true;
-  a.checkpoint_due = true;
-  a.contributors[worker] = Clock::now();
-  log_merger()->debug("job {} unit {} merged from {} ({:.3f} s render)", id, result.unit_id(),
-                      name_of(worker), result.render_seconds());
-  a.tracker.update_tile(a.merger.film(), a.grid().tile_of(result.unit_id()));
-  PassPlanner& planner = a.planner;
-  planner.on_merged(result.unit_id(), a.merger.merged_units(), a.merger.film(),
-                    &a.tracker.estimate());
-  scheduler_.release(id, planner.take_released());
-  if (planner.rounds_complete(a.merger.merged_units()) > a.rounds_recorded) on_round_done(job);
-  if (planner.finished()) finish(job, wire::JOB_DONE, "", planner.reason());
-  return outcome;
 }
 
 void JobManager::on_round_done(Job& job) {
@@ -277,7 +117,9 @@ bool JobManager::on_unit_failed(const WorkerId& worker, const wire::UnitFailed& 
     return false;
   }
   log_jobs()->warn("job {} unit {} failed on {}: {}", ref.job, ref.unit, name_of(worker), reason);
-  scheduler_.requeue(ref, worker);
+  for (const uint64_t unit : scheduler_.lease_of(ref, worker)) {  // the whole lease failed
+    scheduler_.requeue(UnitRef{ref.job, unit}, worker);
+  }
   note_failure(job, worker, key, ref.unit, reason);
   return true;
 }

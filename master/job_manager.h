@@ -6,8 +6,9 @@
 //
 // One facade, one file per concept: job_admission.cpp (what submit checks), job_recovery.cpp
 // (checkpoints, and resuming from them), job_status.cpp (what status and list report),
-// job_finish.cpp (how a job ends, on disk) and job_manager.cpp (the lifecycle between: leases,
-// results, failures, cancel, retry). A running job's parts are one ActiveJob (active_job.h).
+// job_finish.cpp (how a job ends, on disk), job_units.cpp (leases, one unit or a run, and
+// merging their results) and job_manager.cpp (the lifecycle between: rounds, failures, cancel,
+// retry). A running job's parts are one ActiveJob (active_job.h).
 #include <chrono>
 #include <cstdint>
 #include <functional>
@@ -54,6 +55,8 @@ struct JobManagerOptions {
   int max_worker_failures = 3;
   /// When a slow unit is leased a second time.
   StragglerPolicy stragglers;
+  /// How many of a tile's passes one lease covers (scheduler.h, "Runs"); the default, one.
+  RunPolicy runs;
   /// Who is connected now, as failures count them: each worker's key, or the worker itself
   /// without keys. A job that every one of them has been blocked from for `blocked_grace` fails
   /// (it could never finish; a worker that joins meanwhile saves it). Unset: not checked.
@@ -110,11 +113,13 @@ class JobManager {
   /// The owner of a job; nullptr when the job is unknown.
   const std::string* owner_of(const std::string& id) const;
 
-  /// The next unit for `worker`, leased to it; nullopt when no job has pending units.
-  /// When nothing is pending, a straggler (a unit leased for much longer than its job's median)
-  /// is leased to `worker` a second time. `key` is the name of the key the worker connected with
-  /// (empty without CURVE): failures are counted, and blocks applied, per key, so that one key
-  /// cannot pose as several workers by opening several connections.
+  /// The next unit for `worker`, leased to it; nullopt when no job has pending units. It may
+  /// cover a run of its tile's passes (options' runs): its samples then span them, and so must
+  /// the result's. When nothing is pending, a straggler (a lease running much longer per unit
+  /// than its job's median) is leased to `worker` a second time, every unit of it. `key` is the
+  /// name of the key the worker connected with (empty without CURVE): failures are counted, and
+  /// blocks applied, per key, so that one key cannot pose as several workers by opening several
+  /// connections.
   std::optional<wire::WorkUnit> next_unit(const WorkerId& worker, const std::string& key = {});
   /// Some unit could be handed out: pending, or a straggler to lease again.
   bool has_pending() const {
@@ -123,6 +128,10 @@ class JobManager {
 
   /// Merges a result from `worker`, which must hold the unit's lease or have held it (a late
   /// result from a worker that was declared lost still counts when the unit is not merged yet).
+  /// A result whose samples span a run of its tile's passes merges every unit of the run, each of
+  /// which must have been leased to `worker`; when some of them were merged before, it is
+  /// dropped as a duplicate. A result answers its whole lease: units of it the result leaves
+  /// out go back to the queue.
   /// A result for a unit never leased to `worker` is kUnleased: dropped, and counted against
   /// nobody. A leased result whose sums are malformed or implausible is kRejected and counts as
   /// a failure of `key`.

@@ -77,6 +77,17 @@ int main(int argc, char** argv) {
                  "... and at least this long (milliseconds)")
       ->check(CLI::Range(int64_t{0}, int64_t{86400000}))
       ->capture_default_str();
+  // Units sized by time (master/scheduler.h, "Runs"; docs/farm.md).
+  double unit_seconds = 2.0;
+  app.add_option("--unit-seconds", unit_seconds,
+                 "let one lease cover as many of a tile's passes as take about this long on the "
+                 "worker that gets it, from its measured time per unit (0 = one pass per lease); "
+                 "the image does not change")
+      ->check(CLI::Range(0.0, 3600.0))
+      ->capture_default_str();
+  app.add_option("--max-run-units", durability.runs.max_units, "most passes one lease covers")
+      ->check(CLI::Range(1u, 4096u))
+      ->capture_default_str();
   app.add_option("--ffmpeg", durability.ffmpeg,
                  "the ffmpeg program that makes a finished sequence's MP4 movie (a path, or a "
                  "name looked up in PATH; \"\" = no movies); without it only the movie is "
@@ -161,6 +172,7 @@ int main(int argc, char** argv) {
   options.image_interval = std::chrono::milliseconds{image_interval_ms};
   durability.checkpoint_interval = std::chrono::milliseconds{checkpoint_interval_ms};
   durability.stragglers.floor = std::chrono::milliseconds{straggler_min_ms};
+  durability.runs.target = std::chrono::duration<double>(unit_seconds);
 
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);

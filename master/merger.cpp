@@ -23,15 +23,22 @@ const Film& Merger::film() const {
 }
 
 bool Merger::covers(uint64_t unit, const TileRect& rect, const SampleRange& samples,
-                    std::string* why) const {
+                    std::string* why, uint32_t units) const {
   std::string reason;
   if (unit >= grid_.size()) {
     reason = "unit " + std::to_string(unit) + " does not exist (the job has " +
              std::to_string(grid_.size()) + " units)";
-  } else if (const UnitGrid::Unit expected = grid_.unit(unit);
-             !(rect == expected.rect) || !(samples == expected.samples)) {
-    reason = "unit " + std::to_string(unit) + " is " + describe(expected.rect, expected.samples) +
-             ", the result covers " + describe(rect, samples);
+  } else if (units == 0 || units > grid_.pass_count() - grid_.pass_of(unit)) {
+    reason = "unit " + std::to_string(unit) + " has no run of " + std::to_string(units) +
+             " units (pass " + std::to_string(grid_.pass_of(unit)) + " of " +
+             std::to_string(grid_.pass_count()) + ")";
+  } else if (const SampleRange run = grid_.run_samples(unit, units);
+             !(rect == grid_.tile(grid_.tile_of(unit))) || !(samples == run)) {
+    reason = (units == 1
+                  ? "unit " + std::to_string(unit)
+                  : "the run of " + std::to_string(units) + " units from " + std::to_string(unit)) +
+             " is " + describe(grid_.tile(grid_.tile_of(unit)), run) + ", the result covers " +
+             describe(rect, samples);
   } else {
     return true;
   }
@@ -39,14 +46,18 @@ bool Merger::covers(uint64_t unit, const TileRect& rect, const SampleRange& samp
   return false;
 }
 
-MergeOutcome Merger::add(uint64_t unit, const TileResult& result, std::string* why) {
+MergeOutcome Merger::add(uint64_t unit, const TileResult& result, std::string* why,
+                         uint32_t units) {
   auto reject = [&](const std::string& reason) {
     if (why) *why = reason;
     return MergeOutcome::kRejected;
   };
   if (unit < grid_.size() && merged_.contains(unit)) return MergeOutcome::kDuplicate;
-  if (!covers(unit, result.rect, result.samples, why)) return MergeOutcome::kRejected;
-  const UnitGrid::Unit expected = grid_.unit(unit);
+  if (!covers(unit, result.rect, result.samples, why, units)) return MergeOutcome::kRejected;
+  const uint64_t stride = grid_.tile_count();
+  for (uint32_t k = 1; k < units; ++k) {
+    if (merged_.contains(unit + k * stride)) return MergeOutcome::kDuplicate;
+  }
   if (!result.well_formed() || !film().fits(result)) {
     return reject("unit " + std::to_string(unit) + ": malformed sums (" +
                   std::to_string(result.sum.size()) + " and " +
@@ -57,9 +68,9 @@ MergeOutcome Merger::add(uint64_t unit, const TileResult& result, std::string* w
     return reject("unit " + std::to_string(unit) + ": impossible sums: " + problem);
   }
   film_->add(result);
-  merged_.add(unit);
-  tile_spp_[expected.tile] += expected.samples.count();
-  samples_merged_ += uint64_t{expected.rect.pixel_count()} * expected.samples.count();
+  for (uint32_t k = 0; k < units; ++k) merged_.add(unit + k * stride);
+  tile_spp_[grid_.tile_of(unit)] += result.samples.count();
+  samples_merged_ += uint64_t{result.rect.pixel_count()} * result.samples.count();
   return MergeOutcome::kMerged;
 }
 

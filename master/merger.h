@@ -26,13 +26,17 @@ class Merger {
  public:
   explicit Merger(UnitGrid grid);
 
-  /// Whether `rect` and `samples` are exactly unit `unit`'s (an existing one); when not, `why`
-  /// (when given) names the mismatch. A result's tile sizes the decoding of its sums, so the
-  /// master checks it with this before decoding; add() checks it again.
+  /// Whether `rect` and `samples` are exactly those of the run of `units` units from `unit`
+  /// (UnitGrid::run_samples; one unit by default), all existing; when not, `why` (when given)
+  /// names the mismatch. A result's tile sizes the decoding of its sums, so the master checks it
+  /// with this before decoding; add() checks it again.
   bool covers(uint64_t unit, const TileRect& rect, const SampleRange& samples,
-              std::string* why = nullptr) const;
-  /// Merges `result` as unit `unit`. On kRejected, `why` (when given) names the mismatch.
-  MergeOutcome add(uint64_t unit, const TileResult& result, std::string* why = nullptr);
+              std::string* why = nullptr, uint32_t units = 1) const;
+  /// Merges `result` as the run of `units` units from `unit` (one by default): its sums are the
+  /// sums of those units' samples. kDuplicate when any of them was merged before (nothing is
+  /// added: the sums cannot be split). On kRejected, `why` (when given) names the mismatch.
+  MergeOutcome add(uint64_t unit, const TileResult& result, std::string* why = nullptr,
+                   uint32_t units = 1);
 
   bool merged(uint64_t unit) const { return merged_.contains(unit); }
   uint64_t merged_count() const { return merged_.count(); }

@@ -21,6 +21,11 @@ void Scheduler::add_job(const std::string& job, const std::string& group, int64_
   order_.push_back(job);
 }
 
+void Scheduler::set_run_stride(const std::string& job, uint64_t stride) {
+  auto it = jobs_.find(job);
+  if (it != jobs_.end()) it->second.stride = stride;
+}
+
 void Scheduler::set_priority(const std::string& job, int priority) {
   auto it = jobs_.find(job);
   if (it != jobs_.end()) it->second.priority = priority;
@@ -57,8 +62,33 @@ std::optional<uint64_t> Scheduler::take_pending(Job& j) {
     j.ready.erase(j.ready.begin());
     return unit;
   }
-  if (fresh) return j.next_fresh++;
+  if (fresh) return take_fresh(j);
   return std::nullopt;
+}
+
+uint64_t Scheduler::take_fresh(Job& j) {
+  const uint64_t unit = j.next_fresh++;
+  while (j.next_fresh < j.fresh_end && j.taken_ahead.erase(j.next_fresh) > 0) ++j.next_fresh;
+  return unit;
+}
+
+bool Scheduler::take_if_pending(Job& j, uint64_t unit) {
+  if (j.requeued.erase(unit) > 0 || j.ready.erase(unit) > 0) return true;
+  if (unit < j.next_fresh || unit >= j.fresh_end || j.taken_ahead.count(unit) != 0) return false;
+  if (unit == j.next_fresh) {
+    take_fresh(j);
+  } else {
+    j.taken_ahead.insert(unit);
+  }
+  return true;
+}
+
+uint32_t Scheduler::run_length(const Job& j, const WorkerId& worker, const RunPolicy& runs) {
+  if (j.stride == 0 || runs.target.count() <= 0 || runs.max_units <= 1) return 1;
+  auto it = j.unit_seconds.find(worker);
+  if (it == j.unit_seconds.end()) return 1;  // not measured yet on this job
+  const double units = it->second > 0 ? runs.target.count() / it->second : runs.max_units;
+  return static_cast<uint32_t>(std::clamp(units, 1.0, static_cast<double>(runs.max_units)));
 }
 
 void Scheduler::remove_job(const std::string& job) {
@@ -83,6 +113,13 @@ bool Scheduler::served_before(const Standing& a, const Standing& b) {
 
 std::optional<UnitRef> Scheduler::lease(const WorkerId& worker, Clock::time_point now,
                                         const std::string& key) {
+  const auto run = lease_run(worker, RunPolicy{}, now, key);
+  if (!run) return std::nullopt;
+  return UnitRef{run->job, run->units.front()};
+}
+
+std::optional<Lease> Scheduler::lease_run(const WorkerId& worker, const RunPolicy& runs,
+                                          Clock::time_point now, const std::string& key) {
   const std::string& who = key.empty() ? worker : key;
   // A group (a sequence's frames) competes as one job: its leases and its latest service are its
   // jobs' together, and it offers its lowest-ranked job that this worker may take.
@@ -90,7 +127,7 @@ std::optional<UnitRef> Scheduler::lease(const WorkerId& worker, Clock::time_poin
   for (const auto& [name, j] : jobs_) {
     if (j.group.empty()) continue;
     Standing& g = groups[j.group];
-    g.leases += j.leased.size();
+    g.leases += j.open_leases.size();
     g.served = std::max(g.served, j.served);
   }
   std::map<std::string, const std::string*> offered;  // group -> its job on offer
@@ -106,7 +143,7 @@ std::optional<UnitRef> Scheduler::lease(const WorkerId& worker, Clock::time_poin
   for (const auto& name : order_) {
     const Job& j = jobs_.at(name);
     if (j.paused || j.blocked.count(who) || !has_pending(j)) continue;
-    Standing standing{j.priority, j.leased.size(), j.served};
+    Standing standing{j.priority, j.open_leases.size(), j.served};
     if (!j.group.empty()) {
       if (offered.at(j.group) != &name) continue;
       standing = groups.at(j.group);
@@ -121,10 +158,21 @@ std::optional<UnitRef> Scheduler::lease(const WorkerId& worker, Clock::time_poin
   Job& best_job = jobs_.at(*best);
   const std::optional<uint64_t> unit = take_pending(best_job);
   RAYFARM_CHECK(unit.has_value(), "a job with units pending gave none");
-  best_job.leased[*unit] = {Job::Holder{worker, now}};
-  best_job.served = ++lease_serial_;
-  by_worker_[worker].insert(UnitRef{*best, *unit});
-  return UnitRef{*best, *unit};
+  Lease out{*best, {*unit}};
+  const uint32_t length = run_length(best_job, worker, runs);
+  while (out.units.size() < length &&
+         take_if_pending(best_job, out.units.back() + best_job.stride)) {
+    out.units.push_back(out.units.back() + best_job.stride);
+  }
+  const uint64_t serial = ++lease_serial_;
+  const auto count = static_cast<uint32_t>(out.units.size());
+  for (const uint64_t u : out.units) {
+    best_job.leased[u] = {Job::Holder{worker, now, serial, count}};
+    by_worker_[worker].insert(UnitRef{*best, u});
+  }
+  best_job.open_leases[serial] = count;
+  best_job.served = serial;
+  return out;
 }
 
 double Scheduler::median(const std::deque<double>& values) {
@@ -160,23 +208,35 @@ std::optional<Scheduler::StragglerLease> Scheduler::lease_straggler(const Worker
     if (j.paused || j.blocked.count(who)) continue;
     const auto threshold = straggler_threshold(j, policy);
     if (!threshold) continue;
-    // The slowest single lease past the threshold that `worker` does not hold.
-    std::optional<uint64_t> slowest;
-    double slowest_seconds = 0.0;
+    // The slowest single lease, per unit, past the threshold that `worker` does not hold.
+    const Job::Holder* slowest = nullptr;
+    double slowest_per_unit = 0.0;
     for (const auto& [unit, holders] : j.leased) {
       if (holders.size() != 1 || holders.front().worker == worker) continue;
-      const double seconds = std::chrono::duration<double>(now - holders.front().since).count();
-      if (seconds > *threshold && seconds > slowest_seconds) {
-        slowest = unit;
-        slowest_seconds = seconds;
+      const Job::Holder& h = holders.front();
+      const double per_unit = std::chrono::duration<double>(now - h.since).count() / h.units;
+      if (per_unit > *threshold && per_unit > slowest_per_unit) {
+        slowest = &h;
+        slowest_per_unit = per_unit;
       }
     }
-    if (!slowest) continue;
-    auto& holders = j.leased.at(*slowest);
-    StragglerLease out{UnitRef{name, *slowest}, holders.front().worker, slowest_seconds,
-                       median(j.durations)};
-    holders.push_back(Job::Holder{worker, now});
-    by_worker_[worker].insert(out.unit);
+    if (slowest == nullptr) continue;
+    const Job::Holder first = *slowest;
+    StragglerLease out;
+    for (const auto& [unit, holders] : j.leased) {
+      if (holders.size() == 1 && holders.front().lease == first.lease) out.units.push_back(unit);
+    }
+    out.unit = UnitRef{name, out.units.front()};
+    out.first = first.worker;
+    out.leased_seconds = std::chrono::duration<double>(now - first.since).count();
+    out.median_seconds = median(j.durations);
+    const uint64_t serial = ++lease_serial_;
+    const auto count = static_cast<uint32_t>(out.units.size());
+    for (const uint64_t unit : out.units) {
+      j.leased.at(unit).push_back(Job::Holder{worker, now, serial, count});
+      by_worker_[worker].insert(UnitRef{name, unit});
+    }
+    j.open_leases[serial] = count;
     return out;
   }
   return std::nullopt;
@@ -189,7 +249,9 @@ bool Scheduler::has_straggler(const StragglerPolicy& policy, Clock::time_point n
     if (!threshold) continue;
     for (const auto& [unit, holders] : j.leased) {
       if (holders.size() == 1 &&
-          std::chrono::duration<double>(now - holders.front().since).count() > *threshold) {
+          std::chrono::duration<double>(now - holders.front().since).count() /
+                  holders.front().units >
+              *threshold) {
         return true;
       }
     }
@@ -204,6 +266,12 @@ void Scheduler::drop_lease(const WorkerId& worker, const UnitRef& unit) {
   if (w->second.empty()) by_worker_.erase(w);
 }
 
+void Scheduler::unhold(Job& j, const Job::Holder& h, const UnitRef& unit) {
+  drop_lease(h.worker, unit);
+  auto open = j.open_leases.find(h.lease);
+  if (open != j.open_leases.end() && --open->second == 0) j.open_leases.erase(open);
+}
+
 bool Scheduler::complete(const UnitRef& unit, const std::optional<WorkerId>& by,
                          Clock::time_point now) {
   auto it = jobs_.find(unit.job);
@@ -214,10 +282,12 @@ bool Scheduler::complete(const UnitRef& unit, const std::optional<WorkerId>& by,
     held = true;
     for (const auto& h : l->second) {
       if (by && h.worker == *by) {
-        j.durations.push_back(std::chrono::duration<double>(now - h.since).count());
+        const double per_unit = std::chrono::duration<double>(now - h.since).count() / h.units;
+        j.durations.push_back(per_unit);
         if (j.durations.size() > kDurationWindow) j.durations.pop_front();
+        j.unit_seconds[h.worker] = per_unit;
       }
-      drop_lease(h.worker, unit);
+      unhold(j, h, unit);
     }
     j.leased.erase(l);
   }
@@ -232,7 +302,7 @@ bool Scheduler::requeue(const UnitRef& unit) {
   Job& j = it->second;
   auto l = j.leased.find(unit.unit);
   if (l == j.leased.end()) return false;
-  for (const auto& h : l->second) drop_lease(h.worker, unit);
+  for (const auto& h : l->second) unhold(j, h, unit);
   j.leased.erase(l);
   j.requeued.insert(unit.unit);
   return true;
@@ -248,8 +318,8 @@ bool Scheduler::requeue(const UnitRef& unit, const WorkerId& worker) {
   auto h = std::find_if(holders.begin(), holders.end(),
                         [&](const Job::Holder& x) { return x.worker == worker; });
   if (h == holders.end()) return false;
+  unhold(j, *h, unit);
   holders.erase(h);
-  drop_lease(worker, unit);
   if (holders.empty()) {
     j.leased.erase(l);
     j.requeued.insert(unit.unit);
@@ -262,15 +332,17 @@ std::vector<UnitRef> Scheduler::release_worker(const WorkerId& worker) {
   if (w == by_worker_.end()) return {};
   const std::vector<UnitRef> units(w->second.begin(), w->second.end());
   by_worker_.erase(w);
+  for (auto& [name, j] : jobs_) j.unit_seconds.erase(worker);
   std::vector<UnitRef> requeued;
   for (const auto& u : units) {
     Job& j = jobs_.at(u.job);
     auto l = j.leased.find(u.unit);
     if (l == j.leased.end()) continue;
     auto& holders = l->second;
-    holders.erase(std::remove_if(holders.begin(), holders.end(),
-                                 [&](const Job::Holder& x) { return x.worker == worker; }),
-                  holders.end());
+    const auto gone = std::remove_if(holders.begin(), holders.end(),
+                                     [&](const Job::Holder& x) { return x.worker == worker; });
+    for (auto h = gone; h != holders.end(); ++h) unhold(j, *h, u);
+    holders.erase(gone, holders.end());
     if (!holders.empty()) continue;  // the other holder of a straggler carries on
     j.leased.erase(l);
     j.requeued.insert(u.unit);
@@ -287,6 +359,31 @@ void Scheduler::block(const std::string& job, const std::string& who) {
 bool Scheduler::is_blocked(const std::string& job, const std::string& who) const {
   auto it = jobs_.find(job);
   return it != jobs_.end() && it->second.blocked.count(who) != 0;
+}
+
+std::vector<uint64_t> Scheduler::lease_of(const UnitRef& unit, const WorkerId& worker) const {
+  auto it = jobs_.find(unit.job);
+  if (it == jobs_.end()) return {};
+  const Job& j = it->second;
+  auto holder_in = [&](uint64_t u) -> const Job::Holder* {
+    auto l = j.leased.find(u);
+    if (l == j.leased.end()) return nullptr;
+    for (const auto& h : l->second) {
+      if (h.worker == worker) return &h;
+    }
+    return nullptr;
+  };
+  const Job::Holder* mine = holder_in(unit.unit);
+  if (mine == nullptr) return {};
+  const uint64_t serial = mine->lease;
+  std::vector<uint64_t> out;
+  auto w = by_worker_.find(worker);
+  for (auto r = w->second.lower_bound(UnitRef{unit.job, 0});
+       r != w->second.end() && r->job == unit.job; ++r) {
+    const Job::Holder* h = holder_in(r->unit);
+    if (h != nullptr && h->lease == serial) out.push_back(r->unit);
+  }
+  return out;
 }
 
 bool Scheduler::holds(const UnitRef& unit, const WorkerId& worker) const {
@@ -319,6 +416,15 @@ std::vector<UnitRef> Scheduler::leased_units(const WorkerId& worker) const {
   auto w = by_worker_.find(worker);
   if (w == by_worker_.end()) return {};
   return {w->second.begin(), w->second.end()};
+}
+
+std::optional<double> Scheduler::unit_seconds(const std::string& job,
+                                              const WorkerId& worker) const {
+  auto it = jobs_.find(job);
+  if (it == jobs_.end()) return std::nullopt;
+  auto w = it->second.unit_seconds.find(worker);
+  if (w == it->second.unit_seconds.end()) return std::nullopt;
+  return w->second;
 }
 
 }  // namespace rayfarm::master

@@ -16,6 +16,13 @@
 // worker's leases go back to the queue when it is lost, ahead of units never handed out. Pausing a
 // job stops new leases of it (second leases too); the leases it holds run to their end.
 //
+// Runs: a lease may cover a run of units, one tile's consecutive passes (units u, u + stride,
+// u + 2 stride, ...: the unit grid's numbering), sized by RunPolicy so that the run takes about a
+// target time on the worker that gets it, from how long that worker's latest lease of the job took
+// per unit. A run takes only units that are pending, so it never reaches past what the pass planner
+// released. The image does not depend on runs: a run's samples are the same samples, and the
+// master merges their exact sums as the units they cover. Fair sharing counts leases, not units.
+//
 // Failures and slow workers: a worker can be blocked from a job (it keeps failing there) and is
 // then given only other jobs' units. A unit leased for much longer than its job's median unit
 // (StragglerPolicy) may be leased a second time to a worker that has nothing else to do; both
@@ -41,6 +48,20 @@ struct UnitRef {
   auto operator<=>(const UnitRef&) const = default;
 };
 
+/// How many units one lease covers (see "Runs" at the top of this file).
+struct RunPolicy {
+  /// The time a lease should take on the worker that gets it; 0: one unit per lease.
+  std::chrono::duration<double> target{0};
+  /// The most units one lease covers.
+  uint32_t max_units = 32;
+};
+
+/// The units of one lease: one, or a run of one tile's consecutive passes, ascending.
+struct Lease {
+  std::string job;
+  std::vector<uint64_t> units;
+};
+
 /// When a unit is slow enough to be leased a second time.
 struct StragglerPolicy {
   /// Leased for longer than factor x the job's median unit duration; 0 = never.
@@ -55,12 +76,13 @@ class Scheduler {
  public:
   using Clock = std::chrono::steady_clock;
 
-  /// A unit leased a second time because its first lease is slow.
+  /// A lease taken a second time because the first is slow: every unit of the first lease.
   struct StragglerLease {
-    UnitRef unit;
-    WorkerId first;             ///< who holds the first lease
-    double leased_seconds = 0;  ///< how long the first lease has run
-    double median_seconds = 0;  ///< the job's median unit duration
+    UnitRef unit;                 ///< the first unit of the lease
+    std::vector<uint64_t> units;  ///< all of them (a run), ascending
+    WorkerId first;               ///< who holds the first lease
+    double leased_seconds = 0;    ///< how long the first lease has run
+    double median_seconds = 0;    ///< the job's median unit duration
   };
 
   struct Counts {
@@ -72,6 +94,9 @@ class Scheduler {
   /// a CHECK. Jobs of one `group` (a sequence's frames) share the workers as one job, and within
   /// it the lowest `rank` (the frame number) that has a unit pending goes first.
   void add_job(const std::string& job, const std::string& group = {}, int64_t rank = 0);
+  /// Units u, u + stride, u + 2 stride, ... of the job are one tile's consecutive passes, which a
+  /// lease may cover together (lease_run); 0 (the default): every lease is one unit.
+  void set_run_stride(const std::string& job, uint64_t stride);
   /// Higher priorities are served first (see the top of this file). Unknown jobs are ignored.
   void set_priority(const std::string& job, int priority);
   /// A paused job gets no new leases (nor second leases of its stragglers) until resumed.
@@ -83,14 +108,18 @@ class Scheduler {
   /// Forgets a job (finished or cancelled) and its leases.
   void remove_job(const std::string& job);
 
-  /// Leases the next pending unit of a job `worker` is not blocked from; nullopt when none.
-  /// `key` names the identity blocks apply to (the worker's key, shared by every connection made
-  /// with it); empty: the worker itself.
+  /// Leases the next pending unit of a job `worker` is not blocked from, with the pending units
+  /// that follow it in its tile's passes as `runs` sizes the lease; nullopt when none. `key`
+  /// names the identity blocks apply to (the worker's key, shared by every connection made with
+  /// it); empty: the worker itself.
+  std::optional<Lease> lease_run(const WorkerId& worker, const RunPolicy& runs,
+                                 Clock::time_point now = Clock::now(), const std::string& key = {});
+  /// lease_run() of one unit.
   std::optional<UnitRef> lease(const WorkerId& worker, Clock::time_point now = Clock::now(),
                                const std::string& key = {});
-  /// Leases to `worker` a second copy of the slowest straggler (policy) it does not hold, of a
-  /// job it is not blocked from and that is not paused, of the highest priority that has one;
-  /// nullopt when there is none.
+  /// Leases to `worker` a second copy of the slowest straggler lease (policy: its time per unit)
+  /// that it does not hold, of a job it is not blocked from and that is not paused, of the
+  /// highest priority that has one; nullopt when there is none.
   std::optional<StragglerLease> lease_straggler(const WorkerId& worker,
                                                 const StragglerPolicy& policy,
                                                 Clock::time_point now = Clock::now(),
@@ -98,9 +127,9 @@ class Scheduler {
   /// Some leased unit is a straggler that no second worker holds yet.
   bool has_straggler(const StragglerPolicy& policy, Clock::time_point now = Clock::now()) const;
   /// The unit is merged, whoever held it and even when it was back in the queue: every lease of
-  /// it ends and it leaves the queue for good. `by`, when it held a lease, gives the unit's
-  /// duration to the job's median. Returns false when the unit was neither leased nor queued
-  /// (an unknown job, or a unit completed before).
+  /// it ends and it leaves the queue for good. `by`, when it held a lease, gives the lease's time
+  /// per unit to the job's median and to the sizing of its next runs of the job. Returns false when
+  /// the unit was neither leased nor queued (an unknown job, or a unit completed before).
   bool complete(const UnitRef& unit, const std::optional<WorkerId>& by = std::nullopt,
                 Clock::time_point now = Clock::now());
   /// Puts a leased unit back in the queue, dropping every lease of it. False when not leased.
@@ -116,6 +145,9 @@ class Scheduler {
   /// there); current leases stand.
   void block(const std::string& job, const std::string& who);
   bool is_blocked(const std::string& job, const std::string& who) const;
+  /// The units of `worker`'s lease that includes `unit` (one, or every unit of a run), ascending;
+  /// empty when `worker` does not hold `unit`.
+  std::vector<uint64_t> lease_of(const UnitRef& unit, const WorkerId& worker) const;
   /// Whether `worker` holds a lease of `unit` now.
   bool holds(const UnitRef& unit, const WorkerId& worker) const;
   /// Some unit of some job that is not paused waits for a lease.
@@ -123,20 +155,29 @@ class Scheduler {
   Counts counts(const std::string& job) const;
   /// The units leased to `worker`, in order.
   std::vector<UnitRef> leased_units(const WorkerId& worker) const;
+  /// Seconds per unit of `worker`'s latest lease of `job` that completed; nullopt when none has.
+  std::optional<double> unit_seconds(const std::string& job, const WorkerId& worker) const;
 
  private:
   struct Job {
     // Released, never handed out: the units of `ready` and those of [next_fresh, fresh_end).
     std::set<uint64_t> ready;
     uint64_t next_fresh = 0, fresh_end = 0;
+    std::set<uint64_t>
+        taken_ahead;              // of [next_fresh, fresh_end), leased in a run; never next_fresh
     std::set<uint64_t> requeued;  // units handed out, taken back, not merged
     struct Holder {
       WorkerId worker;
       Clock::time_point since;
+      uint64_t lease = 0;  // the lease's serial, shared by the units of a run
+      uint32_t units = 1;  // units the lease covered
     };
     std::map<uint64_t, std::vector<Holder>> leased;  // one holder, two for a straggler
-    std::set<std::string> blocked;  // workers or keys
-    std::deque<double> durations;  // seconds of the latest units done
+    std::map<uint64_t, uint32_t> open_leases;        // lease serial -> units its holder still holds
+    uint64_t stride = 0;                             // set_run_stride
+    std::map<WorkerId, double> unit_seconds;  // per worker: its latest lease's seconds per unit
+    std::set<std::string> blocked;            // workers or keys
+    std::deque<double> durations;             // seconds of the latest units done
     int priority = 0;
     bool paused = false;
     uint64_t served = 0;  // lease_serial_ at its latest lease; 0: never leased
@@ -152,12 +193,20 @@ class Scheduler {
   std::map<std::string, Job> jobs_;
   std::vector<std::string> order_;                   // jobs in the order they were added
   std::map<WorkerId, std::set<UnitRef>> by_worker_;  // leases per worker
-  uint64_t lease_serial_ = 0;                        // counts leases, for Job::served
+  uint64_t lease_serial_ = 0;                        // counts leases: Job::served, Holder::lease
 
   void drop_lease(const WorkerId& worker, const UnitRef& unit);
+  /// Ends holder `h`'s lease of `unit` (the holder is removed from `j.leased` by the caller).
+  void unhold(Job& j, const Job::Holder& h, const UnitRef& unit);
   /// The next unit of `j` to lease (requeued first, then the lowest fresh one), taken out of the
   /// queue; nullopt when none is pending.
   static std::optional<uint64_t> take_pending(Job& j);
+  /// Takes the first unit of `j`'s fresh range (not empty), skipping those taken ahead.
+  static uint64_t take_fresh(Job& j);
+  /// Takes `unit` out of `j`'s queue when it is pending there.
+  static bool take_if_pending(Job& j, uint64_t unit);
+  /// How many units `worker`'s next lease of `j` covers.
+  static uint32_t run_length(const Job& j, const WorkerId& worker, const RunPolicy& runs);
   static bool has_pending(const Job& j);
   /// Whether `a` is served before `b` (both with units pending): priority, then fewer leases now,
   /// then served longer ago.

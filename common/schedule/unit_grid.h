@@ -43,6 +43,13 @@ class UnitGrid {
   uint32_t pass_of(uint64_t id) const { return static_cast<uint32_t>(id / tiles_.size()); }
   /// Unit `id` (CHECKs id < size()).
   Unit unit(uint64_t id) const;
+  /// A run: unit `first` and the `units` - 1 units of its tile's next passes (ids first + k x
+  /// tile_count()), which one lease may cover and one result sum (the master's scheduler sizes
+  /// them). Their samples: from the first pass's begin to the last one's end.
+  SampleRange run_samples(uint64_t first, uint32_t units) const;
+  /// The units of the run from `first` whose samples are exactly `samples`; 0 when no run of
+  /// first's tile starting at first has them (or first is out of range).
+  uint32_t run_covering(uint64_t first, const SampleRange& samples) const;
   /// Pixel samples in one unit (pixels of the tile x samples of the pass).
   uint64_t samples_in(uint64_t id) const;
   /// Pixel samples of the whole render.

@@ -35,6 +35,33 @@ TEST(UnitGrid, NumbersUnitsPassMajor) {
   EXPECT_EQ(grid.id(2, 1), 5u);
 }
 
+TEST(UnitGrid, ARunIsOneTilesConsecutivePassesFoundFromItsSamples) {
+  const UnitGrid grid({100, 50}, 64, 10, 4);  // 2 tiles, passes [0,4) [4,8) [8,10)
+  EXPECT_EQ(grid.run_samples(1, 1), (SampleRange{0, 4}));
+  EXPECT_EQ(grid.run_samples(1, 3), (SampleRange{0, 10}));
+  EXPECT_EQ(grid.run_samples(2, 2), (SampleRange{4, 10}));
+  // The run of a unit is found from its samples alone, the last (short) pass included.
+  EXPECT_EQ(grid.run_covering(0, {0, 4}), 1u);
+  EXPECT_EQ(grid.run_covering(0, {0, 8}), 2u);
+  EXPECT_EQ(grid.run_covering(1, {0, 10}), 3u);
+  EXPECT_EQ(grid.run_covering(3, {4, 10}), 2u);
+  EXPECT_EQ(grid.run_covering(5, {8, 10}), 1u);
+  for (uint64_t first = 0; first < grid.size(); ++first) {
+    for (uint32_t units = 1; units <= grid.pass_count() - grid.pass_of(first); ++units) {
+      EXPECT_EQ(grid.run_covering(first, grid.run_samples(first, units)), units);
+    }
+  }
+  // Not a run from that unit: another start, an end inside a pass or past the last, nothing,
+  // a unit that does not exist.
+  EXPECT_EQ(grid.run_covering(2, {0, 8}), 0u);
+  EXPECT_EQ(grid.run_covering(0, {0, 6}), 0u);
+  EXPECT_EQ(grid.run_covering(0, {0, 9}), 0u);
+  EXPECT_EQ(grid.run_covering(0, {0, 12}), 0u);
+  EXPECT_EQ(grid.run_covering(0, {0, 0}), 0u);
+  EXPECT_EQ(grid.run_covering(4, {4, 8}), 0u) << "unit 4 is pass 2 of tile 0, which starts at 8";
+  EXPECT_EQ(grid.run_covering(6, {0, 4}), 0u);
+}
+
 /// A film of `tiles` 1x1 tiles side by side; tile t's samples alternate mean +- spread[t].
 struct Strip {
   std::vector<double> spread;

@@ -198,6 +198,27 @@ TEST_F(FarmTest, AnAdaptiveJobStopsTileByTileAndEqualsTheLocalRender) {
   EXPECT_TRUE(fs::exists(fs::path(local).parent_path() / "plot.png"));
 }
 
+TEST_F(FarmTest, LeasesSizedByTimeCoverRunsOfPassesAndChangeNoBit) {
+  // Units of a few milliseconds and a target of 30 s a lease: once a worker's time per unit is
+  // measured, each lease covers as many of a tile's passes as allowed, and one result returns
+  // their sums. The image is the local one, bit for bit.
+  start_master("master.log",
+               {"--log-level", "debug", "--unit-seconds", "30", "--max-run-units", "8"});
+  start_worker("wa", 2);
+  start_worker("wb");
+  const fs::path scene = small_scene("cornell-box", 32);
+  const std::vector<std::string> settings{"--spp", "64", "--seed", "11", "--max-depth", "6"};
+  std::vector<std::string> job_settings = settings;
+  job_settings.insert(job_settings.end(), {"--tile", "16", "--pass-spp", "2"});  // 4 x 32 units
+  const std::string job = submit(scene, job_settings, /*wait=*/true);
+  EXPECT_TRUE(bit_identical(fetch(job), local_render(scene, settings)));
+  EXPECT_EQ(status(job).units_done(), 128u);
+  const std::string log = master().log();
+  EXPECT_TRUE(has_line(log, "j0001 unit ", "(passes ")) << "no lease covered a run";
+  EXPECT_TRUE(has_line(log, "and the next 7 of its tile merged from", "")) << "no run of 8";
+  EXPECT_LT(count_of(log, "merged from"), 64u) << "results: one per run, not one per unit";
+}
+
 TEST_F(FarmTest, AWorkerKilledMidJobLosesNothing) {
   start_master();
   Process& victim = start_worker("victim");
@@ -210,12 +231,13 @@ TEST_F(FarmTest, AWorkerKilledMidJobLosesNothing) {
   const std::string job = submit(scene, job_settings);
   wait_for_units(job, 4);
 
-  // Kill the victim while it holds a lease: stopped, both workers' units are leased.
+  // Kill the victim while it holds a lease (one unit, or a run of its tile's passes): stopped,
+  // both workers hold leases.
   bool killed = false;
   for (int attempt = 0; attempt < 50 && !killed; ++attempt) {
     victim.signal(SIGSTOP);
     std::this_thread::sleep_for(milliseconds{30});
-    if (status(job).units_leased() == 2) {
+    if (status(job).workers_busy() == 2) {
       victim.signal(SIGKILL);
       killed = true;
     } else {
@@ -231,7 +253,7 @@ TEST_F(FarmTest, AWorkerKilledMidJobLosesNothing) {
   EXPECT_NE(log.find("worker victim"), std::string::npos);
   EXPECT_TRUE(has_line(log, "worker victim (", ") lost: silent for"))
       << "no loss in the master log";
-  EXPECT_TRUE(has_line(log, "requeued 1 unit of worker victim (", "): j0001 unit "))
+  EXPECT_TRUE(has_line(log, "requeued ", " of worker victim ("))
       << "no requeue in the master log";
   EXPECT_TRUE(bit_identical(fetch(job), local_render(scene, settings)));
 }
@@ -307,7 +329,8 @@ TEST_F(FarmTest, WorkersReconnectWhenTheMasterRestarts) {
 
 TEST_F(FarmTest, ADuplicateResultIsDroppedAndChangesNothing) {
   peer_key("twice", "workers");
-  start_master("master.log", {}, /*liveness=*/100);  // 20 s: the fake sends no heartbeats
+  // One unit per lease (--unit-seconds 0): the fake asks for each of the 8 units.
+  start_master("master.log", {"--unit-seconds", "0"}, /*liveness=*/100);  // 20 s: no heartbeats
   const fs::path scene = small_scene("cornell-box", 32);
   const std::vector<std::string> settings{"--spp", "16", "--seed", "5"};
   std::vector<std::string> job_settings = settings;

@@ -126,12 +126,12 @@ TEST_F(FaultTest, AFrozenWorkersUnitIsLeasedAgainAndItsLateResultDropped) {
   const std::string job = submit(scene, job_settings);
   ASSERT_TRUE(wait_until([&] { return status(job).units_done() >= 8; }, milliseconds{30000}));
 
-  // Freeze it while it holds a unit: both workers' units are leased.
+  // Freeze it while it holds a lease: both workers hold one.
   bool stopped = false;
   for (int attempt = 0; attempt < 100 && !stopped; ++attempt) {
     frozen.signal(SIGSTOP);
     std::this_thread::sleep_for(milliseconds{20});
-    if (status(job).units_leased() == 2) {
+    if (status(job).workers_busy() == 2) {
       stopped = true;
     } else {
       frozen.signal(SIGCONT);

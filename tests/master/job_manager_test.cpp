@@ -395,6 +395,131 @@ TEST_F(JobManagerTest, PassesDoneCountsThePassesEveryPixelHasWhileRunningAndWhen
   EXPECT_DOUBLE_EQ(st->spp_mean(), (8.0 + 3 * 64.0) / 4);
 }
 
+/// A JobManager whose leases cover runs of passes: every run as long as allowed once measured.
+JobManagerOptions long_runs(uint32_t max_units) {
+  JobManagerOptions options;
+  options.runs = RunPolicy{std::chrono::hours(1), max_units};
+  return options;
+}
+
+TEST_F(JobManagerTest, ARunOfPassesIsLeasedAndMergedAsItsUnits) {
+  JobManager runs(store, long_runs(8));
+  const std::string id = runs.submit(furnace_job(16, 16, 4));  // 4 tiles x 4 passes of 4 spp
+  // Unmeasured: one unit. Then tile 1's four passes (units 1, 5, 9, 13) in one lease.
+  const auto first = runs.next_unit("w1");
+  ASSERT_TRUE(first);
+  EXPECT_EQ(first->sample_end(), 4u);
+  EXPECT_EQ(runs.on_result("w1", result_for(*first)), MergeOutcome::kMerged);
+  const auto run = runs.next_unit("w1");
+  ASSERT_TRUE(run);
+  EXPECT_EQ(run->unit_id(), 1u);
+  EXPECT_EQ(run->pass(), 0u);
+  EXPECT_EQ(run->sample_begin(), 0u);
+  EXPECT_EQ(run->sample_end(), 16u);
+  EXPECT_EQ(runs.on_result("w1", result_for(*run)), MergeOutcome::kMerged);
+  EXPECT_EQ(runs.status(id, 1)->units_done(), 5u);
+
+  // A result answering only the first two passes of its lease merges them; the other two go back
+  // to the queue at once.
+  const auto tile2 = runs.next_unit("w1");
+  ASSERT_TRUE(tile2);
+  EXPECT_EQ(tile2->sample_end(), 16u);
+  wire::WorkUnit half = *tile2;
+  half.set_sample_end(8);
+  EXPECT_EQ(runs.on_result("w1", result_for(half)), MergeOutcome::kMerged);
+  EXPECT_EQ(runs.status(id, 1)->units_done(), 7u);
+  const auto back = runs.next_unit("w2");  // unmeasured: one unit, the lowest requeued
+  ASSERT_TRUE(back);
+  EXPECT_EQ(back->unit_id(), 10u);
+  EXPECT_EQ(back->sample_begin(), 8u);
+  // w2 holds unit 10 only: a result claiming the run of 10 and 14 was not leased to it as such.
+  wire::WorkUnit claimed = *back;
+  claimed.set_sample_end(16);
+  EXPECT_EQ(runs.on_result("w2", result_for(claimed)), MergeOutcome::kUnleased);
+  EXPECT_EQ(runs.on_result("w2", result_for(*back)), MergeOutcome::kMerged);
+
+  // Tile 3's passes go to w1 as a run; w1 is lost and unit 3 merges from w3. The late run
+  // overlaps it: the sums cannot be split, so it is a duplicate and adds nothing, and its other
+  // units are leased again.
+  const auto tile3 = runs.next_unit("w1");  // unit 14 (requeued) first
+  ASSERT_TRUE(tile3);
+  EXPECT_EQ(tile3->unit_id(), 14u);
+  EXPECT_EQ(runs.on_result("w1", result_for(*tile3)), MergeOutcome::kMerged);
+  const auto late = runs.next_unit("w1");
+  ASSERT_TRUE(late);
+  EXPECT_EQ(late->unit_id(), 3u);
+  EXPECT_EQ(late->sample_end(), 16u);
+  EXPECT_EQ(runs.release_worker("w1"), 4u);
+  const auto three = runs.next_unit("w3");
+  ASSERT_TRUE(three);
+  EXPECT_EQ(three->unit_id(), 3u);
+  EXPECT_EQ(three->sample_end(), 4u);
+  EXPECT_EQ(runs.on_result("w3", result_for(*three)), MergeOutcome::kMerged);
+  EXPECT_EQ(runs.on_result("w1", result_for(*late, 9.0)), MergeOutcome::kDuplicate);
+  const auto rest = runs.next_unit("w3");
+  ASSERT_TRUE(rest);
+  EXPECT_EQ(rest->unit_id(), 7u);
+  EXPECT_EQ(rest->sample_begin(), 4u);
+  EXPECT_EQ(rest->sample_end(), 16u);
+  EXPECT_EQ(runs.on_result("w3", result_for(*rest)), MergeOutcome::kMerged);
+  const auto tile0 = runs.next_unit("w3");  // tile 0's passes 1 to 3, skipped until now
+  ASSERT_TRUE(tile0);
+  EXPECT_EQ(tile0->unit_id(), 4u);
+  EXPECT_EQ(tile0->sample_end(), 16u);
+  EXPECT_EQ(runs.on_result("w3", result_for(*tile0)), MergeOutcome::kMerged);
+  EXPECT_FALSE(runs.next_unit("w3"));
+
+  const auto st = runs.status(id, 1);
+  EXPECT_EQ(st->state(), wire::JOB_DONE);
+  EXPECT_EQ(st->units_done(), 16u);
+  EXPECT_EQ(st->spp_done(), 16u);
+  const Image image = read_exr(dir.path() / "data" / "jobs" / id / "image.exr");
+  EXPECT_TRUE(std::all_of(image.rgb.begin(), image.rgb.end(), [](float v) { return v == 0.5f; }))
+      << "the late run's 9.0 was not merged";
+}
+
+TEST_F(JobManagerTest, RunsUnderATargetErrorTakeOnlyReleasedPassesAndDecideAlike) {
+  // The same adaptive job, leased one unit at a time and in runs: every run stays within what
+  // the rules released (the master would reject a result for anything else), and the decisions,
+  // made on the same sums, are the same.
+  const auto result = [](const wire::WorkUnit& unit) {
+    const TileRect rect = protocol::rect_from_wire(unit.tile());
+    TileResult r(rect, {unit.sample_begin(), unit.sample_end()});
+    const double n = unit.sample_end() - unit.sample_begin();
+    const double mean_square = unit.unit_id() % 4 == 0 ? 0.25 : 0.3;  // tile 0 is quiet
+    for (auto& s : r.sum) s = to_fixed(0.5 * n);
+    for (auto& s : r.sum_sq) s = to_fixed(mean_square * n);
+    return protocol::result_to_wire(unit.job_id(), unit.unit_id(), r, 0.01);
+  };
+  std::vector<wire::JobStatus> finished;
+  for (const bool with_runs : {false, true}) {
+    TempDir data;
+    JobStore own(data.path());
+    JobManager m(own, with_runs ? long_runs(32) : JobManagerOptions{});
+    wire::SubmitJob request = furnace_job(64, 16, 4);  // 4 tiles x 16 passes
+    request.mutable_overrides()->set_target_error(4e-3);
+    request.mutable_overrides()->set_min_passes(4);
+    const std::string id = m.submit(request);
+    uint32_t longest = 0;
+    for (int n = 0; n < 100; ++n) {
+      const auto unit = m.next_unit("w1");
+      if (!unit) break;
+      longest = std::max(longest, (unit->sample_end() - unit->sample_begin()) / 4);
+      ASSERT_EQ(m.on_result("w1", result(*unit)), MergeOutcome::kMerged) << "lease " << n;
+    }
+    EXPECT_EQ(longest > 1, with_runs) << "runs cover the released minimum passes";
+    const auto st = m.status(id, 1);
+    ASSERT_EQ(st->state(), wire::JOB_DONE);
+    finished.push_back(*st);
+  }
+  EXPECT_EQ(finished[0].units_done(), finished[1].units_done());
+  EXPECT_EQ(finished[0].spp_mean(), finished[1].spp_mean());
+  EXPECT_EQ(finished[0].tiles_converged(), finished[1].tiles_converged());
+  EXPECT_EQ(finished[0].est_rel_mse(), finished[1].est_rel_mse());
+  EXPECT_LT(finished[0].units_done(), 64u) << "the quiet tile stopped early";
+  EXPECT_GT(finished[0].units_done(), 16u) << "the noisy tiles went on past their minimum";
+}
+
 TEST_F(JobManagerTest, ATimeLimitEndsTheJobWithWhatIsMerged) {
   wire::SubmitJob request = furnace_job(64, 16, 4);
   request.mutable_overrides()->set_time_limit_s(4.0);  // longer than a stall of a loaded machine

@@ -88,6 +88,62 @@ TEST(Merger, AnyOrderOfArrivalGivesTheSameBits) {
   }
 }
 
+/// The result of a run: the sums of its units' results, over the run's samples (what a worker
+/// rendering the run's samples at once returns: the samples are the same, summed exactly).
+TileResult run_result(const UnitGrid& grid, uint64_t first, uint32_t units) {
+  TileResult r(grid.tile(grid.tile_of(first)), grid.run_samples(first, units));
+  for (uint32_t k = 0; k < units; ++k) {
+    const TileResult part = fake_result(grid, first + k * grid.tile_count());
+    for (size_t i = 0; i < r.sum.size(); ++i) {
+      r.sum[i] += part.sum[i];
+      r.sum_sq[i] += part.sum_sq[i];
+    }
+    r.rays += part.rays;
+  }
+  return r;
+}
+
+TEST(Merger, ARunMergesAsItsUnitsWithTheSameBits) {
+  Merger by_unit(kGrid), by_run(kGrid);
+  for (uint64_t u = 0; u < kGrid.size(); ++u) by_unit.add(u, fake_result(kGrid, u));
+  // Tile 0 as one run of its 3 passes; tile 1 as pass 0, then a run of passes 1 and 2; the
+  // other tiles unit by unit.
+  std::string why;
+  EXPECT_EQ(by_run.add(0, run_result(kGrid, 0, 3), &why, 3), MergeOutcome::kMerged) << why;
+  EXPECT_EQ(by_run.add(1, fake_result(kGrid, 1)), MergeOutcome::kMerged);
+  EXPECT_EQ(by_run.add(7, run_result(kGrid, 7, 2), &why, 2), MergeOutcome::kMerged) << why;
+  EXPECT_EQ(by_run.merged_units().in_tile(0), 3u);
+  EXPECT_EQ(by_run.merged_units().in_tile(1), 3u);
+  EXPECT_EQ(by_run.samples_merged(), 2u * 32u * 32u * 24u);
+  for (uint64_t u = 0; u < kGrid.size(); ++u) {
+    if (!by_run.merged(u)) by_run.add(u, fake_result(kGrid, u));
+  }
+  ASSERT_TRUE(by_run.complete());
+  EXPECT_TRUE(by_run.film().sum() == by_unit.film().sum());
+  EXPECT_TRUE(by_run.film().sum_sq() == by_unit.film().sum_sq());
+  EXPECT_EQ(by_run.film().min_spp(), 24u);
+}
+
+TEST(Merger, ARunOverlappingMergedUnitsIsADuplicateAndAWrongRunIsRejected) {
+  Merger m(kGrid);
+  ASSERT_EQ(m.add(12, fake_result(kGrid, 12)), MergeOutcome::kMerged);  // tile 0, pass 2
+  const std::vector<Fixed> before = m.film().sum();
+  // The run of tile 0's three passes holds unit 12: its sums cannot be split, nothing is added.
+  EXPECT_EQ(m.add(0, run_result(kGrid, 0, 3), nullptr, 3), MergeOutcome::kDuplicate);
+  EXPECT_TRUE(m.film().sum() == before);
+  EXPECT_FALSE(m.merged(0));
+  EXPECT_FALSE(m.merged(6));
+  std::string why;
+  // A run claimed longer than its samples, one past the last pass, one of no units.
+  EXPECT_EQ(m.add(1, run_result(kGrid, 1, 2), &why, 3), MergeOutcome::kRejected);
+  EXPECT_NE(why.find("the run of 3 units from 1"), std::string::npos) << why;
+  EXPECT_EQ(m.add(7, run_result(kGrid, 7, 2), &why, 3), MergeOutcome::kRejected);
+  EXPECT_NE(why.find("no run of 3 units"), std::string::npos) << why;
+  EXPECT_FALSE(m.covers(1, kGrid.tile(1), kGrid.run_samples(1, 2), &why, 0));
+  EXPECT_EQ(m.merged_count(), 1u);
+  EXPECT_EQ(m.add(1, run_result(kGrid, 1, 2), &why, 2), MergeOutcome::kMerged) << why;
+}
+
 TEST(Merger, OwnsWhichUnitsAreMergedTileByTile) {
   Merger m(kGrid);
   for (uint64_t u = 6; u < 12; ++u) m.add(u, fake_result(kGrid, u));  // all of pass 1

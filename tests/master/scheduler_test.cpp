@@ -3,6 +3,8 @@
 // released to the job; a lost worker's units go back to the queue ahead of fresh ones; a merged
 // unit leaves the queue, whoever finished it. A blocked worker gets only other jobs' units; a
 // straggler is leased a second time to an idle worker, and the first result ends both leases.
+// A lease may cover a run of one tile's pending passes, sized by the worker's measured time per
+// unit; fair sharing counts leases, not units.
 #include <gtest/gtest.h>
 
 #include "master/scheduler.h"
@@ -387,6 +389,124 @@ TEST(Scheduler, BothLeasesOfAStragglerEndWhenEitherFinishesOrFails) {
   EXPECT_TRUE(s.leased_units("w3").empty());
   // A policy factor of 0 never leases twice.
   EXPECT_FALSE(s.lease_straggler("w3", StragglerPolicy{0.0, 0ms, 1}, t0 + 100s));
+}
+
+/// A job of `tiles` tiles x `passes` passes, every unit needed, runs along its tiles' passes.
+void add_grid_job(Scheduler& s, const std::string& job, uint64_t tiles, uint64_t passes) {
+  add_job(s, job, tiles * passes);
+  s.set_run_stride(job, tiles);
+}
+
+std::vector<uint64_t> run_of(Scheduler& s, const WorkerId& w, const RunPolicy& runs,
+                             Scheduler::Clock::time_point now) {
+  const auto lease = s.lease_run(w, runs, now);
+  EXPECT_TRUE(lease.has_value());
+  return lease ? lease->units : std::vector<uint64_t>{};
+}
+
+TEST(Scheduler, ARunCoversOneTilesPendingPassesSizedByTheWorkersTimePerUnit) {
+  Scheduler s;
+  add_grid_job(s, "a", 3, 4);  // units: pass * 3 + tile
+  const RunPolicy runs{4s, 8};
+  const auto t0 = Scheduler::Clock::now();
+  // Not measured yet: one unit.
+  EXPECT_EQ(run_of(s, "w1", runs, t0), (std::vector<uint64_t>{0}));
+  EXPECT_FALSE(s.unit_seconds("a", "w1"));
+  EXPECT_TRUE(s.complete({"a", 0}, WorkerId("w1"), t0 + 1s));
+  EXPECT_EQ(s.unit_seconds("a", "w1"), 1.0);
+  // 1 s a unit, 4 s wanted: tile 1's four passes.
+  EXPECT_EQ(run_of(s, "w1", runs, t0 + 1s), (std::vector<uint64_t>{1, 4, 7, 10}));
+  EXPECT_EQ(s.lease_of({"a", 7}, "w1"), (std::vector<uint64_t>{1, 4, 7, 10}));
+  EXPECT_TRUE(s.lease_of({"a", 7}, "w2").empty());
+  EXPECT_EQ(s.counts("a").leased, 4u);
+  EXPECT_EQ(run_of(s, "w2", runs, t0 + 1s), (std::vector<uint64_t>{2}));
+  // The units taken ahead are skipped: tile 0's passes 1 to 3 (no unit 12 exists).
+  EXPECT_EQ(run_of(s, "w1", runs, t0 + 1s), (std::vector<uint64_t>{3, 6, 9}));
+  // w2 took 2 s a unit: two units of 4 s wanted.
+  EXPECT_TRUE(s.complete({"a", 2}, WorkerId("w2"), t0 + 3s));
+  EXPECT_EQ(run_of(s, "w2", runs, t0 + 3s), (std::vector<uint64_t>{5, 8}));
+  EXPECT_EQ(run_of(s, "w2", runs, t0 + 3s), (std::vector<uint64_t>{11}));
+  EXPECT_FALSE(s.has_pending());
+  EXPECT_FALSE(s.lease_run("w3", runs, t0 + 3s));
+  // A run's time counts per unit: 4 units in 2 s.
+  for (uint64_t u : {1, 4, 7, 10}) EXPECT_TRUE(s.complete({"a", u}, WorkerId("w1"), t0 + 3s));
+  EXPECT_EQ(s.unit_seconds("a", "w1"), 0.5);
+  // A lost worker's run comes back unit by unit, and the next run takes them again in order.
+  EXPECT_EQ(s.release_worker("w1"), (std::vector<UnitRef>{{"a", 3}, {"a", 6}, {"a", 9}}));
+  EXPECT_FALSE(s.unit_seconds("a", "w1")) << "a lost worker's times are forgotten";
+  EXPECT_EQ(run_of(s, "w2", runs, t0 + 4s), (std::vector<uint64_t>{3, 6}));
+  EXPECT_EQ(run_of(s, "w2", runs, t0 + 4s), (std::vector<uint64_t>{9}));
+}
+
+TEST(Scheduler, ARunTakesOnlyReleasedUnitsAndStopsAtTheFirstMissing) {
+  Scheduler s;
+  s.add_job("a");
+  s.set_run_stride("a", 2);
+  const RunPolicy runs{100s, 32};
+  const auto t0 = Scheduler::Clock::now();
+  s.release("a", {0, 1});
+  EXPECT_EQ(run_of(s, "w", runs, t0), (std::vector<uint64_t>{0}));
+  EXPECT_TRUE(s.complete({"a", 0}, WorkerId("w"), t0 + 1s));
+  s.release("a", {2, 3, 5, 7});  // tile 0: passes 1 (2); tile 1: passes 1 to 3 (3, 5, 7)
+  EXPECT_EQ(run_of(s, "w", runs, t0 + 1s), (std::vector<uint64_t>{1, 3, 5, 7}));
+  EXPECT_EQ(run_of(s, "w", runs, t0 + 1s), (std::vector<uint64_t>{2}));
+  s.release("a", {4, 8});  // pass 2 of tile 0 and pass 4 of tile 0, not pass 3 (6)
+  EXPECT_EQ(run_of(s, "w", runs, t0 + 1s), (std::vector<uint64_t>{4}));
+  EXPECT_EQ(run_of(s, "w", runs, t0 + 1s), (std::vector<uint64_t>{8}));
+  // A job without a stride, or a policy without a target, leases one unit at a time.
+  s.add_job("b");
+  s.release_all("b", 4);
+  s.set_priority("b", 1);
+  ASSERT_TRUE(s.lease_run("w", runs, t0));
+  EXPECT_TRUE(s.complete({"b", 0}, WorkerId("w"), t0 + 1s));
+  EXPECT_EQ(run_of(s, "w", runs, t0 + 1s), (std::vector<uint64_t>{1}));
+  s.set_run_stride("b", 1);
+  EXPECT_EQ(run_of(s, "w", RunPolicy{}, t0 + 1s), (std::vector<uint64_t>{2}));
+  // A time per unit of zero (faster than the clock) gives the longest run allowed.
+  EXPECT_TRUE(s.complete({"b", 2}, WorkerId("w"), t0 + 1s));
+  EXPECT_EQ(run_of(s, "w", RunPolicy{4s, 2}, t0 + 1s), (std::vector<uint64_t>{3}));
+}
+
+TEST(Scheduler, FairSharingCountsLeasesNotTheUnitsOfARun) {
+  Scheduler s;
+  add_grid_job(s, "a", 2, 8);
+  add_grid_job(s, "b", 2, 8);
+  const RunPolicy runs{8s, 8};
+  const auto t0 = Scheduler::Clock::now();
+  EXPECT_EQ(s.lease_run("w1", runs, t0)->job, "a");
+  EXPECT_TRUE(s.complete({"a", 0}, WorkerId("w1"), t0 + 1s));
+  EXPECT_EQ(s.lease_run("w2", runs, t0 + 1s)->job, "b");
+  const auto big = s.lease_run("w1", runs, t0 + 1s);  // a: one lease of tile 1's passes
+  ASSERT_TRUE(big);
+  EXPECT_EQ(big->job, "a");
+  EXPECT_EQ(big->units.size(), 8u);
+  EXPECT_EQ(s.lease_run("w3", runs, t0 + 1s)->job, "b");  // b: two leases, a: one
+  EXPECT_EQ(s.lease_run("w4", runs, t0 + 1s)->job, "a") << "a holds 8 units but one lease";
+}
+
+TEST(Scheduler, AStragglingRunIsLeasedAgainWhole) {
+  Scheduler s;
+  add_grid_job(s, "a", 2, 4);
+  const RunPolicy runs{4s, 8};
+  const StragglerPolicy policy{4.0, 0ms, 1};
+  const auto t0 = Scheduler::Clock::now();
+  EXPECT_EQ(run_of(s, "slow", runs, t0), (std::vector<uint64_t>{0}));
+  EXPECT_TRUE(s.complete({"a", 0}, WorkerId("slow"), t0 + 1s));  // 1 s a unit: the median
+  EXPECT_EQ(run_of(s, "slow", runs, t0 + 1s), (std::vector<uint64_t>{1, 3, 5, 7}));
+  // 4 units in 12 s is 3 s a unit: under 4x the median.
+  EXPECT_FALSE(s.has_straggler(policy, t0 + 13s));
+  EXPECT_TRUE(s.has_straggler(policy, t0 + 18s));
+  const auto again = s.lease_straggler("idle", policy, t0 + 18s);
+  ASSERT_TRUE(again);
+  EXPECT_EQ(again->units, (std::vector<uint64_t>{1, 3, 5, 7}));
+  EXPECT_EQ(again->unit, (UnitRef{"a", 1}));
+  EXPECT_DOUBLE_EQ(again->leased_seconds, 17.0);
+  EXPECT_EQ(s.lease_of({"a", 5}, "idle"), (std::vector<uint64_t>{1, 3, 5, 7}));
+  // Either result ends both leases of every unit.
+  for (uint64_t u : {1, 3, 5, 7}) EXPECT_TRUE(s.complete({"a", u}, WorkerId("idle"), t0 + 19s));
+  EXPECT_TRUE(s.leased_units("slow").empty());
+  EXPECT_TRUE(s.leased_units("idle").empty());
+  EXPECT_EQ(s.counts("a").leased, 0u);
 }
 
 }  // namespace
