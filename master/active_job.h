@@ -78,13 +78,15 @@ struct ActiveJob {
   uint32_t rounds_recorded = 0;
   uint64_t samples_recorded = 0;  // pixel samples behind the last error row
 
-  std::optional<Clock::time_point> start_time;  // when the first unit was handed out
+  std::optional<Clock::time_point> start_time;    // when the first unit was handed out
   std::optional<Clock::time_point> paused_since;  // paused now, since then
   Clock::duration paused_for{0};                  // paused after start_time, before now
-  Clock::time_point last_write;                 // of the image
-  bool dirty = false;                           // merged since the last image write
-  bool checkpoint_due = false;                  // merged since the last checkpoint
+  Clock::time_point last_write;                   // of the image
+  bool dirty = false;                             // merged since the last image write
+  bool checkpoint_due = false;                    // merged since the last checkpoint
   Clock::time_point last_checkpoint = Clock::now();
+  double image_seconds = 0;       // the reactor's part of the last image write (its snapshot)
+  double checkpoint_seconds = 0;  // the reactor's part of the last checkpoint (its copy)
   std::map<WorkerId, Clock::time_point> contributors;  // last result from each worker
 
   // Failures: per unit, the keys (or workers, without keys) it failed under and their messages;

@@ -349,6 +349,12 @@ void CheckpointWriter::forget(const std::string& job_id, const fs::path& job_dir
   tasks_.submit(std::move(task), [](const Task&) { return false; });
 }
 
+double CheckpointWriter::seconds(const std::string& job_id) const {
+  std::lock_guard lock(mutex_);
+  auto it = seconds_.find(job_id);
+  return it == seconds_.end() ? 0.0 : it->second;
+}
+
 std::string CheckpointWriter::failure(const std::string& job_id) const {
   std::lock_guard lock(mutex_);
   auto it = failures_.find(job_id);
@@ -361,6 +367,7 @@ void CheckpointWriter::write(Task& task) {
     {
       std::lock_guard lock(mutex_);
       newest_slot_.erase(id);
+      seconds_.erase(id);
     }
     remove_checkpoints(task.job_dir);  // no error: what is left is ignored for a finished job
     return;
@@ -393,6 +400,7 @@ void CheckpointWriter::write(Task& task) {
                       bytes / 1e6, seconds);
   }
   std::lock_guard lock(mutex_);
+  seconds_[id] = seconds;
   if (ok) {
     failures_.erase(id);
   } else {

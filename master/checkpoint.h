@@ -100,6 +100,8 @@ class CheckpointWriter {
   void forget(const std::string& job_id, const std::filesystem::path& job_dir);
   /// Why the job's latest checkpoint could not be written; "" when it was (or none was tried).
   std::string failure(const std::string& job_id) const;
+  /// Seconds the job's latest checkpoint took to encode and write; 0 before the first.
+  double seconds(const std::string& job_id) const;
 
  private:
   struct Task {
@@ -107,9 +109,10 @@ class CheckpointWriter {
     Checkpoint checkpoint;
     bool remove = false;  // delete the job's checkpoints instead
   };
-  mutable std::mutex mutex_;  // guards newest_slot_ and failures_
+  mutable std::mutex mutex_;  // guards newest_slot_, failures_ and seconds_
   std::map<std::string, int> newest_slot_;
   std::map<std::string, std::string> failures_;  // job id -> why its latest checkpoint failed
+  std::map<std::string, double> seconds_;        // job id -> what its latest checkpoint took
   BackgroundWriter<Task> tasks_{[this](Task& task) { write(task); }};  // last: uses the above
 
   void write(Task& task);

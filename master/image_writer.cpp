@@ -1,5 +1,7 @@
 #include "master/image_writer.h"
 
+#include <chrono>
+
 #include "common/image/film_output.h"
 #include "common/image/png.h"
 #include "common/util/log.h"
@@ -12,6 +14,10 @@ void ImageWriter::submit(const std::filesystem::path& exr, Image image, ErrorRec
 }
 
 void ImageWriter::write(Task& task) {
+  const auto start = std::chrono::steady_clock::now();
+  auto took = [&] {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  };
   try {
     write_exr(task.exr, task.image);
     write_png_preview(preview_path(task.exr), task.image);
@@ -24,10 +30,18 @@ void ImageWriter::write(Task& task) {
     get_logger("jobs")->error("cannot write {}: {}", task.exr.string(), e.what());
     std::lock_guard lock(mutex_);
     failures_[task.exr] = e.what();
+    seconds_[task.exr] = took();
     return;
   }
   std::lock_guard lock(mutex_);
   failures_.erase(task.exr);
+  seconds_[task.exr] = took();
+}
+
+double ImageWriter::seconds(const std::filesystem::path& exr) const {
+  std::lock_guard lock(mutex_);
+  auto it = seconds_.find(exr);
+  return it == seconds_.end() ? 0.0 : it->second;
 }
 
 std::string ImageWriter::failure(const std::filesystem::path& exr) const {

@@ -29,6 +29,8 @@ class ImageWriter {
   /// Why the latest write of `exr` (or its preview or error record) failed; "" when it succeeded
   /// or none was tried.
   std::string failure(const std::filesystem::path& exr) const;
+  /// Seconds the latest write of `exr` (with its preview and error record) took; 0 before one.
+  double seconds(const std::filesystem::path& exr) const;
 
  private:
   struct Task {
@@ -37,8 +39,9 @@ class ImageWriter {
     ErrorRecord record;
   };
   void write(Task& task);
-  mutable std::mutex mutex_;                                 // guards failures_
+  mutable std::mutex mutex_;                               // guards failures_ and seconds_
   std::map<std::filesystem::path, std::string> failures_;  // image -> why its latest write failed
+  std::map<std::filesystem::path, double> seconds_;        // image -> what its latest write took
   BackgroundWriter<Task> tasks_{[this](Task& task) { write(task); }};  // last: uses the above
 };
 

@@ -132,6 +132,7 @@ void JobManager::storage_failed(Job& job, const std::string& what) {
 }
 
 void JobManager::write_image(Job& job, bool wait) {
+  const auto start = Clock::now();
   const JobSpec& s = job.record.spec;
   // The same attributes as `rayfarm render`, plus the job's own.
   std::map<std::string, std::string> attributes{
@@ -154,6 +155,7 @@ void JobManager::write_image(Job& job, bool wait) {
       fmt::format("job {} '{}' ({})", s.id, s.name, integrator_name(s.settings.integrator));
   writer_.submit(store_.image_path(s.id), film_to_image(job.active->merger.film(), attributes),
                  std::move(record));
+  job.active->image_seconds = std::chrono::duration<double>(Clock::now() - start).count();
   if (wait) writer_.flush();
   job.active->dirty = false;
   job.active->last_write = Clock::now();

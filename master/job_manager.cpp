@@ -97,9 +97,9 @@ void JobManager::on_round_done(Job& job) {
   // whole film on this thread. Until then they are due (dirty, checkpoint_due) and tick() writes
   // them when the interval is up.
   const Clock::time_point now = Clock::now();
-  if (rounds_before == 0 || now - a.last_write >= options_.image_interval) write_image(job);
+  if (rounds_before == 0 || now - a.last_write >= image_interval(job)) write_image(job);
   if (options_.checkpoint_interval.count() == 0 ||
-      now - a.last_checkpoint >= options_.checkpoint_interval) {
+      now - a.last_checkpoint >= checkpoint_interval(job)) {
     checkpoint(job);
   }
 }
@@ -326,12 +326,36 @@ void JobManager::tick() {
       finish(job, wire::JOB_DONE, "", StopReason::kTimeLimit);
       continue;
     }
-    if (a->dirty && now - a->last_write >= options_.image_interval) write_image(job);
+    if (a->dirty && now - a->last_write >= image_interval(job)) write_image(job);
     if (a->checkpoint_due && options_.checkpoint_interval.count() > 0 &&
-        now - a->last_checkpoint >= options_.checkpoint_interval) {
+        now - a->last_checkpoint >= checkpoint_interval(job)) {
       checkpoint(job);
     }
   }
+}
+
+namespace {
+
+/// `interval`, or the time in which `cost` seconds are `share` of it when that is longer.
+JobManager::Clock::duration stretched(JobManager::Clock::duration interval, double cost,
+                                      double share) {
+  if (share <= 0 || cost <= 0) return interval;
+  const auto budget = std::chrono::duration_cast<JobManager::Clock::duration>(
+      std::chrono::duration<double>(cost / share));
+  return std::max(interval, budget);
+}
+
+}  // namespace
+
+JobManager::Clock::duration JobManager::image_interval(const Job& job) const {
+  const std::string& id = job.record.spec.id;
+  const double cost = job.active->image_seconds + writer_.seconds(store_.image_path(id));
+  return stretched(options_.image_interval, cost, options_.write_share);
+}
+
+JobManager::Clock::duration JobManager::checkpoint_interval(const Job& job) const {
+  const double cost = job.active->checkpoint_seconds + checkpoints_.seconds(job.record.spec.id);
+  return stretched(options_.checkpoint_interval, cost, options_.write_share);
 }
 
 size_t JobManager::active_jobs() const {

@@ -57,6 +57,10 @@ struct JobManagerOptions {
   StragglerPolicy stragglers;
   /// How many of a tile's passes one lease covers (scheduler.h, "Runs"); the default, one.
   RunPolicy runs;
+  /// The most share of one core that a running job's progressive images may take, and apart
+  /// its checkpoints: their intervals stretch to (cost of the latest one) / write_share when
+  /// that is longer (a large image). 0: the intervals as given.
+  double write_share = 0.02;
   /// Who is connected now, as failures count them: each worker's key, or the worker itself
   /// without keys. A job that every one of them has been blocked from for `blocked_grace` fails
   /// (it could never finish; a worker that joins meanwhile saves it). Unset: not checked.
@@ -267,6 +271,10 @@ class JobManager {
   Image check_reference_bytes(const std::string& exr, FilmSize film) const;
   /// Queues the job's image; `wait` returns only once it is on disk.
   void write_image(Job& job, bool wait = false);
+  /// How long a running job waits between progressive images (checkpoints): the configured
+  /// interval, or longer when the latest one cost more than write_share of it.
+  Clock::duration image_interval(const Job& job) const;
+  Clock::duration checkpoint_interval(const Job& job) const;
   void on_round_done(Job& job);
   void finish(Job& job, wire::JobState state, const std::string& error,
               StopReason reason = StopReason::kRunning);

@@ -156,6 +156,7 @@ bool JobManager::resume(Job& job) {
 }
 
 void JobManager::checkpoint(Job& job) {
+  const auto start = Clock::now();
   const JobSpec& s = job.record.spec;
   const Merger& m = job.active->merger;
   Checkpoint c;
@@ -177,6 +178,7 @@ void JobManager::checkpoint(Job& job) {
   c.rounds_recorded = job.active->rounds_recorded;
   c.samples_recorded = job.active->samples_recorded;
   checkpoints_.submit(store_.job_dir(s.id), std::move(c));
+  job.active->checkpoint_seconds = std::chrono::duration<double>(Clock::now() - start).count();
   job.active->checkpoint_due = false;
   job.active->last_checkpoint = Clock::now();
 }

@@ -45,8 +45,9 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 100))
       ->capture_default_str();
   app.add_option("--image-interval-ms", image_interval_ms,
-                 "rewrite a running job's image at least this often while results arrive, and "
-                 "at a completed pass if none is newer (milliseconds)")
+                 "rewrite a running job's image this often while results arrive, and at a "
+                 "completed pass if none is newer (milliseconds; longer for an image whose "
+                 "writing would take more than --write-share of a core)")
       ->check(CLI::Range(int64_t{100}, int64_t{3600000}))
       ->capture_default_str();
   // Durability: checkpoints, failing workers, stragglers (docs/reliability.md).
@@ -54,9 +55,9 @@ int main(int argc, char** argv) {
   int64_t checkpoint_interval_ms = durability.checkpoint_interval.count();
   int64_t straggler_min_ms = durability.stragglers.floor.count();
   app.add_option("--checkpoint-interval-ms", checkpoint_interval_ms,
-                 "checkpoint a running job at least this often while results arrive, and at a "
-                 "completed pass if none is newer (milliseconds; 0 = only at every pass and "
-                 "shutdown)")
+                 "checkpoint a running job this often while results arrive, and at a completed "
+                 "pass if none is newer (milliseconds; longer as --write-share asks; 0 = only at "
+                 "every pass and shutdown)")
       ->check(CLI::Range(int64_t{0}, int64_t{3600000}))
       ->capture_default_str();
   app.add_option("--max-worker-failures", durability.max_worker_failures,
@@ -76,6 +77,12 @@ int main(int argc, char** argv) {
   app.add_option("--straggler-min-ms", straggler_min_ms,
                  "... and at least this long (milliseconds)")
       ->check(CLI::Range(int64_t{0}, int64_t{86400000}))
+      ->capture_default_str();
+  app.add_option("--write-share", durability.write_share,
+                 "the most share of one core that a running job's progressive images, and apart "
+                 "its checkpoints, may take: their intervals stretch to keep within it (0 = the "
+                 "intervals as given)")
+      ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
   // Units sized by time (master/scheduler.h, "Runs"; docs/farm.md).
   double unit_seconds = 2.0;

@@ -624,6 +624,7 @@ std::vector<float> uninterrupted(const wire::SubmitJob& request,
 JobManagerOptions checkpoint_every_tick() {
   JobManagerOptions o;
   o.checkpoint_interval = std::chrono::milliseconds{1};
+  o.write_share = 0;
   return o;
 }
 
@@ -666,6 +667,7 @@ TEST_F(JobManagerTest, RoundsAfterTheirIntervalsWriteTheImageAndCheckpointThemse
   JobManagerOptions o;
   o.image_interval = std::chrono::milliseconds{1};
   o.checkpoint_interval = std::chrono::milliseconds{1};
+  o.write_share = 0;  // the intervals as given, however long a write takes
   JobManager paced(store, o);
   const std::string id = paced.submit(furnace_job(16, 8, 4));
   const fs::path job_dir = dir.path() / "data" / "jobs" / id;
@@ -677,6 +679,29 @@ TEST_F(JobManagerTest, RoundsAfterTheirIntervalsWriteTheImageAndCheckpointThemse
   paced.wait_for_checkpoints();
   EXPECT_TRUE(fs::exists(job_dir / "checkpoint-0.bin"));
   EXPECT_TRUE(fs::exists(job_dir / "checkpoint-1.bin"));
+}
+
+TEST_F(JobManagerTest, WritesThatCostMoreThanTheirShareStretchTheirIntervals) {
+  // The same rounds with a write share so small that any measured cost stretches the intervals
+  // past the test: after the first image and checkpoint, neither is written again until the end.
+  JobManagerOptions o;
+  o.image_interval = std::chrono::milliseconds{1};
+  o.checkpoint_interval = std::chrono::milliseconds{1};
+  o.write_share = 1e-9;
+  JobManager paced(store, o);
+  const std::string id = paced.submit(furnace_job(16, 8, 4));
+  const fs::path job_dir = dir.path() / "data" / "jobs" / id;
+  for (int round = 0; round < 2; ++round) {
+    std::this_thread::sleep_for(std::chrono::milliseconds{3});  // the given intervals are up
+    ASSERT_EQ(merge_units(paced, 16), 16u);
+    EXPECT_EQ(image_spp(paced, job_dir), "4") << "round " << round;
+    paced.wait_for_checkpoints();
+    paced.tick();
+  }
+  EXPECT_TRUE(fs::exists(job_dir / "checkpoint-0.bin"));
+  EXPECT_FALSE(fs::exists(job_dir / "checkpoint-1.bin")) << "the second checkpoint is not due";
+  EXPECT_EQ(merge_units(paced, 32), 32u);  // the end: the final image is always written
+  EXPECT_EQ(image_spp(paced, job_dir), "16");
 }
 
 TEST_F(JobManagerTest, AJobResumesFromItsCheckpointAndEndsBitIdentical) {
