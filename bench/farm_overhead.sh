@@ -2,7 +2,7 @@
 # The farm's overhead over `rayfarm render`, and how it scales from 1 to 2 workers.
 #
 #   bench/farm_overhead.sh [--scene FILE] [--size N] [--spp N] [--threads T] [--repeat R] [--build DIR]
-#                          [--insecure] [--master-arg ARG]...
+#                          [--insecure] [--master-arg ARG]... [--overhead-only]
 #
 # Defaults: scenes/cornell-box/scene.json at 512x512, 256 spp, T = 2, binaries from ./build (or
 # $RAYFARM_BIN). Runs, on this machine, the same job:
@@ -14,8 +14,8 @@
 # they must be bit-identical. With --repeat R each figure is the fastest of R runs, which tames the
 # noise of a shared machine. The farm uses CURVE keys made for the run (as deployed); --insecure
 # runs it on plain sockets instead, to measure what encryption costs. --master-arg passes one
-# argument to the master (repeat it: --master-arg --unit-seconds --master-arg 0). Prints figures
-# only; nothing here is a test.
+# argument to the master (repeat it: --master-arg --unit-seconds --master-arg 0). --overhead-only
+# stops after step 2. Prints figures only; nothing here is a test.
 set -euo pipefail
 
 repo_root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -27,6 +27,7 @@ repeat=1
 build="${RAYFARM_BIN:-$repo_root/build}"
 insecure=0
 master_args=()
+overhead_only=0
 
 while [ $# -gt 0 ]; do
   case $1 in
@@ -38,6 +39,7 @@ while [ $# -gt 0 ]; do
     --build) build=$2; shift 2 ;;
     --insecure) insecure=1; shift ;;
     --master-arg) master_args+=("$2"); shift 2 ;;
+    --overhead-only) overhead_only=1; shift ;;
     -h|--help) sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "farm_overhead: unknown option '$1'" >&2; exit 2 ;;
   esac
@@ -158,6 +160,10 @@ best_farm() {
 best_farm 1 "$threads"; m1=$master_s; c1=$client_s
 printf 'farm, 1 worker x %d threads:           %7.2f s (master), %7.2f s (client)  overhead %.3f (master), %.3f (client)\n' \
   "$threads" "$m1" "$c1" "$(calc "$m1 / $local_s")" "$(calc "$c1 / $local_s")"
+if [ "$overhead_only" = 1 ]; then
+  echo "the farm's image is bit-identical to rayfarm render's"
+  exit 0
+fi
 best_farm 1 1; ma=$master_s; ca=$client_s
 printf 'farm, 1 worker x 1 thread:             %7.2f s (master), %7.2f s (client)\n' "$ma" "$ca"
 best_farm 2 1; mb=$master_s; cb=$client_s
