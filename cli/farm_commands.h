@@ -19,5 +19,6 @@ void add_retry(CLI::App& app, int& exit_code);
 // workers_fetch_commands.cpp
 void add_workers(CLI::App& app, int& exit_code);
 void add_fetch(CLI::App& app, int& exit_code);
+void add_token(CLI::App& app, int& exit_code);  // the HTTP endpoint's bearer token
 
 }  // namespace rayfarm::cli

@@ -1,4 +1,5 @@
-// workers and fetch: the farm's workers, and a job's image brought home.
+// workers, fetch and token: the farm's workers, a job's image brought home, and the token that
+// lets this key act on the master's dashboard.
 #include <iostream>
 #include <optional>
 #include <string>
@@ -44,6 +45,29 @@ void add_workers(CLI::App& app, int& exit_code) {
             w.key_name().empty() ? "-" : w.key_name().substr(0, 16),
             w.units().empty() ? "idle" : "busy", w.threads(), units, w.units_done(),
             human_rate(w.samples_per_second()), format_duration(w.last_seen_seconds()) + " ago");
+      }
+      return 0;
+    });
+  });
+}
+
+void add_token(CLI::App& app, int& exit_code) {
+  auto args = std::make_shared<ClientArgs>();
+  auto json = std::make_shared<bool>(false);
+  CLI::App* cmd = app.add_subcommand(
+      "token",
+      "Print this key's bearer token for the master's HTTP endpoint (the dashboard's actions and "
+      "its JSON API: 'Authorization: Bearer TOKEN')");
+  add_client_options(cmd, *args);
+  cmd->add_flag("--json", *json, "{\"token\": ..., \"key\": ...} as one JSON line");
+  cmd->callback([args, json, &exit_code] {
+    exit_code = guarded("token", [&] {
+      FarmClient client(*args);
+      const auto reply = client.call<wire::TokenReply>(encode(wire::TokenRequest{}));
+      if (*json) {
+        print_json(nlohmann::json{{"token", reply.token()}, {"key", reply.key_name()}});
+      } else {
+        std::cout << reply.token() << "\n";
       }
       return 0;
     });

@@ -1,6 +1,7 @@
 #include "master/access_gate.h"
 
 #include "common/util/log.h"
+#include "master/metrics.h"
 
 namespace rayfarm::master {
 namespace {
@@ -22,6 +23,7 @@ net::ZapVerdict AccessGate::decide(const net::ZapRequest& r) {
     log()->log(d.reload_warning ? spdlog::level::warn : spdlog::level::info, "{}", d.reload_note);
   }
   if (d.admitted) return {true, d.name};
+  metrics().refusals.add(r.domain == kWorkerDomain ? "worker_key" : "client_key");
   const char* role = r.domain == kWorkerDomain ? "worker" : "client";
   std::lock_guard lock(mutex_);
   if (recent_.size() > 4096) recent_.clear();
@@ -32,6 +34,14 @@ net::ZapVerdict AccessGate::decide(const net::ZapRequest& r) {
                 LogThrottle::suffix(verdict));
   }
   return {};
+}
+
+bool AccessGate::client_name_allowed(const std::string& name) {
+  const net::AllowListPolicy::Decision d = policy_.admits_name(kClientDomain, name);
+  if (!d.reload_note.empty()) {
+    log()->log(d.reload_warning ? spdlog::level::warn : spdlog::level::info, "{}", d.reload_note);
+  }
+  return d.admitted;
 }
 
 std::unique_ptr<AccessGate> AccessGate::open(const MasterOptions& options) {

@@ -28,6 +28,9 @@ class AccessGate {
   AccessGate(const AccessGate&) = delete;
   AccessGate& operator=(const AccessGate&) = delete;
 
+  /// Whether the clients' allow-list still names a key `name` (an HTTP token's key). Thread-safe.
+  bool client_name_allowed(const std::string& name);
+
  private:
   net::AllowListPolicy policy_;
   std::mutex mutex_;  // guards `recent_` (the ZAP thread only, but cheap to be sure)

@@ -6,6 +6,7 @@
 
 #include "common/protocol/codec.h"
 #include "common/protocol/convert.h"
+#include "common/protocol/version.h"
 #include "common/util/log.h"
 #include "master/wire_replies.h"
 
@@ -61,6 +62,26 @@ Broker::Broker(MasterOptions options)
       next_heartbeat_(Clock::now()) {
   submissions_ = std::make_unique<SubmissionQueue>(jobs_, options_.limits);
   const size_t restarted = jobs_.recover();
+  tokens_ = std::make_unique<HttpTokens>(options_.data_dir);
+  if (!options_.http_endpoint.empty()) {
+    HttpOptions http;
+    http.endpoint = options_.http_endpoint;
+    http.keys = options_.security.key.has_value();
+    http.private_jobs = options_.security.private_jobs;
+    http.admin_clients = options_.security.admin_clients;
+    http.jobs_dir = options_.data_dir / "jobs";
+    if (gate_) {
+      AccessGate* gate = gate_.get();
+      http.key_allowed = [gate](const std::string& name) { return gate->client_name_allowed(name); };
+    }
+    http.build = protocol::kBuildVersion;
+    try {
+      http_ = std::make_unique<HttpServer>(std::move(http), http_feed_, *tokens_);
+    } catch (const std::exception& e) {
+      if (!options_.http_endpoint_is_default) throw;
+      log()->warn("no dashboard: {} (give --http-endpoint HOST:PORT to choose another)", e.what());
+    }
+  }
   log()->info("master listening: workers on {}, clients on {}; data dir {}{}", worker_endpoint(),
               client_endpoint(), options_.data_dir.string(),
               restarted ? fmt::format(" ({} unfinished jobs restarted)", restarted) : "");
@@ -83,6 +104,7 @@ void Broker::run(const std::atomic<bool>& stop) {
   while (!stop.load()) {
     const auto now = Clock::now();
     busy_.fetch_add((now - woke).count(), std::memory_order_relaxed);
+    metrics().reactor_busy_seconds.add(std::chrono::duration<double>(now - woke).count());
     const auto until_heartbeat = std::chrono::duration_cast<milliseconds>(next_heartbeat_ - now);
     const auto wait = std::clamp(until_heartbeat, milliseconds{0}, milliseconds{100});
     const auto readable = net::poll(sockets, wait);
@@ -104,6 +126,14 @@ void Broker::run(const std::atomic<bool>& stop) {
     }
     admit_submissions();
     on_timers();
+    serve_http();
+  }
+  // Calls the HTTP side still waits on get their answer now.
+  for (HttpFeed::Pending& p : http_feed_.take_calls()) {
+    HttpAnswer a;
+    a.status = 503;
+    a.error = "the master is stopping";
+    p.answer.set_value(std::move(a));
   }
   busy_.fetch_add((Clock::now() - woke).count(), std::memory_order_relaxed);
   // Submissions being checked are finished and answered: each is on disk once checked.
@@ -174,6 +204,8 @@ void Broker::register_worker(const net::PeerId& peer, const wire::Hello& hello,
   }
   if (workers_.count(peer)) {
     jobs_.release_worker(peer);  // a worker that starts over holds nothing any more
+  } else {
+    metrics().workers_joined.add();
   }
   Worker& w = workers_[peer];
   w.name = hello.name().empty() ? "unnamed" : protocol::printable(hello.name());
@@ -199,6 +231,8 @@ void Broker::remove_worker(const net::PeerId& peer, const std::string& why, Depa
   if (it == workers_.end()) return;
   const std::string label = worker_label(peer);
   const size_t requeued = jobs_.release_worker(peer);
+  metrics().units_requeued.add(static_cast<double>(requeued));
+  (departure == Departure::kLost ? metrics().workers_lost : metrics().workers_left).add();
   workers_.erase(it);
   const auto level = departure == Departure::kLost ? spdlog::level::warn : spdlog::level::info;
   log()->log(level, "{} {}; {} unit{} requeued; {} worker{} connected", label, why, requeued,
@@ -222,6 +256,7 @@ void Broker::dispatch() {
         continue;
       }
       --w.wants;
+      metrics().units_leased.add();
       sent = true;
     }
   }
@@ -230,6 +265,11 @@ void Broker::dispatch() {
 
 void Broker::handle_worker(const net::Delivery& delivery) {
   const net::PeerId& peer = delivery.peer;
+  {
+    size_t bytes = 0;
+    for (const auto& f : delivery.frames) bytes += f.size();
+    metrics().worker_bytes_received.add(static_cast<double>(bytes));
+  }
   protocol::Decoded msg;
   try {
     msg = protocol::decode(delivery.frames);
@@ -243,6 +283,7 @@ void Broker::handle_worker(const net::Delivery& delivery) {
              fmt::format("refused {} ({}): it speaks protocol version {}, this master {}",
                          worker_label(peer), msg.type, msg.version, protocol::kProtocolVersion));
     send_worker(peer, refusal_frames(msg.version, "worker"));
+    metrics().refusals.add("protocol_version");
     remove_worker(peer, "refused (protocol version)");
     return;
   }
@@ -258,7 +299,19 @@ void Broker::handle_worker(const net::Delivery& delivery) {
       // Merged only when this connection was leased the unit; it may have been declared lost
       // since (its late result still counts: the bits do not depend on who rendered the unit,
       // and the merger takes each unit once).
+      const auto merge_start = Clock::now();
       const MergeOutcome outcome = jobs_.on_result(peer, *result, delivery.user);
+      Metrics& m = metrics();
+      m.merge_seconds.observe(std::chrono::duration<double>(Clock::now() - merge_start).count());
+      switch (outcome) {
+        case MergeOutcome::kMerged:
+          m.units_merged.add();
+          m.unit_seconds.observe(result->render_seconds());
+          break;
+        case MergeOutcome::kDuplicate: m.units_duplicate.add(); break;
+        case MergeOutcome::kRejected: m.units_rejected.add(); break;
+        case MergeOutcome::kUnleased: m.units_unleased.add(); break;
+      }
       if (outcome == MergeOutcome::kUnleased) {
         complain("worker", delivery.user,
                  fmt::format("dropped a result for job {} unit {} from {}: no such job, or the "
@@ -276,8 +329,10 @@ void Broker::handle_worker(const net::Delivery& delivery) {
                                       std::chrono::duration<double>(render));
         }
         w.last_result = now;
-        w.samples_merged += double(t.x1() - t.x0()) * double(t.y1() - t.y0()) *
-                            double(result->sample_end() - result->sample_begin());
+        const double samples = double(t.x1() - t.x0()) * double(t.y1() - t.y0()) *
+                               double(result->sample_end() - result->sample_begin());
+        w.samples_merged += samples;
+        m.samples_merged.add(samples);
       }
       if (it == workers_.end()) {
         send_worker(peer,
@@ -300,7 +355,10 @@ void Broker::handle_worker(const net::Delivery& delivery) {
       w.wants = std::min(w.wants + 1, kMaxWants);
       dispatch();
     } else if (const auto* failed = msg.as<wire::UnitFailed>()) {
-      if (!jobs_.on_unit_failed(peer, *failed, delivery.user)) {
+      metrics().units_failed.add();
+      if (jobs_.on_unit_failed(peer, *failed, delivery.user)) {
+        metrics().units_requeued.add();
+      } else {
         complain("worker", delivery.user,
                  fmt::format("ignored a failure report for job {} unit {} from {}: the unit is "
                              "not leased to it, or its job is over",

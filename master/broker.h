@@ -21,10 +21,14 @@
 #include "common/net/socket.h"
 #include "common/util/log_throttle.h"
 #include "master/access_gate.h"
+#include "master/http_feed.h"
+#include "master/http_server.h"
+#include "master/http_tokens.h"
 #include "master/job_manager.h"
 #include "master/job_store.h"
 #include "master/log_budget.h"
 #include "master/master_options.h"
+#include "master/metrics.h"
 #include "master/submission_queue.h"
 
 namespace rayfarm::master {
@@ -45,6 +49,8 @@ class Broker {
   /// The bound endpoints, with the ports chosen for "tcp://*:0".
   std::string worker_endpoint() const { return workers_socket_.endpoint(); }
   std::string client_endpoint() const { return clients_socket_.endpoint(); }
+  /// The dashboard's address (http://HOST:PORT/); "" when the master serves no HTTP.
+  std::string http_url() const { return http_ ? http_->url() : std::string(); }
 
   /// Wall time run() has spent outside its poll wait (handling messages, timers, dispatch), and
   /// the polls it made, since it started: busy_seconds over a window's wall time is the reactor's
@@ -91,12 +97,22 @@ class Broker {
   net::Router workers_socket_;
   net::Router clients_socket_;
   std::map<net::PeerId, Worker> workers_;
+  // The HTTP endpoint (http_server.h): its tokens, what it sees of the farm, and the server,
+  // last, so that it stops before the rest goes.
+  HttpFeed http_feed_;
+  std::unique_ptr<HttpTokens> tokens_;
+  std::unique_ptr<HttpServer> http_;
   Clock::time_point next_heartbeat_;
   Clock::time_point listened_;  // when the sockets were last polled
   std::atomic<Clock::rep> busy_{0};  // busy_seconds(), in Clock ticks
   std::atomic<uint64_t> polls_{0};
 
   void handle_worker(const net::Delivery& delivery);
+  /// Publishes a snapshot for the HTTP side when one is due, and answers its calls
+  /// (broker_http.cpp).
+  void serve_http();
+  /// One HTTP call's answer; sets `changed` when a job's priority or pause changed.
+  HttpAnswer answer_http(const HttpCall& call, bool& changed);
   void handle_client(const net::Delivery& delivery);
   void send_bundle(const net::PeerId& peer, Worker& w, const std::string& hash);
   /// Replies to the submissions whose checks have finished, admitting the accepted ones.

@@ -47,6 +47,7 @@ void Broker::admit_submissions() {
         out.set_error(jobs_.for_clients(e.what()));
       }
     } else {
+      metrics().refusals.add("submission");
       log()->log(refusal_log_.take(done.user) ? spdlog::level::warn : spdlog::level::debug,
                  "job refused ({}) from {}: {}", done.scene, done.label, done.error);
       out.set_code(done.internal ? wire::Error::INTERNAL : wire::Error::REFUSED);
@@ -80,6 +81,12 @@ std::optional<std::string> Broker::priority_refusal(int32_t priority,
 
 void Broker::handle_client(const net::Delivery& delivery) {
   const net::PeerId& peer = delivery.peer;
+  {
+    size_t bytes = 0;
+    for (const auto& f : delivery.frames) bytes += f.size();
+    metrics().client_bytes_received.add(static_cast<double>(bytes));
+    metrics().client_requests.add();
+  }
   const std::string label =
       "client " + net::peer_label(peer) +
       (delivery.user.empty() ? "" : " (key '" + protocol::printable(delivery.user) + "')");
@@ -97,6 +104,7 @@ void Broker::handle_client(const net::Delivery& delivery) {
     complain("client", delivery.user,
              fmt::format("refused {} ({}): it speaks protocol version {}, this master {}", label,
                          msg.type, msg.version, protocol::kProtocolVersion));
+    metrics().refusals.add("protocol_version");
     reply(peer, refusal_frames(msg.version, "client"));
     return;
   }
@@ -154,6 +162,7 @@ void Broker::handle_client(const net::Delivery& delivery) {
         }
       }
       if (refusal) {
+        metrics().refusals.add(code == wire::Error::BUSY ? "submission_busy" : "submission");
         log()->log(refusal_log_.take(delivery.user) ? spdlog::level::warn : spdlog::level::debug,
                    "job refused from {}: {}", label, *refusal);
         wire::SubmitReply out;
@@ -224,6 +233,12 @@ void Broker::handle_client(const net::Delivery& delivery) {
         reply(peer,
               error_frames(wire::Error::REFUSED, jobs_.for_clients(e.what()), change->job_id()));
       }
+    } else if (msg.as<wire::TokenRequest>()) {
+      // CURVE has proven the key (without keys every client is the one nameless user).
+      wire::TokenReply out;
+      out.set_token(tokens_->issue(delivery.user));
+      out.set_key_name(protocol::printable(delivery.user));
+      reply(peer, encode(std::move(out)));
     } else if (msg.as<wire::ListWorkers>()) {
       reply(peer, encode(worker_list()));
     } else if (const auto* remove = msg.as<wire::RemoveJob>()) {

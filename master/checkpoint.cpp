@@ -1,4 +1,5 @@
 #include "master/checkpoint.h"
+#include "master/metrics.h"
 
 #include "common/util/atomic_file.h"
 
@@ -395,6 +396,7 @@ void CheckpointWriter::write(Task& task) {
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (ok) {
+    metrics().checkpoint_seconds.observe(seconds);
     log_jobs()->debug("job {}: checkpoint {} written to {} ({:.1f} MB in {:.3f} s)", id,
                       task.checkpoint.sequence, checkpoint_path(task.job_dir, slot).string(),
                       bytes / 1e6, seconds);

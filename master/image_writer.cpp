@@ -1,4 +1,5 @@
 #include "master/image_writer.h"
+#include "master/metrics.h"
 
 #include <chrono>
 
@@ -33,9 +34,11 @@ void ImageWriter::write(Task& task) {
     seconds_[task.exr] = took();
     return;
   }
+  const double seconds = took();
+  metrics().image_write_seconds.observe(seconds);
   std::lock_guard lock(mutex_);
   failures_.erase(task.exr);
-  seconds_[task.exr] = took();
+  seconds_[task.exr] = seconds;
 }
 
 double ImageWriter::seconds(const std::filesystem::path& exr) const {

@@ -36,6 +36,14 @@ int main(int argc, char** argv) {
                  "endpoint clients (rayfarm) connect to")
       ->capture_default_str();
   app.add_option("--data-dir", data_dir, "jobs, bundles and images")->capture_default_str();
+  options.http_endpoint = "127.0.0.1:8480";
+  CLI::Option* http_option =
+      app.add_option("--http-endpoint", options.http_endpoint,
+                     "HOST:PORT of the dashboard, its JSON API and /metrics (\"\" = none); beyond "
+                     "loopback only with keys, whose tokens (rayfarm token) guard its actions "
+                     "[env RAYFARM_HTTP_ENDPOINT]")
+          ->envname("RAYFARM_HTTP_ENDPOINT")
+          ->capture_default_str();
   rayfarm::add_logging_options(app, logging);
   app.add_option("--heartbeat-ms", heartbeat_ms, "heartbeat interval in milliseconds")
       ->check(CLI::Range(int64_t{10}, int64_t{60000}))
@@ -175,6 +183,7 @@ int main(int argc, char** argv) {
   rayfarm::get_logger("master")->info("rayfarm-master: {} (protocol {})", rayfarm::protocol::kBuildVersion,
                                    rayfarm::protocol::kProtocolVersion);
   options.data_dir = data_dir;
+  options.http_endpoint_is_default = http_option->count() == 0;
   options.heartbeat.interval = std::chrono::milliseconds{heartbeat_ms};
   options.image_interval = std::chrono::milliseconds{image_interval_ms};
   durability.checkpoint_interval = std::chrono::milliseconds{checkpoint_interval_ms};

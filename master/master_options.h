@@ -40,6 +40,11 @@ struct MasterOptions {
   std::string worker_endpoint = "tcp://*:5555";
   std::string client_endpoint = "tcp://*:5556";
   std::filesystem::path data_dir = "rayfarm-data";
+  /// The dashboard, its JSON API and /metrics: HOST:PORT, "" for none (http_server.h).
+  std::string http_endpoint;
+  /// http_endpoint is the default, not asked for: a port in use there is a warning (a second
+  /// master on the machine runs without a dashboard), not a failure to start.
+  bool http_endpoint_is_default = false;
   protocol::HeartbeatOptions heartbeat;
   /// While results arrive, a job's image is rewritten at least this often.
   std::chrono::milliseconds image_interval{3000};

@@ -6,13 +6,14 @@ packages=(
   cmake ninja-build g++ pkg-config git
   libembree-dev libopenexr-dev libspdlog-dev libfmt-dev libcli11-dev nlohmann-json3-dev
   libtbb-dev libpng-dev libjpeg62-turbo-dev libtinygltf-dev libpugixml-dev
-  libzmq3-dev cppzmq-dev libprotobuf-dev protobuf-compiler libssl-dev
+  libzmq3-dev cppzmq-dev libprotobuf-dev protobuf-compiler libssl-dev libcpp-httplib-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   python3
 )
 # ffmpeg makes a finished sequence's MP4 movie: optional for a master, needed by the tests;
 # RAYFARM_DEPS=build (an image's build stage) leaves it out.
-[ "${RAYFARM_DEPS:-all}" = build ] || packages+=(ffmpeg)
+# The dashboard's end-to-end test drives a real browser: headless Chromium through Selenium.
+[ "${RAYFARM_DEPS:-all}" = build ] || packages+=(ffmpeg chromium chromium-driver python3-selenium)
 
 missing=()
 for p in "${packages[@]}"; do

@@ -378,6 +378,13 @@ const std::string* AllowList::find(const std::string& key) const {
   return it == keys_.end() ? nullptr : &it->second;
 }
 
+bool AllowList::has_name(const std::string& name) const {
+  for (const auto& [key, n] : keys_) {
+    if (n == name) return true;
+  }
+  return false;
+}
+
 bool is_loopback_endpoint(const std::string& endpoint) {
   if (endpoint.rfind("ipc://", 0) == 0 || endpoint.rfind("inproc://", 0) == 0) return true;
   if (endpoint.rfind("tcp://", 0) != 0) return false;

@@ -175,6 +175,25 @@ AllowListPolicy::Decision AllowListPolicy::decide(const ZapRequest& request) {
   return out;
 }
 
+AllowListPolicy::Decision AllowListPolicy::admits_name(const std::string& domain,
+                                                       const std::string& name) {
+  std::lock_guard lock(mutex_);
+  Decision out;
+  const auto now = std::chrono::steady_clock::now();
+  if (now - loaded_ >= reload_interval_) {
+    reload(out);
+    loaded_ = now;
+  }
+  auto it = domains_.find(domain);
+  if (it != domains_.end() && it->second.keys.has_name(name)) {
+    out.admitted = true;
+    out.name = name;
+  } else {
+    out.reason = "no key named '" + name + "' is on the " + domain + " allow-list";
+  }
+  return out;
+}
+
 size_t AllowListPolicy::size(const std::string& domain) const {
   std::lock_guard lock(mutex_);
   auto it = domains_.find(domain);

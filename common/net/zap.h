@@ -89,6 +89,9 @@ class AllowListPolicy {
                            std::chrono::milliseconds reload_interval = std::chrono::seconds{1});
 
   Decision decide(const ZapRequest& request);
+  /// Whether `domain`'s list (read again when due, as decide() does) still names a key `name`:
+  /// admitted only when it does; reload_note as decide() reports it.
+  Decision admits_name(const std::string& domain, const std::string& name);
   /// Keys in `domain`'s list (0 for an unknown domain).
   size_t size(const std::string& domain) const;
 

@@ -1,0 +1,116 @@
+// The reactor's side of the HTTP endpoint (http_feed.h): publishing snapshots of the farm while
+// someone looks, and answering the calls the HTTP threads post, with the same rights as the
+// client socket (broker_clients.cpp).
+#include <fmt/format.h>
+
+#include "common/protocol/codec.h"
+#include "common/util/log.h"
+#include "master/broker.h"
+
+namespace rayfarm::master {
+namespace protocol = rayfarm::protocol;
+
+namespace {
+
+std::shared_ptr<spdlog::logger> log() { return get_logger("master"); }
+
+HttpAnswer failure(int status, std::string error) {
+  HttpAnswer a;
+  a.status = status;
+  a.error = std::move(error);
+  return a;
+}
+
+template <class M>
+HttpAnswer success(M message) {
+  HttpAnswer a;
+  a.message = std::make_shared<M>(std::move(message));
+  return a;
+}
+
+}  // namespace
+
+void Broker::serve_http() {
+  metrics().workers_connected.set(static_cast<double>(workers_.size()));
+  if (!http_) return;
+  const auto now = Clock::now();
+  if (http_feed_.snapshot_due(now)) {
+    FarmSnapshot snap;
+    const uint32_t worker_count = static_cast<uint32_t>(workers_.size());
+    for (auto& st : jobs_.list(worker_count)) *snap.jobs.add_jobs() = std::move(st);
+    snap.workers = worker_list();
+    snap.taken = now;
+    http_feed_.publish(std::move(snap));
+  }
+  bool changed = false;
+  for (HttpFeed::Pending& p : http_feed_.take_calls()) {
+    try {
+      p.answer.set_value(answer_http(p.call, changed));
+    } catch (const std::exception& e) {
+      log()->error("HTTP call for job {} failed: {}", protocol::printable(p.call.job_id), e.what());
+      p.answer.set_value(failure(500, jobs_.for_clients(std::string("the master failed: ") +
+                                                        e.what())));
+    }
+  }
+  if (changed) dispatch();  // a job resumed or raised may serve the workers that wait
+}
+
+HttpAnswer Broker::answer_http(const HttpCall& call, bool& changed) {
+  const std::string& id = call.job_id;
+  const std::string unknown = "unknown job '" + protocol::printable(id) + "'";
+  const std::string* owner = jobs_.owner_of(id);
+  // The client socket's rules, for the token's key; without a token a job is visible unless
+  // the master keeps jobs private, and nothing may be changed.
+  const std::string& user = call.user.key_name;
+  const bool sees = owner && (!options_.security.private_jobs ||
+                              (call.user.authenticated && may_manage(*owner, user)));
+  if (!owner || !sees) return failure(404, unknown);
+  using Kind = HttpCall::Kind;
+  if (call.kind == Kind::kStatus) {
+    auto st = jobs_.status(id, static_cast<uint32_t>(workers_.size()));
+    if (!st) return failure(404, unknown);
+    return success(std::move(*st));
+  }
+  if (!call.user.authenticated || !may_manage(*owner, user)) {
+    metrics().refusals.add("http_forbidden");
+    return failure(403, fmt::format("job {} belongs to key '{}': only that key or an admin key "
+                                    "(rayfarm-master --admin-clients) may change it",
+                                    protocol::printable(id), protocol::printable(*owner)));
+  }
+  if (call.kind == Kind::kCancel) {
+    auto state = jobs_.cancel(id);
+    if (!state) return failure(404, unknown);
+    log()->info("job {} cancelled over HTTP by key '{}'", protocol::printable(id),
+                protocol::printable(user));
+    wire::CancelReply out;
+    out.set_job_id(id);
+    out.set_state(*state);
+    return success(std::move(out));
+  }
+  std::optional<int32_t> priority;
+  std::optional<bool> paused;
+  if (call.kind == Kind::kPriority) {
+    if (auto refusal = priority_refusal(call.priority, user)) {
+      metrics().refusals.add("http_forbidden");
+      return failure(403, *refusal);
+    }
+    priority = call.priority;
+  } else {
+    paused = call.kind == Kind::kPause;
+  }
+  try {
+    const JobRecord* r = jobs_.change(id, priority, paused);
+    if (r == nullptr) return failure(404, unknown);
+    changed = true;
+    wire::ChangeJobReply out;
+    out.set_job_id(id);
+    out.set_state(r->state);
+    out.set_priority(r->priority);
+    out.set_paused(r->paused);
+    return success(std::move(out));
+  } catch (const JobRejected& e) {
+    return failure(409, jobs_.for_clients(e.what()));
+  }
+}
+
+}  // namespace rayfarm::master

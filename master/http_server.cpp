@@ -1,0 +1,476 @@
+#include "master/http_server.h"
+
+#include <chrono>
+#include <condition_variable>
+#include <deque>
+#include <fstream>
+#include <iterator>
+#include <mutex>
+#include <regex>
+
+#include <sys/socket.h>
+#include <stdexcept>
+
+#include <google/protobuf/util/json_util.h>
+#include <httplib.h>
+#include <nlohmann/json.hpp>
+
+#include "common/limits.h"
+#include "common/net/keys.h"
+#include "common/util/log.h"
+#include "master/metrics.h"
+#include "master/web_assets.h"
+
+namespace rayfarm::master {
+namespace {
+
+using nlohmann::json;
+using namespace std::chrono_literals;
+
+std::shared_ptr<spdlog::logger> log() { return get_logger("master"); }
+
+constexpr size_t kMaxRequestBytes = 64 * 1024;
+constexpr size_t kMaxQueuedConnections = 256;
+/// How long a request waits for the reactor (a snapshot, or a call's answer).
+constexpr auto kReactorWait = 5s;
+
+/// A fixed pool of threads with a bounded queue of connections. When the queue is full the
+/// accepting thread serves the connection itself: it accepts no more meanwhile, and the kernel's
+/// backlog holds (or refuses) the rest, rather than the master's memory.
+class BoundedPool : public httplib::TaskQueue {
+ public:
+  explicit BoundedPool(size_t threads) {
+    for (size_t i = 0; i < threads; ++i) threads_.emplace_back([this] { work(); });
+  }
+  void enqueue(std::function<void()> fn) override {
+    {
+      std::unique_lock lock(mutex_);
+      if (queue_.size() < kMaxQueuedConnections) {
+        queue_.push_back(std::move(fn));
+        ready_.notify_one();
+        return;
+      }
+    }
+    fn();
+  }
+  void shutdown() override {
+    {
+      std::lock_guard lock(mutex_);
+      stopping_ = true;
+    }
+    ready_.notify_all();
+    for (auto& t : threads_) t.join();
+  }
+
+ private:
+  std::vector<std::thread> threads_;
+  std::mutex mutex_;
+  std::condition_variable ready_;
+  std::deque<std::function<void()>> queue_;
+  bool stopping_ = false;
+
+  void work() {
+    for (;;) {
+      std::function<void()> fn;
+      {
+        std::unique_lock lock(mutex_);
+        ready_.wait(lock, [&] { return stopping_ || !queue_.empty(); });
+        if (queue_.empty()) return;  // stopping, nothing left
+        fn = std::move(queue_.front());
+        queue_.pop_front();
+      }
+      fn();
+    }
+  }
+};
+
+json message_json(const google::protobuf::Message& m) {
+  google::protobuf::util::JsonPrintOptions options;
+  options.preserve_proto_field_names = true;
+  options.always_print_primitive_fields = true;
+  std::string text;
+  if (!google::protobuf::util::MessageToJsonString(m, &text, options).ok()) {
+    throw std::runtime_error("cannot write " + m.GetTypeName() + " as JSON");
+  }
+  json out = json::parse(text);
+  out.erase("protocol_version");
+  return out;
+}
+
+void send_json(httplib::Response& res, const json& body, int status = 200) {
+  res.status = status;
+  res.set_header("Cache-Control", "no-store");
+  res.set_content(body.dump(), "application/json");
+}
+
+void send_error(httplib::Response& res, int status, const std::string& error) {
+  send_json(res, json{{"error", error}}, status);
+}
+
+/// The token of "Authorization: Bearer TOKEN", "" when there is no such header, nullopt when
+/// the header is there but not of that form.
+std::optional<std::string> bearer(const httplib::Request& req) {
+  if (!req.has_header("Authorization")) return std::string();
+  const std::string value = req.get_header_value("Authorization");
+  const std::string scheme = "Bearer ";
+  if (value.size() <= scheme.size() || value.compare(0, scheme.size(), scheme) != 0) {
+    return std::nullopt;
+  }
+  return value.substr(scheme.size());
+}
+
+/// Job ids are the master's own ("j0007", a sequence's frame "j0007.12"): anything else is
+/// refused before it is looked up or joined to a path.
+bool plausible_job_id(const std::string& id) {
+  static const std::regex pattern("[A-Za-z0-9_-]{1,64}(\\.-?[0-9]{1,19})?");
+  return std::regex_match(id, pattern);
+}
+
+std::string read_file(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return {};
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+}  // namespace
+
+std::pair<std::string, int> parse_http_endpoint(const std::string& endpoint) {
+  const auto bad = [&] {
+    return std::invalid_argument("--http-endpoint '" + endpoint +
+                                 "' is not HOST:PORT (e.g. 127.0.0.1:8480, 0.0.0.0:8480, "
+                                 "[::1]:8480)");
+  };
+  const size_t colon = endpoint.rfind(':');
+  if (colon == std::string::npos || colon == 0 || colon + 1 == endpoint.size()) throw bad();
+  std::string host = endpoint.substr(0, colon);
+  if (host.front() == '[') {
+    if (host.back() != ']' || host.size() < 3) throw bad();
+    host = host.substr(1, host.size() - 2);
+  } else if (host.find(':') != std::string::npos) {
+    throw bad();
+  }
+  const std::string port_text = endpoint.substr(colon + 1);
+  if (port_text.size() > 5 || port_text.find_first_not_of("0123456789") != std::string::npos) {
+    throw bad();
+  }
+  const int port = std::stoi(port_text);
+  if (port > 65535) throw bad();
+  return {host, port};
+}
+
+HttpServer::HttpServer(HttpOptions options, HttpFeed& feed, const HttpTokens& tokens)
+    : options_(std::move(options)), feed_(feed), tokens_(tokens) {
+  auto [host, port] = parse_http_endpoint(options_.endpoint);
+  host_ = host;
+  const std::string as_tcp =
+      "tcp://" + (host.find(':') != std::string::npos ? "[" + host + "]" : host) + ":" +
+      std::to_string(port);
+  if (!options_.keys && !net::is_loopback_endpoint(as_tcp)) {
+    throw std::runtime_error(
+        "--http-endpoint " + options_.endpoint +
+        " is reachable from other machines, and a master without keys (--insecure) has no "
+        "tokens to guard its actions: bind it to 127.0.0.1, or give the master its keys");
+  }
+  server_ = std::make_unique<httplib::Server>();
+  const size_t threads = static_cast<size_t>(std::max(1, options_.threads));
+  server_->new_task_queue = [threads] { return new BoundedPool(threads); };
+  // SO_REUSEADDR only: the library's default adds SO_REUSEPORT, with which a second master would
+  // bind the same port and take half of the requests.
+  server_->set_socket_options([](socket_t sock) {
+    int yes = 1;
+    ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
+  });
+  server_->set_payload_max_length(kMaxRequestBytes);
+  server_->set_read_timeout(5, 0);
+  server_->set_write_timeout(10, 0);
+  server_->set_keep_alive_timeout(5);
+  server_->set_keep_alive_max_count(100);
+  routes();
+  port_ = port == 0 ? server_->bind_to_any_port(host) : (server_->bind_to_port(host, port) ? port : -1);
+  if (port_ <= 0) {
+    throw std::runtime_error("cannot bind --http-endpoint " + options_.endpoint +
+                             ": the address is in use or not this machine's");
+  }
+  thread_ = std::thread([this] { server_->listen_after_bind(); });
+  log()->info("dashboard and metrics on {} ({})", url(),
+              options_.keys ? "actions need a token: rayfarm token"
+                            : "no keys: any local process may act");
+}
+
+HttpServer::~HttpServer() {
+  server_->stop();
+  if (thread_.joinable()) thread_.join();
+}
+
+std::string HttpServer::url() const {
+  const std::string host = host_ == "0.0.0.0" || host_.empty() ? "127.0.0.1"
+                           : host_ == "::"                     ? "[::1]"
+                           : host_.find(':') != std::string::npos ? "[" + host_ + "]"
+                                                                  : host_;
+  return "http://" + host + ":" + std::to_string(port_) + "/";
+}
+
+void HttpServer::routes() {
+  httplib::Server& s = *server_;
+  s.set_default_headers({{"X-Content-Type-Options", "nosniff"},
+                         {"X-Frame-Options", "DENY"},
+                         {"Referrer-Policy", "no-referrer"},
+                         {"Content-Security-Policy",
+                          "default-src 'self'; img-src 'self' data: blob:; style-src 'self'; "
+                          "script-src 'self'; connect-src 'self'; frame-ancestors 'none'"}});
+  s.set_logger([](const httplib::Request&, const httplib::Response& res) {
+    metrics().http_responses.add(std::to_string(res.status));
+  });
+  s.set_exception_handler([](const httplib::Request& req, httplib::Response& res,
+                             std::exception_ptr ep) {
+    std::string what = "unknown error";
+    try {
+      if (ep) std::rethrow_exception(ep);
+    } catch (const std::exception& e) {
+      what = e.what();
+    } catch (...) {
+    }
+    log()->error("HTTP {} {}: {}", req.method, req.path, what);
+    send_error(res, 500, "the master failed to answer: " + what);
+  });
+  s.set_error_handler([](const httplib::Request& req, httplib::Response& res) {
+    if (!res.body.empty()) return;
+    if (res.status == 404) {
+      send_error(res, 404, "no such page: " + req.method + " " + req.path);
+    } else if (res.status == 413) {
+      send_error(res, 413, "request too large (at most 64 KiB)");
+    } else {
+      send_error(res, res.status, "HTTP " + std::to_string(res.status));
+    }
+  });
+
+  // Who asks: nullopt (and the response set to 401) for a token that is not valid.
+  auto user_of = [this](const httplib::Request& req,
+                        httplib::Response& res) -> std::optional<HttpUser> {
+    const auto token = bearer(req);
+    if (!token) {
+      metrics().refusals.add("http_token");
+      send_error(res, 401, "malformed Authorization header: send 'Authorization: Bearer TOKEN' "
+                           "with a token from `rayfarm token`");
+      return std::nullopt;
+    }
+    if (token->empty()) return HttpUser{};
+    const auto name = tokens_.verify(*token);
+    if (!name || (options_.key_allowed && !options_.key_allowed(*name))) {
+      metrics().refusals.add("http_token");
+      send_error(res, 401,
+                 !name ? "this token was not issued by this master (or its secret was renewed): "
+                         "get one with `rayfarm token`"
+                       : "this token's client key is no longer on the master's allow-list");
+      return std::nullopt;
+    }
+    return HttpUser{true, *name};
+  };
+  auto is_admin = [this](const HttpUser& u) {
+    return u.authenticated && options_.admin_clients.count(u.key_name) != 0;
+  };
+  auto may_manage = [is_admin](const std::string& owner, const HttpUser& u) {
+    return u.authenticated && (owner == u.key_name || is_admin(u));
+  };
+  auto may_see = [this, may_manage](const std::string& owner, const HttpUser& u) {
+    return !options_.private_jobs || may_manage(owner, u);
+  };
+  auto snapshot = [this](httplib::Response& res) -> std::shared_ptr<const FarmSnapshot> {
+    auto snap = feed_.snapshot(std::chrono::duration_cast<std::chrono::milliseconds>(kReactorWait));
+    if (!snap) send_error(res, 503, "the master has not published its state yet; try again");
+    return snap;
+  };
+
+  auto asset = [&s](const std::string& path, std::string_view body, const char* type) {
+    s.Get(path, [body, type](const httplib::Request&, httplib::Response& res) {
+      res.set_header("Cache-Control", "no-cache");
+      res.set_content(body.data(), body.size(), type);
+    });
+  };
+  asset("/", web::kIndexHtml, "text/html; charset=utf-8");
+  asset("/dashboard.js", web::kDashboardJs, "text/javascript; charset=utf-8");
+  asset("/dashboard.css", web::kDashboardCss, "text/css; charset=utf-8");
+  asset("/favicon.svg", web::kFaviconSvg, "image/svg+xml");
+
+  s.Get("/api/session", [=, this](const httplib::Request& req, httplib::Response& res) {
+    const auto user = user_of(req, res);
+    if (!user) return;
+    send_json(res, json{{"authenticated", user->authenticated},
+                        {"key", user->key_name},
+                        {"admin", is_admin(*user)},
+                        {"keys", options_.keys},
+                        {"private_jobs", options_.private_jobs},
+                        {"build", options_.build}});
+  });
+
+  s.Get("/api/jobs", [=](const httplib::Request& req, httplib::Response& res) {
+    const auto user = user_of(req, res);
+    if (!user) return;
+    const auto snap = snapshot(res);
+    if (!snap) return;
+    json jobs = json::array();
+    for (const auto& st : snap->jobs.jobs()) {
+      if (!may_see(st.owner(), *user)) continue;
+      json j = message_json(st);
+      j["can_manage"] = may_manage(st.owner(), *user);
+      jobs.push_back(std::move(j));
+    }
+    send_json(res, json{{"jobs", std::move(jobs)},
+                        {"workers_total", snap->workers.workers_size()},
+                        {"age_seconds", std::chrono::duration<double>(
+                                            std::chrono::steady_clock::now() - snap->taken)
+                                            .count()}});
+  });
+
+  s.Get("/api/workers", [=](const httplib::Request& req, httplib::Response& res) {
+    const auto user = user_of(req, res);
+    if (!user) return;
+    const auto snap = snapshot(res);
+    if (!snap) return;
+    json out = message_json(snap->workers);
+    if (!out.contains("workers")) out["workers"] = json::array();
+    send_json(res, out);
+  });
+
+  // A call for the reactor, answered as JSON.
+  auto call = [this](HttpCall c, httplib::Response& res) {
+    auto answer = feed_.call(std::move(c));
+    if (!answer) {
+      send_error(res, 503, "the master has too many requests waiting; try again in a moment");
+      return;
+    }
+    if (answer->wait_for(kReactorWait) != std::future_status::ready) {
+      send_error(res, 503, "the master did not answer within 5 s; try again");
+      return;
+    }
+    HttpAnswer a = answer->get();
+    if (a.status / 100 != 2 || !a.message) {
+      send_error(res, a.status, a.error);
+      return;
+    }
+    send_json(res, message_json(*a.message), a.status);
+  };
+
+  s.Get(R"(/api/jobs/([^/]+))", [=](const httplib::Request& req, httplib::Response& res) {
+    const auto user = user_of(req, res);
+    if (!user) return;
+    const std::string id = req.matches[1];
+    if (!plausible_job_id(id)) return send_error(res, 404, "unknown job '" + id.substr(0, 80) + "'");
+    call(HttpCall{HttpCall::Kind::kStatus, id, *user, 0}, res);
+  });
+
+  s.Get(R"(/api/jobs/([^/]+)/(image\.png|error\.png|error\.csv|contact\.png))",
+        [=, this](const httplib::Request& req, httplib::Response& res) {
+          const auto user = user_of(req, res);
+          if (!user) return;
+          const std::string id = req.matches[1];
+          const std::string file = req.matches[2];
+          const auto snap = snapshot(res);
+          if (!snap) return;
+          // The job, or the sequence a frame's job belongs to, must be one this user sees.
+          if (!plausible_job_id(id)) return send_error(res, 404, "unknown job");
+          const std::string listed = id.substr(0, id.find('.'));
+          const bool frame = listed != id;
+          bool visible = false;
+          for (const auto& st : snap->jobs.jobs()) {
+            if (st.job_id() != listed) continue;
+            visible = may_see(st.owner(), *user) && (!frame || st.frames_total() > 0);
+            break;
+          }
+          if (!visible) return send_error(res, 404, "unknown job '" + id + "'");
+          const std::string body = read_file(options_.jobs_dir / id / file);
+          if (body.empty()) {
+            return send_error(res, 404, "job " + id + " has no " + file + " yet");
+          }
+          res.set_header("Cache-Control", "no-store");
+          res.set_content(body, file.ends_with(".csv") ? "text/csv" : "image/png");
+        });
+
+  auto action = [=](HttpCall::Kind kind) {
+    return [=](const httplib::Request& req, httplib::Response& res) {
+      const auto user = user_of(req, res);
+      if (!user) return;
+      if (!user->authenticated) {
+        metrics().refusals.add("http_token");
+        return send_error(res, 401,
+                          "this needs a token: send 'Authorization: Bearer TOKEN' with a token "
+                          "from `rayfarm token` (the page asks for one under Sign in)");
+      }
+      const std::string id = req.matches[1];
+      if (!plausible_job_id(id)) return send_error(res, 404, "unknown job");
+      HttpCall c{kind, id, *user, 0};
+      if (kind == HttpCall::Kind::kPriority) {
+        std::optional<long long> p;
+        if (req.has_param("priority")) {
+          try {
+            size_t used = 0;
+            const std::string text = req.get_param_value("priority");
+            p = std::stoll(text, &used);
+            if (used != text.size()) p.reset();
+          } catch (const std::exception&) {
+          }
+        } else if (!req.body.empty()) {
+          const json body = json::parse(req.body, nullptr, /*allow_exceptions=*/false);
+          if (body.is_object() && body.contains("priority") &&
+              body["priority"].is_number_integer()) {
+            p = body["priority"].get<long long>();
+          }
+        }
+        if (!p) {
+          return send_error(res, 400,
+                            "give the priority as ?priority=P or a JSON body {\"priority\": P}, "
+                            "an integer from " + std::to_string(kMinPriority) + " to " +
+                                std::to_string(kMaxPriority));
+        }
+        if (*p < kMinPriority || *p > kMaxPriority) {
+          return send_error(res, 400,
+                            "priority " + std::to_string(*p) + " is out of range (" +
+                                std::to_string(kMinPriority) + " to " +
+                                std::to_string(kMaxPriority) + ")");
+        }
+        c.priority = static_cast<int32_t>(*p);
+      }
+      call(std::move(c), res);
+    };
+  };
+  s.Post(R"(/api/jobs/([^/]+)/cancel)", action(HttpCall::Kind::kCancel));
+  s.Post(R"(/api/jobs/([^/]+)/pause)", action(HttpCall::Kind::kPause));
+  s.Post(R"(/api/jobs/([^/]+)/resume)", action(HttpCall::Kind::kResume));
+  s.Post(R"(/api/jobs/([^/]+)/priority)", action(HttpCall::Kind::kPriority));
+
+  s.Get("/metrics", [=, this](const httplib::Request&, httplib::Response& res) {
+    PrometheusText text;
+    text.metrics(metrics());
+    if (const auto snap = feed_.snapshot(std::chrono::duration_cast<std::chrono::milliseconds>(
+            kReactorWait))) {
+      std::map<std::string, double> states;
+      for (int k = wire::JobState_MIN; k <= wire::JobState_MAX; ++k) {
+        if (k == wire::JOB_STATE_UNSPECIFIED || !wire::JobState_IsValid(k)) continue;
+        std::string name = wire::JobState_Name(static_cast<wire::JobState>(k));
+        states[name.substr(name.rfind('_') + 1)] = 0;  // "queued", "running", ...
+      }
+      double rate = 0, paused = 0;
+      for (const auto& st : snap->jobs.jobs()) {
+        std::string name = wire::JobState_Name(st.state());
+        states[name.substr(name.rfind('_') + 1)] += 1;
+        if (st.state() == wire::JOB_RUNNING) rate += st.samples_per_second();
+        if (st.paused()) paused += 1;
+      }
+      std::map<std::string, double> lower;
+      for (auto& [k, v] : states) {
+        std::string l = k;
+        for (char& c : l) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+        lower[l] = v;
+      }
+      text.family("rayfarm_jobs", "gauge",
+                  "Jobs (a sequence counts once) by state, as listed by rayfarm list.", "state",
+                  lower);
+      text.gauge("rayfarm_jobs_paused", "Queued or running jobs that are paused.", paused);
+      text.gauge("rayfarm_samples_per_second",
+                 "Pixel samples per second of the running jobs, as their status reports.", rate);
+    }
+    res.set_content(text.text(), "text/plain; version=0.0.4; charset=utf-8");
+  });
+}
+
+}  // namespace rayfarm::master

@@ -1,0 +1,73 @@
+#pragma once
+// The master's HTTP endpoint: the dashboard (a page embedded in the binary, web/), its JSON API
+// under /api/ (docs/farm.md, "The dashboard"), and /metrics for Prometheus. It runs on threads of
+// its own and sees the farm only through an HttpFeed (http_feed.h): snapshots the reactor
+// publishes, and calls the reactor answers between two polls. Reads need no token unless the
+// master keeps jobs private; actions need a bearer token (http_tokens.h) whose key may manage the
+// job, exactly as on the client socket.
+// Bounded: requests of at most 64 KiB, 5 s to send one, a fixed pool of threads with a bounded
+// queue of connections (beyond it the accepting thread serves one itself, so that the kernel's
+// backlog, not the master's memory, takes the rest), at most HttpFeed::kMaxCalls calls waiting.
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <set>
+#include <string>
+#include <thread>
+
+#include "master/http_feed.h"
+#include "master/http_tokens.h"
+
+namespace httplib {
+class Server;
+}
+
+namespace rayfarm::master {
+
+struct HttpOptions {
+  /// HOST:PORT ("127.0.0.1:8480", "0.0.0.0:8480", "[::1]:0"); port 0 picks a free one.
+  std::string endpoint;
+  /// Whether the master checks client keys. Without (rayfarm-master --insecure) the endpoint
+  /// must be on loopback, as the master's sockets must.
+  bool keys = true;
+  bool private_jobs = false;
+  std::set<std::string> admin_clients;
+  /// <data>/jobs: where the images, error plots and contact sheets are read from.
+  std::filesystem::path jobs_dir;
+  /// Whether a token's key is still on the clients' allow-list; unset: every name is.
+  std::function<bool(const std::string&)> key_allowed;
+  /// The master's build, shown on the page.
+  std::string build;
+  int threads = 4;
+};
+
+/// HOST and PORT of "HOST:PORT" ("[::1]:8480" gives "::1"). Throws std::invalid_argument naming
+/// --http-endpoint when it is not of that form.
+std::pair<std::string, int> parse_http_endpoint(const std::string& endpoint);
+
+class HttpServer {
+ public:
+  /// Binds and starts serving. Throws std::runtime_error naming the endpoint when it cannot be
+  /// bound, or when it is beyond loopback on a master without keys.
+  HttpServer(HttpOptions options, HttpFeed& feed, const HttpTokens& tokens);
+  ~HttpServer();
+  HttpServer(const HttpServer&) = delete;
+  HttpServer& operator=(const HttpServer&) = delete;
+
+  int port() const { return port_; }
+  /// http://HOST:PORT/
+  std::string url() const;
+
+ private:
+  HttpOptions options_;
+  HttpFeed& feed_;
+  const HttpTokens& tokens_;
+  std::unique_ptr<httplib::Server> server_;
+  std::string host_;
+  int port_ = 0;
+  std::thread thread_;
+
+  void routes();
+};
+
+}  // namespace rayfarm::master

@@ -1,0 +1,336 @@
+// rayfarm's dashboard: polls the master's JSON API (docs/farm.md, "The dashboard") once a second
+// and draws jobs, the selected job's image, error plot and frames, and the workers. Actions send
+// the token from `rayfarm token` as a bearer token; without one the page is read-only.
+"use strict";
+
+const state = {
+  token: localStorage.getItem("rayfarm-token") || "",
+  session: null,
+  selected: null,        // job id
+  shown: {},             // what the selected job's images were drawn from
+  thumbs: new Map(),     // frame job id -> object URL (finished frames do not change)
+  busy: false,
+};
+
+const $ = (id) => document.getElementById(id);
+
+function el(tag, attrs, ...children) {
+  const e = document.createElement(tag);
+  for (const [k, v] of Object.entries(attrs || {})) {
+    if (k === "class") e.className = v;
+    else if (k.startsWith("data-")) e.setAttribute(k, v);
+    else e[k] = v;
+  }
+  for (const c of children) e.append(c instanceof Node ? c : document.createTextNode(String(c)));
+  return e;
+}
+
+async function api(path, options = {}) {
+  const headers = Object.assign({}, options.headers || {});
+  if (state.token) headers["Authorization"] = "Bearer " + state.token;
+  const res = await fetch(path, Object.assign({}, options, { headers, cache: "no-store" }));
+  if (!res.ok) {
+    let message = "HTTP " + res.status;
+    try { message = (await res.json()).error || message; } catch (e) { /* not JSON */ }
+    const err = new Error(message);
+    err.status = res.status;
+    throw err;
+  }
+  return res;
+}
+
+async function apiJson(path, options) { return (await api(path, options)).json(); }
+
+function say(text, isError) {
+  const m = $("message");
+  m.textContent = text;
+  m.className = isError ? "error" : "";
+  m.hidden = !text;
+}
+
+// ---- formatting -------------------------------------------------------------------------------
+
+const STATES = { JOB_QUEUED: "queued", JOB_RUNNING: "running", JOB_DONE: "done",
+                 JOB_FAILED: "failed", JOB_CANCELLED: "cancelled" };
+function stateName(job) {
+  const s = STATES[job.state] || "unknown";
+  return job.paused && (s === "queued" || s === "running") ? "paused" : s;
+}
+function finished(job) { return ["done", "failed", "cancelled"].includes(STATES[job.state]); }
+
+function duration(seconds) {
+  if (!(seconds >= 0) || !isFinite(seconds)) return "–";
+  if (seconds < 60) return seconds.toFixed(seconds < 10 ? 1 : 0) + " s";
+  const m = Math.floor(seconds / 60), s = Math.round(seconds % 60);
+  if (m < 60) return m + " min " + s + " s";
+  return Math.floor(m / 60) + " h " + (m % 60) + " min";
+}
+function rate(x) {
+  if (!(x > 0)) return "–";
+  const units = [[1e9, "G"], [1e6, "M"], [1e3, "k"]];
+  for (const [f, u] of units) if (x >= f) return (x / f).toFixed(2) + " " + u;
+  return x.toFixed(0);
+}
+function sci(x) { return x >= 0 ? Number(x).toExponential(2) : "–"; }
+function percentOf(job) {
+  if (STATES[job.state] === "done") return 100;
+  const total = Number(job.units_total), done = Number(job.units_done);
+  if (total > 0) return 100 * done / total;
+  if (job.frames_total > 0) return 100 * job.frames_done / job.frames_total;
+  return 0;
+}
+function sppTotal(job) { return job.pass_spp * job.passes_total; }
+
+// ---- jobs -------------------------------------------------------------------------------------
+
+function jobRow(job) {
+  const pct = percentOf(job);
+  const s = stateName(job);
+  const tr = el("tr", { "data-job": job.job_id, "data-state": s },
+    el("td", {}, el("span", { class: "job-name" }, job.name || job.job_id),
+       el("span", { class: "job-id" }, job.job_id)),
+    el("td", {}, job.owner || "–"),
+    el("td", {}, el("span", { class: "state " + s }, s)),
+    el("td", { class: "num" }, job.priority),
+    el("td", {}, job.frames_total > 0 ? job.frames_done + " / " + job.frames_total
+                                      : ("frame" in job ? "frame " + job.frame : "–")),
+    el("td", {}, job.frames_total > 0 ? "–" : job.spp_done + " / " + sppTotal(job)),
+    el("td", {}, el("span", { class: "bar" + (s === "done" ? " done" : "") },
+                    el("div", { style: "" })),
+       el("span", { class: "percent" }, pct.toFixed(1) + "%")),
+    el("td", { class: "num" }, finished(job) ? "–" : rate(job.samples_per_second)),
+    el("td", { class: "num" }, finished(job) ? "–" : duration(job.eta_seconds)),
+    el("td", { class: "num" }, sci(job.est_rel_mse)),
+    el("td", {}, job.stop_reason || (job.error ? "error" : "–")));
+  tr.querySelector(".bar > div").style.width = Math.min(100, pct).toFixed(1) + "%";
+  if (job.job_id === state.selected) tr.classList.add("selected");
+  tr.addEventListener("click", () => select(job.job_id));
+  return tr;
+}
+
+function drawJobs(list) {
+  const body = $("jobs").querySelector("tbody");
+  body.replaceChildren(...list.jobs.map(jobRow));
+  $("no-jobs").hidden = list.jobs.length > 0;
+  $("job-count").textContent = list.jobs.length ? "(" + list.jobs.length + ")" : "";
+  $("farm").textContent = list.workers_total + " worker" + (list.workers_total === 1 ? "" : "s") +
+    " connected" + (state.session ? " · " + state.session.build : "");
+}
+
+// ---- workers ----------------------------------------------------------------------------------
+
+function drawWorkers(list) {
+  const rows = list.workers.map((w) => el("tr", { "data-worker": w.id },
+    el("td", {}, w.name), el("td", {}, w.key_name || "–"),
+    el("td", {}, el("span", { class: "state " + (w.units.length ? "running" : "") },
+                    w.units.length ? "busy" : "idle")),
+    el("td", { class: "num" }, w.threads),
+    el("td", {}, w.units.length ? w.units[0] + (w.units.length > 1 ? " +" + (w.units.length - 1) : "") : "–"),
+    el("td", { class: "num" }, w.units_done),
+    el("td", { class: "num" }, rate(w.samples_per_second)),
+    el("td", { class: "num" }, duration(w.last_seen_seconds) + " ago")));
+  $("workers").querySelector("tbody").replaceChildren(...rows);
+  $("no-workers").hidden = list.workers.length > 0;
+  $("worker-count").textContent = list.workers.length ? "(" + list.workers.length + ")" : "";
+}
+
+// ---- the selected job -------------------------------------------------------------------------
+
+function select(id) {
+  state.selected = id;
+  state.shown = {};
+  for (const tr of $("jobs").querySelectorAll("tbody tr")) {
+    tr.classList.toggle("selected", tr.dataset.job === id);
+  }
+  refreshDetail();
+}
+
+async function loadImage(img, path) {
+  try {
+    const blob = await (await api(path)).blob();
+    const old = img.src;
+    img.src = URL.createObjectURL(blob);
+    if (old.startsWith("blob:")) URL.revokeObjectURL(old);
+    return true;
+  } catch (e) {
+    return false;  // not written yet
+  }
+}
+
+function fact(name, value) { return [el("dt", {}, name), el("dd", {}, value)]; }
+
+async function refreshDetail() {
+  const id = state.selected;
+  if (!id) { $("detail").hidden = true; return; }
+  let job;
+  try {
+    job = await apiJson("/api/jobs/" + encodeURIComponent(id));
+  } catch (e) {
+    if (e.status === 404) { state.selected = null; $("detail").hidden = true; return; }
+    throw e;
+  }
+  if (id !== state.selected) return;
+  $("detail").hidden = false;
+  $("detail").dataset.job = id;
+  $("detail-title").textContent = (job.name || id) + " (" + id + ") · " + stateName(job);
+  const s = stateName(job);
+  $("facts").replaceChildren(
+    ...fact("Image", job.width + " × " + job.height + ", tiles of " + job.tile_size),
+    ...fact("Samples per pixel", job.frames_total > 0 ? "–" : job.spp_done + " of " + sppTotal(job) +
+            " (mean " + Number(job.spp_mean).toFixed(1) + ")"),
+    ...fact("Progress", percentOf(job).toFixed(1) + "%"),
+    ...fact("Elapsed", duration(job.elapsed_seconds)),
+    ...fact("ETA", finished(job) ? "–" : duration(job.eta_seconds)),
+    ...fact("Samples/s", rate(job.samples_per_second)),
+    ...fact("Estimated relMSE", sci(job.est_rel_mse)),
+    ...fact("relMSE to reference", sci(job.ref_rel_mse)),
+    ...fact("Stop rule", job.stop_reason || "–"),
+    ...fact("Workers on it", job.workers_busy + " of " + job.workers_total),
+    ...fact("Priority", job.priority),
+    ...(job.error ? fact("Error", job.error) : []),
+    ...(job.storage_error ? fact("Storage", job.storage_error) : []));
+  const canManage = state.session && state.session.authenticated &&
+    (job.owner === state.session.key || state.session.admin);
+  const open = !finished(job);
+  $("pause").disabled = !canManage || !open || job.paused;
+  $("resume").disabled = !canManage || !open || !job.paused;
+  $("cancel").disabled = !canManage || !open;
+  $("set-priority").disabled = !canManage || !open;
+  $("priority").disabled = !canManage || !open;
+  if (document.activeElement !== $("priority")) $("priority").value = job.priority;
+  $("actions").title = canManage ? "" : "Sign in with a token of this job's key to act on it";
+
+  // Images: fetched again only when more has been merged.
+  const sequence = job.frames_total > 0;
+  const version = sequence ? job.frames_done : job.units_done + "/" + s;
+  if (state.shown.version !== version) {
+    state.shown.version = version;
+    if (sequence) {
+      await loadImage($("preview"), "/api/jobs/" + encodeURIComponent(id) + "/contact.png");
+      $("preview").alt = "contact sheet of the finished frames";
+    } else {
+      await loadImage($("preview"), "/api/jobs/" + encodeURIComponent(id) + "/image.png");
+      await loadImage($("error-plot"), "/api/jobs/" + encodeURIComponent(id) + "/error.png");
+    }
+    $("preview").dataset.version = version;
+  }
+  $("error-plot").parentElement.hidden = sequence;
+  $("frames-box").hidden = !sequence;
+  if (sequence) drawFrames(job.frames || []);
+}
+
+function drawFrames(frames) {
+  const tiles = frames.map((f) => {
+    const done = STATES[f.state] === "done";
+    const box = el("div", { class: "frame", "data-frame": f.frame });
+    if (done && state.thumbs.has(f.job_id)) {
+      box.append(el("img", { src: state.thumbs.get(f.job_id), alt: "frame " + f.frame }));
+    } else {
+      box.append(el("div", { class: "pending" }));
+      if (done) {
+        api("/api/jobs/" + encodeURIComponent(f.job_id) + "/image.png")
+          .then((r) => r.blob())
+          .then((b) => state.thumbs.set(f.job_id, URL.createObjectURL(b)))
+          .catch(() => {});
+      }
+    }
+    box.append(el("div", {}, "frame " + f.frame + " · " +
+      (done ? "done" : STATES[f.state] === "running" ? Number(f.percent).toFixed(0) + "%" : STATES[f.state])));
+    return box;
+  });
+  $("frames").replaceChildren(...tiles);
+}
+
+// ---- actions ----------------------------------------------------------------------------------
+
+async function act(path, body) {
+  const id = state.selected;
+  if (!id) return;
+  try {
+    const options = { method: "POST" };
+    if (body) {
+      options.body = JSON.stringify(body);
+      options.headers = { "Content-Type": "application/json" };
+    }
+    await apiJson("/api/jobs/" + encodeURIComponent(id) + "/" + path, options);
+    say("job " + id + ": " + path + " done");
+  } catch (e) {
+    say("job " + id + ": " + path + " refused: " + e.message, true);
+  }
+  refresh();
+}
+
+// ---- session ----------------------------------------------------------------------------------
+
+async function loadSession() {
+  try {
+    state.session = await apiJson("/api/session");
+  } catch (e) {
+    if (e.status === 401 && state.token) {
+      say("sign-in refused: " + e.message, true);
+      state.token = "";
+      localStorage.removeItem("rayfarm-token");
+      state.session = await apiJson("/api/session");
+    } else {
+      throw e;
+    }
+  }
+  const who = $("who");
+  if (state.session.authenticated) {
+    who.textContent = state.session.key ? "key " + state.session.key + (state.session.admin ? " (admin)" : "")
+                                        : "signed in";
+    who.className = "badge signed";
+  } else {
+    who.textContent = "read-only";
+    who.className = "badge";
+  }
+  $("token").hidden = state.session.authenticated;
+  $("signin-button").hidden = state.session.authenticated;
+  $("signout").hidden = !state.session.authenticated;
+}
+
+// ---- the loop ---------------------------------------------------------------------------------
+
+async function refresh() {
+  if (state.busy) return;
+  state.busy = true;
+  try {
+    const [jobs, workers] = await Promise.all([apiJson("/api/jobs"), apiJson("/api/workers")]);
+    drawJobs(jobs);
+    drawWorkers(workers);
+    await refreshDetail();
+    if ($("message").classList.contains("error") && $("message").dataset.lost) say("");
+  } catch (e) {
+    say("cannot reach the master: " + e.message, true);
+    $("message").dataset.lost = "1";
+  } finally {
+    state.busy = false;
+  }
+}
+
+window.addEventListener("DOMContentLoaded", async () => {
+  $("signin").addEventListener("submit", async (ev) => {
+    ev.preventDefault();
+    state.token = $("token").value.trim();
+    $("token").value = "";
+    if (state.token) localStorage.setItem("rayfarm-token", state.token);
+    await loadSession();
+    refresh();
+  });
+  $("signout").addEventListener("click", async () => {
+    state.token = "";
+    localStorage.removeItem("rayfarm-token");
+    await loadSession();
+    refresh();
+  });
+  $("pause").addEventListener("click", () => act("pause"));
+  $("resume").addEventListener("click", () => act("resume"));
+  $("cancel").addEventListener("click", () => {
+    if (confirm("Cancel job " + state.selected + "? Its samples so far are kept, no more are rendered.")) act("cancel");
+  });
+  $("set-priority").addEventListener("click", () =>
+    act("priority", { priority: parseInt($("priority").value, 10) }));
+  try { await loadSession(); } catch (e) { say("cannot reach the master: " + e.message, true); }
+  refresh();
+  setInterval(refresh, 1000);
+});

@@ -1,0 +1,322 @@
+// The master's HTTP endpoint (http_server.h) and what it is made of: the Prometheus text format,
+// tokens, the feed between the reactor and the HTTP threads, and a broker in one process with
+// CURVE keys whose dashboard API gives each token exactly its key's rights, and nothing to a
+// missing, malformed, forged or revoked token.
+#include <gtest/gtest.h>
+#include <httplib.h>
+#include <sys/stat.h>
+
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "common/protocol/codec.h"
+#include "master/broker.h"
+#include "master/http_feed.h"
+#include "master/http_server.h"
+#include "master/http_tokens.h"
+#include "master/metrics.h"
+#include "tests/master/broker_peer.h"
+#include "tests/master/job_requests.h"
+#include "tests/support/temp_dir.h"
+
+namespace rayfarm::master {
+namespace {
+namespace fs = std::filesystem;
+using nlohmann::json;
+using std::chrono::milliseconds;
+using testing::TempDir;
+
+bool contains(const std::string& text, const std::string& part) {
+  return text.find(part) != std::string::npos;
+}
+
+TEST(PrometheusTextTest, HistogramBucketsAreCumulativeAndFamiliesEscaped) {
+  Histogram h({0.1, 1.0});
+  h.observe(0.05);
+  h.observe(0.5);
+  h.observe(0.5);
+  h.observe(7.0);
+  h.observe(std::nan(""));  // ignored
+  PrometheusText text;
+  text.histogram("x_seconds", "An example.", h);
+  text.family("y_total", "counter", "Another.", "reason", {{"a\"b\\c\nd", 2.5}});
+  const std::string t = text.text();
+  EXPECT_TRUE(contains(t, "# TYPE x_seconds histogram\n")) << t;
+  EXPECT_TRUE(contains(t, "x_seconds_bucket{le=\"0.1\"} 1\n")) << t;
+  EXPECT_TRUE(contains(t, "x_seconds_bucket{le=\"1\"} 3\n")) << t;
+  EXPECT_TRUE(contains(t, "x_seconds_bucket{le=\"+Inf\"} 4\n")) << t;
+  EXPECT_TRUE(contains(t, "x_seconds_sum 8.05\n")) << t;
+  EXPECT_TRUE(contains(t, "x_seconds_count 4\n")) << t;
+  EXPECT_TRUE(contains(t, "y_total{reason=\"a\\\"b\\\\c\\nd\"} 2.5\n")) << t;
+}
+
+TEST(HttpTokensTest, VerifiesItsOwnTokensOnlyAndKeepsItsSecret) {
+  TempDir dir;
+  const HttpTokens tokens(dir.path());
+  const std::string t = tokens.issue("alice");
+  EXPECT_EQ(tokens.verify(t), "alice");
+  EXPECT_EQ(tokens.verify(tokens.issue("")), "");  // a master without keys
+  // Tampered: another name with alice's MAC, a flipped MAC digit, garbage, empty.
+  std::string forged = t;
+  forged.replace(5, 10, "626f62");  // "bob"
+  EXPECT_FALSE(tokens.verify(forged));
+  std::string flipped = t;
+  flipped.back() = flipped.back() == '0' ? '1' : '0';
+  EXPECT_FALSE(tokens.verify(flipped));
+  EXPECT_FALSE(tokens.verify("rft1.zz.00"));
+  EXPECT_FALSE(tokens.verify(""));
+  EXPECT_FALSE(tokens.verify(std::string(100000, 'a')));
+  // The secret survives a restart, is private to the user, and another master's differs.
+  EXPECT_EQ(HttpTokens(dir.path()).verify(t), "alice");
+  struct stat st {};
+  ASSERT_EQ(::stat((dir.path() / HttpTokens::kSecretFile).c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0600u);
+  TempDir other;
+  EXPECT_FALSE(HttpTokens(other.path()).verify(t));
+  // A secret file that is not one is named, not used.
+  dir.write(HttpTokens::kSecretFile, "short");
+  try {
+    HttpTokens broken(dir.path());
+    FAIL() << "a 5-byte secret was accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_TRUE(contains(e.what(), HttpTokens::kSecretFile)) << e.what();
+  }
+}
+
+TEST(HttpEndpointTest, ParsesHostAndPortAndNamesTheOptionWhenItCannot) {
+  EXPECT_EQ(parse_http_endpoint("127.0.0.1:8480"), (std::pair<std::string, int>{"127.0.0.1", 8480}));
+  EXPECT_EQ(parse_http_endpoint("[::1]:0"), (std::pair<std::string, int>{"::1", 0}));
+  for (const char* bad : {"8480", "127.0.0.1", ":80", "host:", "host:99999", "::1:80", "h:8x"}) {
+    try {
+      parse_http_endpoint(bad);
+      ADD_FAILURE() << bad << " was accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_TRUE(contains(e.what(), "--http-endpoint")) << e.what();
+    }
+  }
+}
+
+TEST(HttpFeedTest, BoundsTheCallsThatWaitForTheReactor) {
+  HttpFeed feed;
+  std::vector<std::future<HttpAnswer>> waiting;
+  for (size_t i = 0; i < HttpFeed::kMaxCalls; ++i) {
+    auto f = feed.call(HttpCall{});
+    ASSERT_TRUE(f);
+    waiting.push_back(std::move(*f));
+  }
+  EXPECT_FALSE(feed.call(HttpCall{}));  // the reactor is behind: refused, not queued
+  EXPECT_EQ(feed.take_calls().size(), HttpFeed::kMaxCalls);
+  EXPECT_TRUE(feed.call(HttpCall{}));
+  // Nobody looked: no snapshot is due; once someone looks, one is.
+  const auto now = HttpFeed::Clock::now();
+  EXPECT_FALSE(feed.snapshot_due(now));
+  EXPECT_EQ(feed.snapshot(milliseconds{0}), nullptr);
+  EXPECT_TRUE(feed.snapshot_due(HttpFeed::Clock::now()));
+}
+
+TEST(HttpServerTest, AMasterWithoutKeysServesHttpOnLoopbackOnly) {
+  TempDir dir;
+  HttpFeed feed;
+  HttpTokens tokens(dir.path());
+  HttpOptions o;
+  o.keys = false;
+  o.endpoint = "0.0.0.0:0";
+  try {
+    HttpServer server(o, feed, tokens);
+    FAIL() << "a master without keys served HTTP beyond loopback";
+  } catch (const std::runtime_error& e) {
+    EXPECT_TRUE(contains(e.what(), "--http-endpoint 0.0.0.0:0")) << e.what();
+  }
+  o.endpoint = "127.0.0.1:0";
+  HttpServer server(o, feed, tokens);
+  EXPECT_GT(server.port(), 0);
+  // The port is taken now: a second server names the endpoint.
+  o.endpoint = "127.0.0.1:" + std::to_string(server.port());
+  try {
+    HttpServer second(o, feed, tokens);
+    FAIL() << "two servers bound one port";
+  } catch (const std::runtime_error& e) {
+    EXPECT_TRUE(contains(e.what(), o.endpoint)) << e.what();
+  }
+}
+
+/// A broker with CURVE keys in this process: clients "owner", "other" and the admin "boss".
+class BrokerHttpTest : public ::testing::Test {
+ protected:
+  TempDir dir;
+  net::KeyPair master_keys = net::generate_key_pair();
+  std::map<std::string, net::KeyPair> clients{{"owner", net::generate_key_pair()},
+                                              {"other", net::generate_key_pair()},
+                                              {"boss", net::generate_key_pair()}};
+  std::unique_ptr<Broker> broker;
+  std::atomic<bool> stop{false};
+  std::thread reactor;
+
+  void start(bool private_jobs) {
+    net::write_key_pair(dir.path() / "workers", "w1", net::generate_key_pair());
+    for (const auto& [name, keys] : clients) net::write_key_pair(dir.path() / "clients", name, keys);
+    // Only the public halves on the allow-list.
+    for (const auto& [name, keys] : clients) fs::remove(dir.path() / "clients" / (name + ".key_secret"));
+    MasterOptions o;
+    o.worker_endpoint = "tcp://127.0.0.1:0";
+    o.client_endpoint = "tcp://127.0.0.1:0";
+    o.http_endpoint = "127.0.0.1:0";
+    o.data_dir = dir.path() / "data";
+    o.security.key = master_keys;
+    o.security.worker_keys = dir.path() / "workers";
+    o.security.client_keys = dir.path() / "clients";
+    o.security.admin_clients = {"boss"};
+    o.security.private_jobs = private_jobs;
+    broker = std::make_unique<Broker>(o);
+    reactor = std::thread([this] { broker->run(stop); });
+  }
+  void TearDown() override {
+    stop = true;
+    if (reactor.joinable()) reactor.join();
+  }
+
+  std::unique_ptr<net::Dealer> client(const std::string& name) {
+    const net::KeyPair& k = clients.at(name);
+    return std::make_unique<net::Dealer>(broker->client_endpoint(), net::kDefaultMaxMessageBytes,
+                                         net::Curve{k.public_key, k.secret_key,
+                                                    master_keys.public_key, ""});
+  }
+  std::string token(const std::string& name) {
+    auto c = client(name);
+    c->send(protocol::encode(wire::TokenRequest{}));
+    auto reply = test_peer::next(*c);
+    EXPECT_TRUE(reply && reply->as<wire::TokenReply>());
+    EXPECT_EQ(reply->as<wire::TokenReply>()->key_name(), name);
+    return reply->as<wire::TokenReply>()->token();
+  }
+  std::string submit(const std::string& name) {
+    auto c = client(name);
+    c->send(protocol::encode(test_jobs::furnace_job(64, 16, 8)));
+    auto reply = test_peer::next(*c);
+    EXPECT_TRUE(reply && reply->as<wire::SubmitReply>());
+    EXPECT_TRUE(reply->as<wire::SubmitReply>()->error().empty())
+        << reply->as<wire::SubmitReply>()->error();
+    return reply->as<wire::SubmitReply>()->job_id();
+  }
+  httplib::Client http() {
+    httplib::Client c(broker->http_url().substr(0, broker->http_url().size() - 1));
+    c.set_read_timeout(10, 0);
+    return c;
+  }
+  static httplib::Headers bearer(const std::string& token) {
+    return {{"Authorization", "Bearer " + token}};
+  }
+  /// POST `path` as `token`'s key: the status and the JSON body.
+  std::pair<int, json> post(const std::string& path, const std::string& token,
+                            const std::string& body = "{}") {
+    auto c = http();
+    auto res = token.empty() ? c.Post(path, body, "application/json")
+                             : c.Post(path, bearer(token), body, "application/json");
+    EXPECT_TRUE(res) << path;
+    if (!res) return {0, {}};
+    return {res->status, json::parse(res->body, nullptr, false)};
+  }
+  std::pair<int, json> get(const std::string& path, const std::string& token = {}) {
+    auto c = http();
+    auto res = token.empty() ? c.Get(path) : c.Get(path, bearer(token));
+    EXPECT_TRUE(res) << path;
+    if (!res) return {0, {}};
+    return {res->status, json::parse(res->body, nullptr, false)};
+  }
+};
+
+TEST_F(BrokerHttpTest, ATokenCarriesExactlyItsKeysRights) {
+  start(/*private_jobs=*/false);
+  ASSERT_FALSE(broker->http_url().empty());
+  const std::string id = submit("owner");  // no workers: it stays queued
+  const std::string owner = token("owner"), other = token("other"), boss = token("boss");
+  EXPECT_NE(owner, other);
+
+  // Anyone may look; nobody without a token may act.
+  auto [status, list] = get("/api/jobs");
+  ASSERT_EQ(status, 200) << list.dump();
+  ASSERT_EQ(list["jobs"].size(), 1u);
+  EXPECT_EQ(list["jobs"][0]["job_id"], id);
+  EXPECT_EQ(list["jobs"][0]["owner"], "owner");
+  EXPECT_EQ(list["jobs"][0]["can_manage"], false);
+  EXPECT_EQ(get("/api/jobs", owner).second["jobs"][0]["can_manage"], true);
+  EXPECT_EQ(post("/api/jobs/" + id + "/pause", "").first, 401);
+  // Malformed and forged tokens are refused even for reading.
+  {
+    auto c = http();
+    auto res = c.Get("/api/jobs", {{"Authorization", "Basic b3duZXI6"}});
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 401);
+  }
+  std::string forged = owner;
+  forged.back() = forged.back() == 'a' ? 'b' : 'a';
+  EXPECT_EQ(post("/api/jobs/" + id + "/pause", forged).first, 401);
+  // Another key may not; the owner and the admin may.
+  auto [refused, why] = post("/api/jobs/" + id + "/pause", other);
+  EXPECT_EQ(refused, 403);
+  EXPECT_TRUE(contains(why["error"].get<std::string>(), "belongs to key 'owner'")) << why.dump();
+  auto [paused, reply] = post("/api/jobs/" + id + "/pause", owner);
+  EXPECT_EQ(paused, 200) << reply.dump();
+  EXPECT_EQ(reply["paused"], true);
+  EXPECT_EQ(get("/api/jobs/" + id).second["paused"], true);
+  // Priorities: above --max-client-priority (0) only for the admin; out of range for nobody.
+  EXPECT_EQ(post("/api/jobs/" + id + "/priority", owner, R"({"priority": 5})").first, 403);
+  EXPECT_EQ(post("/api/jobs/" + id + "/priority", boss, R"({"priority": 5})").first, 200);
+  EXPECT_EQ(post("/api/jobs/" + id + "/priority", boss, R"({"priority": 101})").first, 400);
+  EXPECT_EQ(post("/api/jobs/" + id + "/priority", boss, R"({"priority": "high"})").first, 400);
+  EXPECT_EQ(post("/api/jobs/" + id + "/resume", boss).first, 200);
+  EXPECT_EQ(post("/api/jobs/j9999/cancel", owner).first, 404);
+  EXPECT_EQ(post("/api/jobs/" + id + "/cancel", other).first, 403);
+  auto [cancelled, c] = post("/api/jobs/" + id + "/cancel", owner);
+  EXPECT_EQ(cancelled, 200) << c.dump();
+  EXPECT_EQ(c["state"], "JOB_CANCELLED");
+  EXPECT_EQ(post("/api/jobs/" + id + "/pause", owner).first, 409);  // over: named, not changed
+
+  // A key taken off the allow-list loses its token's rights (the list is read again each second).
+  fs::remove(dir.path() / "clients" / "other.key");
+  int revoked = 0;
+  for (int i = 0; i < 50 && revoked != 401; ++i) {
+    revoked = get("/api/session", other).first;
+    if (revoked != 401) std::this_thread::sleep_for(milliseconds{100});
+  }
+  EXPECT_EQ(revoked, 401);
+  EXPECT_EQ(get("/api/session", owner).second["key"], "owner");
+
+  // Bad requests: unknown routes, ids that are paths, oversized bodies.
+  EXPECT_EQ(get("/api/nothing").first, 404);
+  EXPECT_EQ(get("/api/jobs/..%2F..%2Fetc/image.png").first, 404);
+  EXPECT_EQ(get("/api/jobs/" + id + "/job.json").first, 404);
+  EXPECT_EQ(post("/api/jobs/" + id + "/priority", owner, std::string(200 * 1024, ' ')).first, 413);
+
+  // The metrics count what happened.
+  auto c2 = http();
+  auto m = c2.Get("/metrics");
+  ASSERT_TRUE(m);
+  EXPECT_EQ(m->status, 200);
+  EXPECT_TRUE(contains(m->body, "rayfarm_jobs{state=\"cancelled\"} 1\n")) << m->body;
+  EXPECT_TRUE(contains(m->body, "rayfarm_refusals_total{reason=\"http_token\"}")) << m->body;
+  EXPECT_TRUE(contains(m->body, "rayfarm_refusals_total{reason=\"http_forbidden\"}")) << m->body;
+  EXPECT_TRUE(contains(m->body, "# TYPE rayfarm_merge_seconds histogram")) << m->body;
+  // The page and its script are served.
+  auto page = c2.Get("/");
+  ASSERT_TRUE(page);
+  EXPECT_TRUE(contains(page->body, "<script src=\"/dashboard.js\"")) << page->body.substr(0, 300);
+  EXPECT_TRUE(contains(page->get_header_value("Content-Security-Policy"), "default-src 'self'"));
+}
+
+TEST_F(BrokerHttpTest, PrivateJobsAreHiddenFromOtherKeysAndFromNoKey) {
+  start(/*private_jobs=*/true);
+  const std::string id = submit("owner");
+  const std::string owner = token("owner"), other = token("other"), boss = token("boss");
+  EXPECT_EQ(get("/api/jobs").second["jobs"].size(), 0u);
+  EXPECT_EQ(get("/api/jobs", other).second["jobs"].size(), 0u);
+  EXPECT_EQ(get("/api/jobs", owner).second["jobs"].size(), 1u);
+  EXPECT_EQ(get("/api/jobs", boss).second["jobs"].size(), 1u);
+  EXPECT_EQ(get("/api/jobs/" + id, other).first, 404);
+  EXPECT_EQ(get("/api/jobs/" + id + "/image.png", other).first, 404);
+  EXPECT_EQ(post("/api/jobs/" + id + "/cancel", other).first, 404);  // not even named
+  EXPECT_EQ(get("/api/jobs/" + id, owner).first, 200);
+}
+
+}  // namespace
+}  // namespace rayfarm::master
