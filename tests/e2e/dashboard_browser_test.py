@@ -1,0 +1,218 @@
+#!/usr/bin/env python3
+"""The dashboard in a real browser: a master with CURVE keys, a worker and the CLI as real
+processes on loopback, and the page opened in headless Chromium (Debian's chromium and
+chromium-driver, through python3-selenium). From the page's DOM it checks that a running job's
+progress and preview update, that the page is read-only without a token, that a token of another
+key is refused when it cancels the job, and that the owner's token cancels it. Every wait is
+bounded; every process is killed by PID at the end; a screenshot is left in the build folder.
+
+Usage: dashboard_browser_test.py BUILD_DIR SOURCE_DIR
+"""
+import json
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+
+from selenium import webdriver
+from selenium.common.exceptions import (NoSuchElementException, StaleElementReferenceException,
+                                        TimeoutException)
+from selenium.webdriver.chrome.service import Service
+from selenium.webdriver.common.by import By
+from selenium.webdriver.support.ui import WebDriverWait
+
+BUILD, SOURCE = sys.argv[1], sys.argv[2]
+WAIT = 45  # seconds, for anything the page should show
+processes = []
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def start(argv, log):
+    p = subprocess.Popen(argv, stdout=open(log, "w"), stderr=subprocess.STDOUT,
+                         start_new_session=True)
+    processes.append(p)
+    return p
+
+
+def cli(*args, key=None):
+    argv = [os.path.join(BUILD, "cli/rayfarm"), *args]
+    if key:
+        argv += ["--master", CLIENT, "--key", os.path.join(KEYS, "own", key + ".key_secret"),
+                 "--master-key", os.path.join(KEYS, "master.key")]
+    out = subprocess.run(argv, capture_output=True, text=True, timeout=60)
+    if out.returncode != 0:
+        raise AssertionError(f"rayfarm {' '.join(args)} failed: {out.stderr}")
+    return out.stdout.strip()
+
+
+def check(condition, message):
+    if not condition:
+        raise AssertionError(message)
+
+
+# The page redraws its tables every second: elements are read and clicked in one script, so that
+# none goes stale between finding it and using it.
+def text(d, selector):
+    return d.execute_script("const e = document.querySelector(arguments[0]);"
+                            "return e ? e.textContent : null;", selector)
+
+
+def attribute(d, selector, name):
+    return d.execute_script("const e = document.querySelector(arguments[0]);"
+                            "return e ? e.getAttribute(arguments[1]) : null;", selector, name)
+
+
+def click(d, selector):
+    d.execute_script("document.querySelector(arguments[0]).click();", selector)
+
+
+def wait_for(driver, what, predicate):
+    try:
+        return WebDriverWait(driver, WAIT, poll_frequency=0.2,
+                             ignored_exceptions=(NoSuchElementException,
+                                                 StaleElementReferenceException)
+                             ).until(lambda d: predicate(d))
+    except TimeoutException:
+        raise AssertionError(f"the page did not show {what} within {WAIT} s") from None
+
+
+def main():
+    global KEYS, CLIENT
+    work = tempfile.mkdtemp(prefix="rayfarm-dashboard-")
+    KEYS = os.path.join(work, "keys")
+    worker_port, client_port, http_port = free_port(), free_port(), free_port()
+    CLIENT = f"tcp://127.0.0.1:{client_port}"
+    driver = None
+    try:
+        # Keys: the master's, two client keys (alice submits, bob does not own the job), a worker.
+        cli("keygen", "--dir", KEYS, "--name", "master")
+        for name, allow in (("alice", "clients"), ("bob", "clients"), ("w1", "workers")):
+            cli("keygen", "--dir", os.path.join(KEYS, "own"), "--name", name)
+            os.makedirs(os.path.join(KEYS, allow), exist_ok=True)
+            shutil.copy(os.path.join(KEYS, "own", name + ".key"), os.path.join(KEYS, allow))
+        master = start([os.path.join(BUILD, "master/rayfarm-master"),
+                        "--worker-endpoint", f"tcp://127.0.0.1:{worker_port}",
+                        "--client-endpoint", CLIENT, "--data-dir", os.path.join(work, "data"),
+                        "--http-endpoint", f"127.0.0.1:{http_port}",
+                        "--key", os.path.join(KEYS, "master.key_secret"),
+                        "--worker-keys", os.path.join(KEYS, "workers"),
+                        "--client-keys", os.path.join(KEYS, "clients"),
+                        "--image-interval-ms", "300"], os.path.join(work, "master.log"))
+        deadline = time.time() + 20
+        while "master listening" not in open(os.path.join(work, "master.log")).read():
+            check(time.time() < deadline and master.poll() is None,
+                  "the master did not start:\n" + open(os.path.join(work, "master.log")).read())
+            time.sleep(0.1)
+        start([os.path.join(BUILD, "worker/rayfarm-worker"), "--master",
+               f"tcp://127.0.0.1:{worker_port}", "--threads", "1", "--name", "w1",
+               "--cache-dir", os.path.join(work, "cache"),
+               "--key", os.path.join(KEYS, "own", "w1.key_secret"),
+               "--master-key", os.path.join(KEYS, "master.key")], os.path.join(work, "worker.log"))
+        # A job that runs for a while on one thread, in many small passes.
+        job = cli("submit", os.path.join(SOURCE, "scenes/cornell-box/scene.json"), "--name",
+                  "browser-test", "--res", "96x96", "--spp", "65536", "--pass-spp", "4",
+                  key="alice")
+        alice, bob = cli("token", key="alice"), cli("token", key="bob")
+        check(alice.startswith("rft1.") and alice != bob, f"odd tokens: {alice!r}, {bob!r}")
+
+        options = webdriver.ChromeOptions()
+        options.binary_location = shutil.which("chromium") or "/usr/bin/chromium"
+        for flag in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage",
+                     "--disable-gpu", "--window-size=1400,1100", "--no-first-run"):
+            options.add_argument(flag)
+        driver = webdriver.Chrome(service=Service(shutil.which("chromedriver") or
+                                                  "/usr/bin/chromedriver"), options=options)
+        driver.set_script_timeout(20)
+        driver.get(f"http://127.0.0.1:{http_port}/")
+
+        # The job's row appears, and its progress grows.
+        row = f'#jobs tbody tr[data-job="{job}"]'
+        percent = lambda d: float((text(d, row + " .percent") or "0%").rstrip("%"))
+        wait_for(driver, "the job's row", lambda d: text(d, row) is not None)
+        first = wait_for(driver, "the job running", lambda d: percent(d) > 0 and percent(d))
+        wait_for(driver, "the progress growing", lambda d: percent(d) > first)
+        check(text(driver, "#who") == "read-only", "signed in without a token")
+        check("alice" in text(driver, row), "the owner is not shown")
+        wait_for(driver, "the worker", lambda d: "w1" in (text(d, "#workers tbody") or ""))
+
+        # Its detail: the preview loads, then changes as passes merge.
+        click(driver, row)
+        loaded = lambda d: d.execute_script(
+            "const i = document.getElementById('preview');"
+            "return i.complete && i.naturalWidth > 0 ? i.dataset.version : null;")
+        version = wait_for(driver, "the preview", loaded)
+        width = driver.execute_script("return document.getElementById('preview').naturalWidth")
+        check(width == 96, f"the preview is {width} pixels wide, not 96")
+        wait_for(driver, "the preview updating", lambda d: loaded(d) not in (None, version))
+        check(not driver.find_element(By.ID, "cancel").is_enabled(),
+              "cancel is offered without a token")
+        # Without a token the API refuses the action itself, not only the button.
+        status = driver.execute_async_script(
+            "const done = arguments[arguments.length - 1];"
+            f"fetch('/api/jobs/{job}/cancel', {{method: 'POST'}}).then(r => done(r.status));")
+        check(status == 401, f"a cancel without a token got HTTP {status}")
+
+        # Bob's token: signed in, but not the job's owner: the button stays off, and a cancel
+        # sent anyway is refused, with the reason on the page.
+        driver.find_element(By.ID, "token").send_keys(bob)
+        driver.find_element(By.ID, "signin-button").click()
+        wait_for(driver, "bob signed in", lambda d: text(d, "#who") == "key bob")
+        time.sleep(1.5)  # a refresh with the session
+        check(not driver.find_element(By.ID, "cancel").is_enabled(),
+              "cancel is offered to a key that does not own the job")
+        driver.execute_script("document.getElementById('cancel').disabled = false;")
+        driver.find_element(By.ID, "cancel").click()
+        driver.switch_to.alert.accept()
+        wait_for(driver, "bob's cancel refused",
+                 lambda d: "belongs to key 'alice'" in (text(d, "#message") or ""))
+        check(attribute(driver, row, "data-state") == "running",
+              "the job stopped running after a refused cancel")
+
+        # Alice's token cancels it.
+        driver.find_element(By.ID, "signout").click()
+        wait_for(driver, "signed out", lambda d: text(d, "#who") == "read-only")
+        driver.find_element(By.ID, "token").send_keys(alice)
+        driver.find_element(By.ID, "signin-button").click()
+        wait_for(driver, "alice signed in", lambda d: text(d, "#who") == "key alice")
+        wait_for(driver, "cancel offered to the owner",
+                 lambda d: d.find_element(By.ID, "cancel").is_enabled())
+        driver.save_screenshot(os.path.join(BUILD, "dashboard-screenshot.png"))
+        driver.find_element(By.ID, "cancel").click()
+        driver.switch_to.alert.accept()
+        wait_for(driver, "the job cancelled",
+                 lambda d: attribute(d, row, "data-state") == "cancelled")
+        state = json.loads(cli("status", job, "--json", key="alice"))
+        check(state.get("state") in ("cancelled", "JOB_CANCELLED"), f"the CLI says {state}")
+        print(f"dashboard browser test passed (job {job}); screenshot in "
+              f"{os.path.join(BUILD, 'dashboard-screenshot.png')}")
+        return 0
+    finally:
+        if driver is not None:
+            driver.quit()
+        for p in processes:
+            try:
+                os.killpg(p.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            p.wait()
+        if os.environ.get("RAYFARM_KEEP_TEST_DIR"):
+            print("kept", work)
+        else:
+            shutil.rmtree(work, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    try:
+        sys.exit(main())
+    except AssertionError as e:
+        print("FAILED:", e, file=sys.stderr)
+        sys.exit(1)
