@@ -52,6 +52,7 @@ master=$RAYFARM_MASTER
 name=$(basename "$(dirname "$scene")")
 mkdir -p out
 echo "demo: rendering $name to an estimated relMSE of $target_error (at most $time_limit s, $spp spp) on $master"
+echo "demo: follow it in a browser at $(cat "$cluster/dashboard")"
 # Follows the job, then fetches out/NAME.exr and out/NAME.png once it is done.
 build/cli/rayfarm submit "$scene" --master "$master" --name "$name" --spp "$spp" \
   --target-error "$target_error" --time-limit "$time_limit" --clamp "$clamp" \

@@ -313,11 +313,13 @@ window.addEventListener("DOMContentLoaded", async () => {
     ev.preventDefault();
     state.token = $("token").value.trim();
     $("token").value = "";
+    say("");
     if (state.token) localStorage.setItem("rayfarm-token", state.token);
     await loadSession();
     refresh();
   });
   $("signout").addEventListener("click", async () => {
+    say("");
     state.token = "";
     localStorage.removeItem("rayfarm-token");
     await loadSession();
