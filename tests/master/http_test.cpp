@@ -4,7 +4,13 @@
 // missing, malformed, forged or revoked token.
 #include <gtest/gtest.h>
 #include <httplib.h>
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
 #include <sys/stat.h>
+#include <unistd.h>
+
+#include <cstring>
 
 #include <nlohmann/json.hpp>
 #include <thread>
@@ -302,6 +308,45 @@ TEST_F(BrokerHttpTest, ATokenCarriesExactlyItsKeysRights) {
   ASSERT_TRUE(page);
   EXPECT_TRUE(contains(page->body, "<script src=\"/dashboard.js\"")) << page->body.substr(0, 300);
   EXPECT_TRUE(contains(page->get_header_value("Content-Security-Policy"), "default-src 'self'"));
+}
+
+TEST_F(BrokerHttpTest, SlowHttpClientsDelayThePageNotTheFarm) {
+  start(/*private_jobs=*/false);
+  // As many unfinished requests as the HTTP side has threads (HttpOptions::threads): each holds
+  // one until its silence runs out.
+  const auto url = broker->http_url();
+  const int port = std::stoi(url.substr(url.rfind(':') + 1));
+  std::vector<int> idle;
+  for (int i = 0; i < HttpOptions{}.threads; ++i) {
+    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_port = htons(static_cast<uint16_t>(port));
+    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    ASSERT_EQ(::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)), 0);
+    const char* partial = "GET /api/jobs HTTP/1.1\r\nHost: x\r\n";  // never finished
+    ASSERT_GT(::send(fd, partial, std::strlen(partial), 0), 0);
+    idle.push_back(fd);
+  }
+  // The client socket answers at once meanwhile: the reactor does not wait on the HTTP side.
+  auto c = client("owner");
+  for (int i = 0; i < 5; ++i) {
+    const auto t0 = std::chrono::steady_clock::now();
+    c->send(protocol::encode(wire::ListJobs{}));
+    auto reply = test_peer::next(*c);
+    ASSERT_TRUE(reply && reply->as<wire::JobList>());
+    EXPECT_LT(std::chrono::steady_clock::now() - t0, milliseconds{1000});
+  }
+  // The page is served again once the idle connections time out.
+  auto h = http();
+  h.set_read_timeout(30, 0);
+  const auto asked = std::chrono::steady_clock::now();
+  auto res = h.Get("/api/session");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 200);
+  std::printf("the page answered after %.1f s\n",
+              std::chrono::duration<double>(std::chrono::steady_clock::now() - asked).count());
+  for (int fd : idle) ::close(fd);
 }
 
 TEST_F(BrokerHttpTest, PrivateJobsAreHiddenFromOtherKeysAndFromNoKey) {
