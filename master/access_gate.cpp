@@ -36,12 +36,13 @@ net::ZapVerdict AccessGate::decide(const net::ZapRequest& r) {
   return {};
 }
 
-bool AccessGate::client_name_allowed(const std::string& name) {
+std::optional<std::string> AccessGate::client_key_named(const std::string& name) {
   const net::AllowListPolicy::Decision d = policy_.admits_name(kClientDomain, name);
   if (!d.reload_note.empty()) {
     log()->log(d.reload_warning ? spdlog::level::warn : spdlog::level::info, "{}", d.reload_note);
   }
-  return d.admitted;
+  if (!d.admitted) return std::nullopt;
+  return d.key;
 }
 
 std::unique_ptr<AccessGate> AccessGate::open(const MasterOptions& options) {

@@ -5,6 +5,7 @@
 // same refusal at most every 10 s).
 #include <map>
 #include <memory>
+#include <optional>
 #include <mutex>
 #include <string>
 #include <tuple>
@@ -28,8 +29,9 @@ class AccessGate {
   AccessGate(const AccessGate&) = delete;
   AccessGate& operator=(const AccessGate&) = delete;
 
-  /// Whether the clients' allow-list still names a key `name` (an HTTP token's key). Thread-safe.
-  bool client_name_allowed(const std::string& name);
+  /// The key the clients' allow-list names `name` now (an HTTP token's key), nullopt when it
+  /// names none. Thread-safe.
+  std::optional<std::string> client_key_named(const std::string& name);
 
  private:
   net::AllowListPolicy policy_;

@@ -62,8 +62,8 @@ Broker::Broker(MasterOptions options)
       next_heartbeat_(Clock::now()) {
   submissions_ = std::make_unique<SubmissionQueue>(jobs_, options_.limits);
   const size_t restarted = jobs_.recover();
-  tokens_ = std::make_unique<HttpTokens>(options_.data_dir);
   if (!options_.http_endpoint.empty()) {
+    tokens_ = std::make_unique<HttpTokens>(options_.data_dir);
     HttpOptions http;
     http.endpoint = options_.http_endpoint;
     http.keys = options_.security.key.has_value();
@@ -72,14 +72,18 @@ Broker::Broker(MasterOptions options)
     http.jobs_dir = options_.data_dir / "jobs";
     if (gate_) {
       AccessGate* gate = gate_.get();
-      http.key_allowed = [gate](const std::string& name) { return gate->client_name_allowed(name); };
+      http.key_of = [gate](const std::string& name) { return gate->client_key_named(name); };
     }
+    // Jobs are read without a token on this machine only, unless asked.
+    http.anonymous_read = options_.http_anonymous_read ||
+                          net::is_loopback_endpoint("tcp://" + options_.http_endpoint);
     http.build = protocol::kBuildVersion;
     try {
       http_ = std::make_unique<HttpServer>(std::move(http), http_feed_, *tokens_);
     } catch (const std::exception& e) {
       if (!options_.http_endpoint_is_default) throw;
       log()->warn("no dashboard: {} (give --http-endpoint HOST:PORT to choose another)", e.what());
+      tokens_.reset();
     }
   }
   log()->info("master listening: workers on {}, clients on {}; data dir {}{}", worker_endpoint(),
@@ -128,13 +132,8 @@ void Broker::run(const std::atomic<bool>& stop) {
     on_timers();
     serve_http();
   }
-  // Calls the HTTP side still waits on get their answer now.
-  for (HttpFeed::Pending& p : http_feed_.take_calls()) {
-    HttpAnswer a;
-    a.status = 503;
-    a.error = "the master is stopping";
-    p.answer.set_value(std::move(a));
-  }
+  // Calls the HTTP side still waits on, and those to come, are answered at once.
+  http_feed_.close();
   busy_.fetch_add((Clock::now() - woke).count(), std::memory_order_relaxed);
   // Submissions being checked are finished and answered: each is on disk once checked.
   submissions_->drain();
@@ -306,7 +305,7 @@ void Broker::handle_worker(const net::Delivery& delivery) {
       switch (outcome) {
         case MergeOutcome::kMerged:
           m.units_merged.add();
-          m.unit_seconds.observe(result->render_seconds());
+          m.unit_seconds.observe(std::clamp(result->render_seconds(), 0.0, 86400.0));
           break;
         case MergeOutcome::kDuplicate: m.units_duplicate.add(); break;
         case MergeOutcome::kRejected: m.units_rejected.add(); break;

@@ -235,10 +235,21 @@ void Broker::handle_client(const net::Delivery& delivery) {
       }
     } else if (msg.as<wire::TokenRequest>()) {
       // CURVE has proven the key (without keys every client is the one nameless user).
-      wire::TokenReply out;
-      out.set_token(tokens_->issue(delivery.user));
-      out.set_key_name(protocol::printable(delivery.user));
-      reply(peer, encode(std::move(out)));
+      const std::optional<std::string> key =
+          gate_ ? gate_->client_key_named(delivery.user) : std::optional<std::string>("");
+      if (!tokens_) {
+        reply(peer, error_frames(wire::Error::REFUSED,
+                                 "this master serves no HTTP endpoint (--http-endpoint), so it "
+                                 "has no tokens"));
+      } else if (!key) {
+        reply(peer, error_frames(wire::Error::FORBIDDEN,
+                                 "this client's key is no longer on the master's allow-list"));
+      } else {
+        wire::TokenReply out;
+        out.set_token(tokens_->issue(delivery.user, *key));
+        out.set_key_name(protocol::printable(delivery.user));
+        reply(peer, encode(std::move(out)));
+      }
     } else if (msg.as<wire::ListWorkers>()) {
       reply(peer, encode(worker_list()));
     } else if (const auto* remove = msg.as<wire::RemoveJob>()) {

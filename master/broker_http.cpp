@@ -35,12 +35,16 @@ void Broker::serve_http() {
   if (!http_) return;
   const auto now = Clock::now();
   if (http_feed_.snapshot_due(now)) {
-    FarmSnapshot snap;
-    const uint32_t worker_count = static_cast<uint32_t>(workers_.size());
-    for (auto& st : jobs_.list(worker_count)) *snap.jobs.add_jobs() = std::move(st);
-    snap.workers = worker_list();
-    snap.taken = now;
-    http_feed_.publish(std::move(snap));
+    try {
+      FarmSnapshot snap;
+      const uint32_t worker_count = static_cast<uint32_t>(workers_.size());
+      for (auto& st : jobs_.list(worker_count)) *snap.jobs.add_jobs() = std::move(st);
+      snap.workers = worker_list();
+      snap.taken = now;
+      http_feed_.publish(std::move(snap));
+    } catch (const std::exception& e) {
+      log()->error("cannot publish the farm's state for the HTTP endpoint: {}", e.what());
+    }
   }
   bool changed = false;
   for (HttpFeed::Pending& p : http_feed_.take_calls()) {

@@ -9,12 +9,17 @@ std::shared_ptr<const FarmSnapshot> HttpFeed::snapshot(std::chrono::milliseconds
   const auto stale = [&] {
     return !snapshot_ || Clock::now() - snapshot_->taken > kSnapshotInterval * 3;
   };
-  if (stale()) published_.wait_for(lock, wait, [&] { return !stale(); });
+  if (stale() && !closed_) published_.wait_for(lock, wait, [&] { return closed_ || !stale(); });
   return snapshot_;
 }
 
 std::optional<std::future<HttpAnswer>> HttpFeed::call(HttpCall call) {
   std::lock_guard lock(mutex_);
+  if (closed_) {
+    std::promise<HttpAnswer> stopping;
+    stopping.set_value(HttpAnswer{503, "the master is stopping", nullptr});
+    return stopping.get_future();
+  }
   if (calls_.size() >= kMaxCalls) return std::nullopt;
   calls_.push_back(Pending{std::move(call), {}});
   return calls_.back().answer.get_future();
@@ -32,6 +37,17 @@ void HttpFeed::publish(FarmSnapshot snapshot) {
     std::lock_guard lock(mutex_);
     snapshot_ = std::move(shared);
   }
+  published_.notify_all();
+}
+
+void HttpFeed::close() {
+  std::vector<Pending> waiting;
+  {
+    std::lock_guard lock(mutex_);
+    closed_ = true;
+    waiting.swap(calls_);
+  }
+  for (Pending& p : waiting) p.answer.set_value(HttpAnswer{503, "the master is stopping", nullptr});
   published_.notify_all();
 }
 

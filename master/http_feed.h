@@ -71,6 +71,9 @@ class HttpFeed {
     std::promise<HttpAnswer> answer;
   };
   std::vector<Pending> take_calls();
+  /// The reactor has stopped: calls waiting and to come are answered 503 at once, and snapshot()
+  /// no longer waits.
+  void close();
 
  private:
   mutable std::mutex mutex_;
@@ -78,6 +81,7 @@ class HttpFeed {
   std::shared_ptr<const FarmSnapshot> snapshot_;
   Clock::time_point last_look_{};
   std::vector<Pending> calls_;
+  bool closed_ = false;
 };
 
 }  // namespace rayfarm::master

@@ -7,6 +7,7 @@
 #include <iterator>
 #include <mutex>
 #include <regex>
+#include <set>
 
 #include <sys/socket.h>
 #include <stdexcept>
@@ -100,7 +101,8 @@ json message_json(const google::protobuf::Message& m) {
 void send_json(httplib::Response& res, const json& body, int status = 200) {
   res.status = status;
   res.set_header("Cache-Control", "no-store");
-  res.set_content(body.dump(), "application/json");
+  // Text from peers (names, errors) may hold bytes that are not UTF-8: replaced, not fatal.
+  res.set_content(body.dump(-1, ' ', false, json::error_handler_t::replace), "application/json");
 }
 
 void send_error(httplib::Response& res, int status, const std::string& error) {
@@ -183,15 +185,32 @@ HttpServer::HttpServer(HttpOptions options, HttpFeed& feed, const HttpTokens& to
   server_->set_payload_max_length(kMaxRequestBytes);
   server_->set_read_timeout(5, 0);
   server_->set_write_timeout(10, 0);
-  server_->set_keep_alive_timeout(5);
-  server_->set_keep_alive_max_count(100);
+  // A connection holds a thread for its keep-alive: kept short, so that an open page (which polls
+  // every second) does not hold one for long.
+  server_->set_keep_alive_timeout(2);
+  server_->set_keep_alive_max_count(10);
+  loopback_ = net::is_loopback_endpoint(as_tcp);
   routes();
   port_ = port == 0 ? server_->bind_to_any_port(host) : (server_->bind_to_port(host, port) ? port : -1);
   if (port_ <= 0) {
     throw std::runtime_error("cannot bind --http-endpoint " + options_.endpoint +
                              ": the address is in use or not this machine's");
   }
-  thread_ = std::thread([this] { server_->listen_after_bind(); });
+  thread_ = std::thread([this] {
+    server_->listen_after_bind();
+    listening_ended_ = true;
+  });
+  // stop() does nothing before the server runs: wait for it, so that a server destroyed at once
+  // still stops.
+  const auto deadline = std::chrono::steady_clock::now() + 10s;
+  while (!server_->is_running() && !listening_ended_ && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(1ms);
+  }
+  if (!server_->is_running()) {
+    server_->stop();
+    if (thread_.joinable()) thread_.join();
+    throw std::runtime_error("cannot serve --http-endpoint " + options_.endpoint);
+  }
   log()->info("dashboard and metrics on {} ({})", url(),
               options_.keys ? "actions need a token: rayfarm token"
                             : "no keys: any local process may act");
@@ -244,9 +263,33 @@ void HttpServer::routes() {
     }
   });
 
+  // On a loopback endpoint, a request for another host is a page elsewhere that rebound its name
+  // to this machine: refused.
+  if (loopback_) {
+    s.set_pre_routing_handler([](const httplib::Request& req, httplib::Response& res) {
+      std::string host = req.get_header_value("Host");
+      if (!host.empty() && host.front() == '[') {
+        host = host.substr(1, host.find(']') == std::string::npos ? 0 : host.find(']') - 1);
+      } else if (const size_t colon = host.rfind(':'); colon != std::string::npos) {
+        host = host.substr(0, colon);
+      }
+      for (char& c : host) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+      const bool local = host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
+      if (local) return httplib::Server::HandlerResponse::Unhandled;
+      send_error(res, 403, "this endpoint serves loopback only: ask for http://127.0.0.1:PORT/ "
+                           "or http://localhost:PORT/");
+      return httplib::Server::HandlerResponse::Handled;
+    });
+  }
+
   // Who asks: nullopt (and the response set to 401) for a token that is not valid.
-  auto user_of = [this](const httplib::Request& req,
-                        httplib::Response& res) -> std::optional<HttpUser> {
+  const HttpTokens::KeyOf key_of =
+      options_.key_of ? options_.key_of : [](const std::string& name) -> std::optional<std::string> {
+        if (name.empty()) return std::string();
+        return std::nullopt;
+      };
+  auto user_of = [this, key_of](const httplib::Request& req,
+                                httplib::Response& res) -> std::optional<HttpUser> {
     const auto token = bearer(req);
     if (!token) {
       metrics().refusals.add("http_token");
@@ -255,16 +298,30 @@ void HttpServer::routes() {
       return std::nullopt;
     }
     if (token->empty()) return HttpUser{};
-    const auto name = tokens_.verify(*token);
-    if (!name || (options_.key_allowed && !options_.key_allowed(*name))) {
+    const auto name = tokens_.verify(*token, key_of);
+    if (!name) {
       metrics().refusals.add("http_token");
       send_error(res, 401,
-                 !name ? "this token was not issued by this master (or its secret was renewed): "
-                         "get one with `rayfarm token`"
-                       : "this token's client key is no longer on the master's allow-list");
+                 "this token is not valid here: not issued by this master (or its secret was "
+                 "renewed), or its client key is no longer on the allow-list or was replaced; get "
+                 "one with `rayfarm token`");
       return std::nullopt;
     }
     return HttpUser{true, *name};
+  };
+  // A reader: a token's user, or nobody where anonymous reads are allowed.
+  auto reader_of = [this, user_of](const httplib::Request& req,
+                                   httplib::Response& res) -> std::optional<HttpUser> {
+    auto user = user_of(req, res);
+    if (user && !user->authenticated && !options_.anonymous_read) {
+      metrics().refusals.add("http_token");
+      send_error(res, 401,
+                 "this master's HTTP endpoint is reachable from other machines: reading needs a "
+                 "token too (rayfarm token; the page asks under Sign in), unless the master runs "
+                 "with --http-anonymous-read");
+      return std::nullopt;
+    }
+    return user;
   };
   auto is_admin = [this](const HttpUser& u) {
     return u.authenticated && options_.admin_clients.count(u.key_name) != 0;
@@ -300,11 +357,12 @@ void HttpServer::routes() {
                         {"admin", is_admin(*user)},
                         {"keys", options_.keys},
                         {"private_jobs", options_.private_jobs},
+                        {"anonymous_read", options_.anonymous_read},
                         {"build", options_.build}});
   });
 
   s.Get("/api/jobs", [=](const httplib::Request& req, httplib::Response& res) {
-    const auto user = user_of(req, res);
+    const auto user = reader_of(req, res);
     if (!user) return;
     const auto snap = snapshot(res);
     if (!snap) return;
@@ -323,11 +381,25 @@ void HttpServer::routes() {
   });
 
   s.Get("/api/workers", [=](const httplib::Request& req, httplib::Response& res) {
-    const auto user = user_of(req, res);
+    const auto user = reader_of(req, res);
     if (!user) return;
     const auto snap = snapshot(res);
     if (!snap) return;
-    json out = message_json(snap->workers);
+    // A worker's units name their jobs: only those this user may see are shown.
+    std::set<std::string> visible;
+    for (const auto& st : snap->jobs.jobs()) {
+      if (may_see(st.owner(), *user)) visible.insert(st.job_id());
+    }
+    wire::WorkerList workers = snap->workers;
+    for (auto& w : *workers.mutable_workers()) {
+      auto* units = w.mutable_units();
+      for (int i = units->size() - 1; i >= 0; --i) {
+        const std::string& unit = units->Get(i);
+        const std::string job = unit.substr(0, unit.find('/'));
+        if (!visible.count(job.substr(0, job.find('.')))) units->DeleteSubrange(i, 1);
+      }
+    }
+    json out = message_json(workers);
     if (!out.contains("workers")) out["workers"] = json::array();
     send_json(res, out);
   });
@@ -352,7 +424,7 @@ void HttpServer::routes() {
   };
 
   s.Get(R"(/api/jobs/([^/]+))", [=](const httplib::Request& req, httplib::Response& res) {
-    const auto user = user_of(req, res);
+    const auto user = reader_of(req, res);
     if (!user) return;
     const std::string id = req.matches[1];
     if (!plausible_job_id(id)) return send_error(res, 404, "unknown job '" + id.substr(0, 80) + "'");
@@ -361,7 +433,7 @@ void HttpServer::routes() {
 
   s.Get(R"(/api/jobs/([^/]+)/(image\.png|error\.png|error\.csv|contact\.png))",
         [=, this](const httplib::Request& req, httplib::Response& res) {
-          const auto user = user_of(req, res);
+          const auto user = reader_of(req, res);
           if (!user) return;
           const std::string id = req.matches[1];
           const std::string file = req.matches[2];
@@ -412,7 +484,9 @@ void HttpServer::routes() {
         } else if (!req.body.empty()) {
           const json body = json::parse(req.body, nullptr, /*allow_exceptions=*/false);
           if (body.is_object() && body.contains("priority") &&
-              body["priority"].is_number_integer()) {
+              body["priority"].is_number_integer() &&
+              (!body["priority"].is_number_unsigned() ||
+               body["priority"].get<unsigned long long>() <= 1000000ULL)) {
             p = body["priority"].get<long long>();
           }
         }

@@ -5,9 +5,11 @@
 // publishes, and calls the reactor answers between two polls. Reads need no token unless the
 // master keeps jobs private; actions need a bearer token (http_tokens.h) whose key may manage the
 // job, exactly as on the client socket.
-// Bounded: requests of at most 64 KiB, 5 s to send one, a fixed pool of threads with a bounded
-// queue of connections (beyond it the accepting thread serves one itself, so that the kernel's
-// backlog, not the master's memory, takes the rest), at most HttpFeed::kMaxCalls calls waiting.
+// Bounded: requests of at most 64 KiB, a fixed pool of threads with a bounded queue of connections
+// (beyond it the accepting thread serves one itself, so that the kernel's backlog, not the
+// master's memory, takes the rest), short keep-alives, at most HttpFeed::kMaxCalls calls waiting.
+// On a loopback endpoint a request must name a loopback host (no DNS rebinding).
+#include <atomic>
 #include <filesystem>
 #include <functional>
 #include <memory>
@@ -34,11 +36,15 @@ struct HttpOptions {
   std::set<std::string> admin_clients;
   /// <data>/jobs: where the images, error plots and contact sheets are read from.
   std::filesystem::path jobs_dir;
-  /// Whether a token's key is still on the clients' allow-list; unset: every name is.
-  std::function<bool(const std::string&)> key_allowed;
+  /// The public key the clients' allow-list names a token's key name by now (http_tokens.h);
+  /// unset: a master without keys, whose one nameless key is "".
+  HttpTokens::KeyOf key_of;
+  /// Whether jobs and workers may be read without a token (the default on loopback endpoints);
+  /// otherwise only the page itself and /metrics are.
+  bool anonymous_read = true;
   /// The master's build, shown on the page.
   std::string build;
-  int threads = 4;
+  int threads = 16;
 };
 
 /// HOST and PORT of "HOST:PORT" ("[::1]:8480" gives "::1"). Throws std::invalid_argument naming
@@ -65,6 +71,8 @@ class HttpServer {
   std::unique_ptr<httplib::Server> server_;
   std::string host_;
   int port_ = 0;
+  bool loopback_ = false;
+  std::atomic<bool> listening_ended_{false};
   std::thread thread_;
 
   void routes();

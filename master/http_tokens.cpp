@@ -88,8 +88,8 @@ std::string read_or_create(const std::filesystem::path& path) {
 HttpTokens::HttpTokens(const std::filesystem::path& data_dir)
     : secret_(read_or_create(data_dir / kSecretFile)) {}
 
-std::string HttpTokens::mac(const std::string& key_name) const {
-  const std::string message = "rayfarm http token\n" + key_name;
+std::string HttpTokens::mac(const std::string& key_name, const std::string& public_key) const {
+  const std::string message = "rayfarm http token\n" + key_name + "\n" + public_key;
   unsigned char out[EVP_MAX_MD_SIZE];
   unsigned int len = 0;
   if (!HMAC(EVP_sha256(), secret_.data(), static_cast<int>(secret_.size()),
@@ -99,11 +99,11 @@ std::string HttpTokens::mac(const std::string& key_name) const {
   return std::string(reinterpret_cast<const char*>(out), len);
 }
 
-std::string HttpTokens::issue(const std::string& key_name) const {
-  return kPrefix + hex(key_name) + "." + hex(mac(key_name));
+std::string HttpTokens::issue(const std::string& key_name, const std::string& public_key) const {
+  return kPrefix + hex(key_name) + "." + hex(mac(key_name, public_key));
 }
 
-std::optional<std::string> HttpTokens::verify(const std::string& token) const {
+std::optional<std::string> HttpTokens::verify(const std::string& token, const KeyOf& key_of) const {
   const std::string prefix = kPrefix;
   if (token.size() > prefix.size() + 2 * kMaxNameBytes + 1 + 64 ||
       token.compare(0, prefix.size(), prefix) != 0) {
@@ -115,7 +115,9 @@ std::optional<std::string> HttpTokens::verify(const std::string& token) const {
   const auto name = unhex(rest.substr(0, dot));
   const auto given = unhex(rest.substr(dot + 1));
   if (!name || !given) return std::nullopt;
-  const std::string expected = mac(*name);
+  const std::optional<std::string> key = key_of(*name);
+  if (!key) return std::nullopt;
+  const std::string expected = mac(*name, *key);
   if (given->size() != expected.size() ||
       CRYPTO_memcmp(given->data(), expected.data(), expected.size()) != 0) {
     return std::nullopt;

@@ -44,6 +44,9 @@ int main(int argc, char** argv) {
                      "[env RAYFARM_HTTP_ENDPOINT]")
           ->envname("RAYFARM_HTTP_ENDPOINT")
           ->capture_default_str();
+  app.add_flag("--http-anonymous-read", options.http_anonymous_read,
+               "let anyone who reaches the HTTP endpoint read jobs and workers without a token, "
+               "also beyond loopback (on loopback they always may)");
   rayfarm::add_logging_options(app, logging);
   app.add_option("--heartbeat-ms", heartbeat_ms, "heartbeat interval in milliseconds")
       ->check(CLI::Range(int64_t{10}, int64_t{60000}))

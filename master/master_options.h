@@ -45,6 +45,9 @@ struct MasterOptions {
   /// http_endpoint is the default, not asked for: a port in use there is a warning (a second
   /// master on the machine runs without a dashboard), not a failure to start.
   bool http_endpoint_is_default = false;
+  /// Jobs and workers may be read over HTTP without a token even on an endpoint beyond loopback
+  /// (on loopback they always may).
+  bool http_anonymous_read = false;
   protocol::HeartbeatOptions heartbeat;
   /// While results arrive, a job's image is rewritten at least this often.
   std::chrono::milliseconds image_interval{3000};

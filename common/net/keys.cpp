@@ -378,11 +378,11 @@ const std::string* AllowList::find(const std::string& key) const {
   return it == keys_.end() ? nullptr : &it->second;
 }
 
-bool AllowList::has_name(const std::string& name) const {
+const std::string* AllowList::key_named(const std::string& name) const {
   for (const auto& [key, n] : keys_) {
-    if (n == name) return true;
+    if (n == name) return &key;
   }
-  return false;
+  return nullptr;
 }
 
 bool is_loopback_endpoint(const std::string& endpoint) {

@@ -96,8 +96,8 @@ class AllowList {
 
   /// The name of `key` (Z85) when it is listed, else nullptr.
   const std::string* find(const std::string& key) const;
-  /// Whether some key is listed under `name`.
-  bool has_name(const std::string& name) const;
+  /// The key (Z85) listed under `name`, else nullptr.
+  const std::string* key_named(const std::string& name) const;
   size_t size() const { return keys_.size(); }
   bool operator==(const AllowList& other) const { return keys_ == other.keys_; }
 

@@ -185,9 +185,11 @@ AllowListPolicy::Decision AllowListPolicy::admits_name(const std::string& domain
     loaded_ = now;
   }
   auto it = domains_.find(domain);
-  if (it != domains_.end() && it->second.keys.has_name(name)) {
+  const std::string* key = it == domains_.end() ? nullptr : it->second.keys.key_named(name);
+  if (key) {
     out.admitted = true;
     out.name = name;
+    out.key = *key;
   } else {
     out.reason = "no key named '" + name + "' is on the " + domain + " allow-list";
   }

@@ -8,7 +8,8 @@ const state = {
   session: null,
   selected: null,        // job id
   shown: {},             // what the selected job's images were drawn from
-  thumbs: new Map(),     // frame job id -> object URL (finished frames do not change)
+  thumbs: new Map(),     // frame job id -> object URL, or null while it loads
+  loads: 0,              // images loaded for the selected job (the preview's data-version)
   busy: false,
 };
 
@@ -41,11 +42,13 @@ async function api(path, options = {}) {
 
 async function apiJson(path, options) { return (await api(path, options)).json(); }
 
-function say(text, isError) {
+// A message above the jobs; `lost`: it says the master could not be read, and goes once it can.
+function say(text, isError, lost) {
   const m = $("message");
   m.textContent = text;
   m.className = isError ? "error" : "";
   m.hidden = !text;
+  if (lost) m.dataset.lost = "1"; else delete m.dataset.lost;
 }
 
 // ---- formatting -------------------------------------------------------------------------------
@@ -137,12 +140,22 @@ function drawWorkers(list) {
 // ---- the selected job -------------------------------------------------------------------------
 
 function select(id) {
+  if (id !== state.selected) {
+    for (const img of [$("preview"), $("error-plot")]) clearImage(img);
+    for (const url of state.thumbs.values()) if (url) URL.revokeObjectURL(url);
+    state.thumbs.clear();
+  }
   state.selected = id;
   state.shown = {};
   for (const tr of $("jobs").querySelectorAll("tbody tr")) {
     tr.classList.toggle("selected", tr.dataset.job === id);
   }
   refreshDetail();
+}
+
+function clearImage(img) {
+  if (img.src.startsWith("blob:")) URL.revokeObjectURL(img.src);
+  img.removeAttribute("src");
 }
 
 async function loadImage(img, path) {
@@ -153,7 +166,8 @@ async function loadImage(img, path) {
     if (old.startsWith("blob:")) URL.revokeObjectURL(old);
     return true;
   } catch (e) {
-    return false;  // not written yet
+    clearImage(img);  // not written yet: no other job's image left showing
+    return false;
   }
 }
 
@@ -200,19 +214,26 @@ async function refreshDetail() {
   if (document.activeElement !== $("priority")) $("priority").value = job.priority;
   $("actions").title = canManage ? "" : "Sign in with a token of this job's key to act on it";
 
-  // Images: fetched again only when more has been merged.
+  // Images: the master rewrites them in the background, every few seconds while results arrive
+  // and once more when the job ends; fetched again every 3 s while there may be a newer one (the
+  // job runs, or ended less than 15 s ago), at once when the state changes.
   const sequence = job.frames_total > 0;
-  const version = sequence ? job.frames_done : job.units_done + "/" + s;
-  if (state.shown.version !== version) {
-    state.shown.version = version;
+  const now = Date.now();
+  if (state.shown.state !== s) { state.shown.state = s; state.shown.at = 0; }
+  if (!finished(job)) state.shown.open = now;
+  const fresh = now - (state.shown.open || now) < 15000 || !state.shown.at;
+  if (fresh && now - (state.shown.at || 0) >= 3000) {
+    state.shown.at = now;
+    const base = "/api/jobs/" + encodeURIComponent(id);
     if (sequence) {
-      await loadImage($("preview"), "/api/jobs/" + encodeURIComponent(id) + "/contact.png");
+      await loadImage($("preview"), base + "/contact.png");
       $("preview").alt = "contact sheet of the finished frames";
     } else {
-      await loadImage($("preview"), "/api/jobs/" + encodeURIComponent(id) + "/image.png");
-      await loadImage($("error-plot"), "/api/jobs/" + encodeURIComponent(id) + "/error.png");
+      await loadImage($("preview"), base + "/image.png");
+      await loadImage($("error-plot"), base + "/error.png");
+      $("preview").alt = "the job's current image";
     }
-    $("preview").dataset.version = version;
+    $("preview").dataset.version = String(++state.loads);
   }
   $("error-plot").parentElement.hidden = sequence;
   $("frames-box").hidden = !sequence;
@@ -223,15 +244,18 @@ function drawFrames(frames) {
   const tiles = frames.map((f) => {
     const done = STATES[f.state] === "done";
     const box = el("div", { class: "frame", "data-frame": f.frame });
-    if (done && state.thumbs.has(f.job_id)) {
+    if (done && state.thumbs.get(f.job_id)) {
       box.append(el("img", { src: state.thumbs.get(f.job_id), alt: "frame " + f.frame }));
     } else {
       box.append(el("div", { class: "pending" }));
-      if (done) {
+      // One fetch per finished frame (a finished frame's image does not change), a few at a time.
+      const loading = [...state.thumbs.values()].filter((u) => u === null).length;
+      if (done && !state.thumbs.has(f.job_id) && loading < 4) {
+        state.thumbs.set(f.job_id, null);
         api("/api/jobs/" + encodeURIComponent(f.job_id) + "/image.png")
           .then((r) => r.blob())
           .then((b) => state.thumbs.set(f.job_id, URL.createObjectURL(b)))
-          .catch(() => {});
+          .catch(() => state.thumbs.delete(f.job_id));
       }
     }
     box.append(el("div", {}, "frame " + f.frame + " · " +
@@ -299,10 +323,15 @@ async function refresh() {
     drawJobs(jobs);
     drawWorkers(workers);
     await refreshDetail();
-    if ($("message").classList.contains("error") && $("message").dataset.lost) say("");
+    if ($("message").dataset.lost) say("");
   } catch (e) {
-    say("cannot reach the master: " + e.message, true);
-    $("message").dataset.lost = "1";
+    if (e.status === 401) {
+      // A token revoked meanwhile, or reads that need one: the session says which.
+      try { await loadSession(); } catch (e2) { /* said below */ }
+      say(e.message, true, true);
+    } else {
+      say("cannot reach the master: " + e.message, true, true);
+    }
   } finally {
     state.busy = false;
   }

@@ -56,29 +56,41 @@ TEST(PrometheusTextTest, HistogramBucketsAreCumulativeAndFamiliesEscaped) {
   EXPECT_TRUE(contains(t, "y_total{reason=\"a\\\"b\\\\c\\nd\"} 2.5\n")) << t;
 }
 
-TEST(HttpTokensTest, VerifiesItsOwnTokensOnlyAndKeepsItsSecret) {
+TEST(HttpTokensTest, VerifiesItsOwnTokensForTheSameKeyOnlyAndKeepsItsSecret) {
   TempDir dir;
   const HttpTokens tokens(dir.path());
-  const std::string t = tokens.issue("alice");
-  EXPECT_EQ(tokens.verify(t), "alice");
-  EXPECT_EQ(tokens.verify(tokens.issue("")), "");  // a master without keys
+  std::map<std::string, std::string> list{{"alice", "KEY-A"}, {"bob", "KEY-B"}, {"", ""}};
+  const HttpTokens::KeyOf key_of = [&](const std::string& name) -> std::optional<std::string> {
+    auto it = list.find(name);
+    if (it == list.end()) return std::nullopt;
+    return it->second;
+  };
+  const std::string t = tokens.issue("alice", "KEY-A");
+  EXPECT_EQ(tokens.verify(t, key_of), "alice");
+  EXPECT_EQ(tokens.verify(tokens.issue("", ""), key_of), "");  // a master without keys
   // Tampered: another name with alice's MAC, a flipped MAC digit, garbage, empty.
   std::string forged = t;
   forged.replace(5, 10, "626f62");  // "bob"
-  EXPECT_FALSE(tokens.verify(forged));
+  EXPECT_FALSE(tokens.verify(forged, key_of));
   std::string flipped = t;
   flipped.back() = flipped.back() == '0' ? '1' : '0';
-  EXPECT_FALSE(tokens.verify(flipped));
-  EXPECT_FALSE(tokens.verify("rft1.zz.00"));
-  EXPECT_FALSE(tokens.verify(""));
-  EXPECT_FALSE(tokens.verify(std::string(100000, 'a')));
+  EXPECT_FALSE(tokens.verify(flipped, key_of));
+  EXPECT_FALSE(tokens.verify("rft1.zz.00", key_of));
+  EXPECT_FALSE(tokens.verify("", key_of));
+  EXPECT_FALSE(tokens.verify(std::string(100000, 'a'), key_of));
+  // A key replaced under the same name, or taken off the list, takes its token with it.
+  list["alice"] = "KEY-A2";
+  EXPECT_FALSE(tokens.verify(t, key_of));
+  list.erase("alice");
+  EXPECT_FALSE(tokens.verify(t, key_of));
+  list["alice"] = "KEY-A";
   // The secret survives a restart, is private to the user, and another master's differs.
-  EXPECT_EQ(HttpTokens(dir.path()).verify(t), "alice");
+  EXPECT_EQ(HttpTokens(dir.path()).verify(t, key_of), "alice");
   struct stat st {};
   ASSERT_EQ(::stat((dir.path() / HttpTokens::kSecretFile).c_str(), &st), 0);
   EXPECT_EQ(st.st_mode & 0777, 0600u);
   TempDir other;
-  EXPECT_FALSE(HttpTokens(other.path()).verify(t));
+  EXPECT_FALSE(HttpTokens(other.path()).verify(t, key_of));
   // A secret file that is not one is named, not used.
   dir.write(HttpTokens::kSecretFile, "short");
   try {
@@ -288,6 +300,14 @@ TEST_F(BrokerHttpTest, ATokenCarriesExactlyItsKeysRights) {
   EXPECT_EQ(revoked, 401);
   EXPECT_EQ(get("/api/session", owner).second["key"], "owner");
 
+  // A page elsewhere that rebinds its name to this machine is refused.
+  {
+    auto h = http();
+    auto res = h.Get("/api/jobs", {{"Host", "attacker.example:8480"}});
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 403);
+  }
+
   // Bad requests: unknown routes, ids that are paths, oversized bodies.
   EXPECT_EQ(get("/api/nothing").first, 404);
   EXPECT_EQ(get("/api/jobs/..%2F..%2Fetc/image.png").first, 404);
@@ -361,6 +381,42 @@ TEST_F(BrokerHttpTest, PrivateJobsAreHiddenFromOtherKeysAndFromNoKey) {
   EXPECT_EQ(get("/api/jobs/" + id + "/image.png", other).first, 404);
   EXPECT_EQ(post("/api/jobs/" + id + "/cancel", other).first, 404);  // not even named
   EXPECT_EQ(get("/api/jobs/" + id, owner).first, 200);
+  // A worker's units name their jobs: hidden as the jobs are (none here: no worker).
+  EXPECT_EQ(get("/api/workers").first, 200);
+}
+
+TEST(BrokerHttpReadTest, BeyondLoopbackReadingNeedsATokenUnlessAllowed) {
+  TempDir dir;
+  const net::KeyPair master_keys = net::generate_key_pair(), c1 = net::generate_key_pair();
+  net::write_key_pair(dir.path() / "workers", "w1", net::generate_key_pair());
+  net::write_key_pair(dir.path() / "clients", "c1", c1);
+  fs::remove(dir.path() / "clients" / "c1.key_secret");
+  for (bool anonymous : {false, true}) {
+    MasterOptions o;
+    o.worker_endpoint = "tcp://127.0.0.1:0";
+    o.client_endpoint = "tcp://127.0.0.1:0";
+    o.http_endpoint = "0.0.0.0:0";
+    o.http_anonymous_read = anonymous;
+    o.data_dir = dir.path() / ("data" + std::to_string(anonymous));
+    o.security.key = master_keys;
+    o.security.worker_keys = dir.path() / "workers";
+    o.security.client_keys = dir.path() / "clients";
+    Broker broker(o);
+    std::atomic<bool> stop{false};
+    std::thread reactor([&] { broker.run(stop); });
+    const std::string url = broker.http_url();
+    httplib::Client h(url.substr(0, url.size() - 1));
+    h.set_read_timeout(10, 0);
+    auto jobs = h.Get("/api/jobs");
+    auto metrics_page = h.Get("/metrics");
+    auto page = h.Get("/");
+    stop = true;
+    reactor.join();
+    ASSERT_TRUE(jobs && metrics_page && page);
+    EXPECT_EQ(jobs->status, anonymous ? 200 : 401) << jobs->body;
+    EXPECT_EQ(metrics_page->status, 200);  // counts only, for Prometheus
+    EXPECT_EQ(page->status, 200);          // the page, which then asks for a token
+  }
 }
 
 }  // namespace
