@@ -3,7 +3,8 @@
 # bundled Cornell box, fetch the EXR to the host, render the same scene locally in the same image and
 # require `rayfarm compare` to call the two bit-identical. The cluster runs with the CURVE keys its
 # `keys` service makes; the run also checks that a client key the master does not list is refused
-# (exit 4) and logged. Prints timings; always tears the cluster down (docker-compose down -v, which
+# (exit 4) and logged, that the dashboard's API shows the job done and refuses an action without a
+# token, and that the compose Prometheus scraped the master's /metrics. Prints timings; always tears the cluster down (docker-compose down -v, which
 # also deletes the keys), also on failure.
 #
 # Needs a Docker engine. When none answers and this runs as root, it installs docker.io,
@@ -113,6 +114,24 @@ trap 'exit 130' INT TERM
 ensure_engine
 command -v docker-compose >/dev/null || die "docker-compose is not installed"
 export RAYFARM_WORKER_PORT="$(free_port)" RAYFARM_CLIENT_PORT="$(free_port)"
+export RAYFARM_HTTP_PORT="$(free_port)" RAYFARM_PROMETHEUS_PORT="$(free_port)"
+# GET (or POST, with a second argument) on the host, with $HTTP_TOKEN as a bearer token when set;
+# prints "STATUS BODY".
+http() {
+  python3 - "$@" <<'PY'
+import os, sys, urllib.request, urllib.error
+req = urllib.request.Request(sys.argv[1], data=b"" if len(sys.argv) > 2 else None)
+if os.environ.get("HTTP_TOKEN"):
+    req.add_header("Authorization", "Bearer " + os.environ["HTTP_TOKEN"])
+try:
+    with urllib.request.urlopen(req, timeout=10) as r:
+        print(r.status, r.read().decode())
+except urllib.error.HTTPError as e:
+    print(e.code, e.read().decode())
+except OSError as e:
+    print(0, e)
+PY
+}
 mkdir -p "$OUT"
 rm -f "$OUT"/farm.exr "$OUT"/local.exr "$OUT"/local.png
 
@@ -135,12 +154,16 @@ elif [ "$BUILD" -eq 1 ]; then
   log "building the rayfarm image from the working tree (-j$RAYFARM_BUILD_JOBS)"
   compose build master
 fi
+if [ "$BUILD" -eq 1 ]; then
+  log "building the Prometheus image (Debian's prometheus)"
+  compose build prometheus
+fi
 t_build=$(now)
 
 # ---- the cluster -------------------------------------------------------------------------------
 log "starting a master and $WORKERS workers (host ports $RAYFARM_WORKER_PORT, $RAYFARM_CLIENT_PORT)"
 CLUSTER_UP=1
-compose up -d --scale worker="$WORKERS" master worker
+compose up -d --scale worker="$WORKERS" master worker prometheus
 for _ in $(seq 60); do
   health="$(docker inspect -f '{{.State.Health.Status}}' "$(compose ps -q master)" 2>/dev/null || true)"
   [ "$health" = healthy ] && break
@@ -177,6 +200,29 @@ cli rayfarm fetch "$JOB" -o /out/farm.exr || die "fetch failed"
 [ -s "$OUT/farm.exr" ] || die "fetch wrote no $OUT/farm.exr"
 t_fetch=$(now)
 
+# ---- the dashboard and the metrics -------------------------------------------------------------
+log "checking the dashboard (port $RAYFARM_HTTP_PORT) and Prometheus (port $RAYFARM_PROMETHEUS_PORT)"
+dash="http://127.0.0.1:$RAYFARM_HTTP_PORT"
+# The master listens beyond loopback inside its container: reading needs a token too.
+read -r code body <<<"$(http "$dash/api/jobs/$JOB")"
+[ "$code" = 401 ] || die "reading a job without a token got HTTP $code, expected 401: $body"
+token="$(cli rayfarm token | tail -n 1 | tr -d '[:space:]')"
+read -r code body <<<"$(HTTP_TOKEN="$token" http "$dash/api/jobs/$JOB")"
+[ "$code" = 200 ] && echo "$body" | grep -q '"state":"JOB_DONE"' \
+  || die "the dashboard's API does not show $JOB done with the cli key's token: $code $body"
+read -r code body <<<"$(HTTP_TOKEN="${token}0" http "$dash/api/jobs/$JOB/cancel" post)"
+[ "$code" = 401 ] || die "a cancel with a forged token got HTTP $code, expected 401: $body"
+http "$dash/metrics" | grep -q '^rayfarm_units_merged_total [1-9]' \
+  || die "the master's /metrics counts no merged unit"
+scraped=no
+for _ in $(seq 60); do
+  if http "http://127.0.0.1:$RAYFARM_PROMETHEUS_PORT/api/v1/query?query=rayfarm_units_merged_total" \
+      | grep -q '"value":\['; then scraped=yes; break; fi
+  sleep 2
+done
+[ "$scraped" = yes ] || die "Prometheus has no rayfarm_units_merged_total after 120 s"
+t_metrics=$(now)
+
 # ---- the same render on one machine, and the comparison ----------------------------------------
 log "rendering the same scene locally in the image"
 render_out="$(cli rayfarm render "$SCENE" --spp "$SPP" -o /out/local.exr 2>&1)" \
@@ -206,7 +252,8 @@ docker-e2e summary
   submit               $(elapsed "$t_up" "$t_submit") s
   watch until done     $(elapsed "$t_submit" "$t_done") s
   status + fetch       $(elapsed "$t_done" "$t_fetch") s
-  local render         $(elapsed "$t_fetch" "$t_local") s
+  dashboard, metrics   $(elapsed "$t_fetch" "$t_metrics") s  (until Prometheus had scraped the master)
+  local render         $(elapsed "$t_metrics" "$t_local") s
   (each CLI call above includes starting a container)
   job on the farm      ${farm_s:-?} s  (master's log: accepted → done)
   rayfarm render       ${local_s:-?} s  (one process, all cores of this host)
