@@ -1,24 +1,18 @@
 #include "master/http_server.h"
 
-#include <chrono>
-#include <condition_variable>
-#include <deque>
-#include <fstream>
-#include <iterator>
-#include <mutex>
-#include <regex>
-#include <set>
-
 #include <sys/socket.h>
+
+#include <chrono>
+#include <set>
 #include <stdexcept>
 
-#include <google/protobuf/util/json_util.h>
 #include <httplib.h>
 #include <nlohmann/json.hpp>
 
 #include "common/limits.h"
 #include "common/net/keys.h"
 #include "common/util/log.h"
+#include "master/http_util.h"
 #include "master/metrics.h"
 #include "master/web_assets.h"
 
@@ -26,113 +20,14 @@ namespace rayfarm::master {
 namespace {
 
 using nlohmann::json;
+using namespace http_util;
 using namespace std::chrono_literals;
 
 std::shared_ptr<spdlog::logger> log() { return get_logger("master"); }
 
 constexpr size_t kMaxRequestBytes = 64 * 1024;
-constexpr size_t kMaxQueuedConnections = 256;
 /// How long a request waits for the reactor (a snapshot, or a call's answer).
 constexpr auto kReactorWait = 5s;
-
-/// A fixed pool of threads with a bounded queue of connections. When the queue is full the
-/// accepting thread serves the connection itself: it accepts no more meanwhile, and the kernel's
-/// backlog holds (or refuses) the rest, rather than the master's memory.
-class BoundedPool : public httplib::TaskQueue {
- public:
-  explicit BoundedPool(size_t threads) {
-    for (size_t i = 0; i < threads; ++i) threads_.emplace_back([this] { work(); });
-  }
-  void enqueue(std::function<void()> fn) override {
-    {
-      std::unique_lock lock(mutex_);
-      if (queue_.size() < kMaxQueuedConnections) {
-        queue_.push_back(std::move(fn));
-        ready_.notify_one();
-        return;
-      }
-    }
-    fn();
-  }
-  void shutdown() override {
-    {
-      std::lock_guard lock(mutex_);
-      stopping_ = true;
-    }
-    ready_.notify_all();
-    for (auto& t : threads_) t.join();
-  }
-
- private:
-  std::vector<std::thread> threads_;
-  std::mutex mutex_;
-  std::condition_variable ready_;
-  std::deque<std::function<void()>> queue_;
-  bool stopping_ = false;
-
-  void work() {
-    for (;;) {
-      std::function<void()> fn;
-      {
-        std::unique_lock lock(mutex_);
-        ready_.wait(lock, [&] { return stopping_ || !queue_.empty(); });
-        if (queue_.empty()) return;  // stopping, nothing left
-        fn = std::move(queue_.front());
-        queue_.pop_front();
-      }
-      fn();
-    }
-  }
-};
-
-json message_json(const google::protobuf::Message& m) {
-  google::protobuf::util::JsonPrintOptions options;
-  options.preserve_proto_field_names = true;
-  options.always_print_primitive_fields = true;
-  std::string text;
-  if (!google::protobuf::util::MessageToJsonString(m, &text, options).ok()) {
-    throw std::runtime_error("cannot write " + m.GetTypeName() + " as JSON");
-  }
-  json out = json::parse(text);
-  out.erase("protocol_version");
-  return out;
-}
-
-void send_json(httplib::Response& res, const json& body, int status = 200) {
-  res.status = status;
-  res.set_header("Cache-Control", "no-store");
-  // Text from peers (names, errors) may hold bytes that are not UTF-8: replaced, not fatal.
-  res.set_content(body.dump(-1, ' ', false, json::error_handler_t::replace), "application/json");
-}
-
-void send_error(httplib::Response& res, int status, const std::string& error) {
-  send_json(res, json{{"error", error}}, status);
-}
-
-/// The token of "Authorization: Bearer TOKEN", "" when there is no such header, nullopt when
-/// the header is there but not of that form.
-std::optional<std::string> bearer(const httplib::Request& req) {
-  if (!req.has_header("Authorization")) return std::string();
-  const std::string value = req.get_header_value("Authorization");
-  const std::string scheme = "Bearer ";
-  if (value.size() <= scheme.size() || value.compare(0, scheme.size(), scheme) != 0) {
-    return std::nullopt;
-  }
-  return value.substr(scheme.size());
-}
-
-/// Job ids are the master's own ("j0007", a sequence's frame "j0007.12"): anything else is
-/// refused before it is looked up or joined to a path.
-bool plausible_job_id(const std::string& id) {
-  static const std::regex pattern("[A-Za-z0-9_-]{1,64}(\\.-?[0-9]{1,19})?");
-  return std::regex_match(id, pattern);
-}
-
-std::string read_file(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return {};
-  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-}
 
 }  // namespace
 
@@ -288,38 +183,38 @@ void HttpServer::routes() {
         if (name.empty()) return std::string();
         return std::nullopt;
       };
-  auto user_of = [this, key_of](const httplib::Request& req,
-                                httplib::Response& res) -> std::optional<HttpUser> {
+  // A 401, counted: nullopt for the handlers to return.
+  auto unauthorized = [](httplib::Response& res, const char* why) -> std::optional<HttpUser> {
+    metrics().refusals.add("http_token");
+    send_error(res, 401, why);
+    return std::nullopt;
+  };
+  auto user_of = [this, key_of, unauthorized](const httplib::Request& req,
+                                              httplib::Response& res) -> std::optional<HttpUser> {
     const auto token = bearer(req);
     if (!token) {
-      metrics().refusals.add("http_token");
-      send_error(res, 401, "malformed Authorization header: send 'Authorization: Bearer TOKEN' "
-                           "with a token from `rayfarm token`");
-      return std::nullopt;
+      return unauthorized(res, "malformed Authorization header: send 'Authorization: Bearer "
+                               "TOKEN' with a token from `rayfarm token`");
     }
     if (token->empty()) return HttpUser{};
     const auto name = tokens_.verify(*token, key_of);
     if (!name) {
-      metrics().refusals.add("http_token");
-      send_error(res, 401,
-                 "this token is not valid here: not issued by this master (or its secret was "
-                 "renewed), or its client key is no longer on the allow-list or was replaced; get "
-                 "one with `rayfarm token`");
-      return std::nullopt;
+      return unauthorized(res,
+                          "this token is not valid here: not issued by this master (or its secret "
+                          "was renewed), or its client key is no longer on the allow-list or was "
+                          "replaced; get one with `rayfarm token`");
     }
     return HttpUser{true, *name};
   };
   // A reader: a token's user, or nobody where anonymous reads are allowed.
-  auto reader_of = [this, user_of](const httplib::Request& req,
-                                   httplib::Response& res) -> std::optional<HttpUser> {
+  auto reader_of = [this, user_of, unauthorized](
+                       const httplib::Request& req, httplib::Response& res) -> std::optional<HttpUser> {
     auto user = user_of(req, res);
     if (user && !user->authenticated && !options_.anonymous_read) {
-      metrics().refusals.add("http_token");
-      send_error(res, 401,
-                 "this master's HTTP endpoint is reachable from other machines: reading needs a "
-                 "token too (rayfarm token; the page asks under Sign in), unless the master runs "
-                 "with --http-anonymous-read");
-      return std::nullopt;
+      return unauthorized(res,
+                          "this master's HTTP endpoint is reachable from other machines: reading "
+                          "needs a token too (rayfarm token; the page asks under Sign in), unless "
+                          "the master runs with --http-anonymous-read");
     }
     return user;
   };
@@ -463,10 +358,9 @@ void HttpServer::routes() {
       const auto user = user_of(req, res);
       if (!user) return;
       if (!user->authenticated) {
-        metrics().refusals.add("http_token");
-        return send_error(res, 401,
-                          "this needs a token: send 'Authorization: Bearer TOKEN' with a token "
+        unauthorized(res, "this needs a token: send 'Authorization: Bearer TOKEN' with a token "
                           "from `rayfarm token` (the page asks for one under Sign in)");
+        return;
       }
       const std::string id = req.matches[1];
       if (!plausible_job_id(id)) return send_error(res, 404, "unknown job");
@@ -517,31 +411,7 @@ void HttpServer::routes() {
     text.metrics(metrics());
     if (const auto snap = feed_.snapshot(std::chrono::duration_cast<std::chrono::milliseconds>(
             kReactorWait))) {
-      std::map<std::string, double> states;
-      for (int k = wire::JobState_MIN; k <= wire::JobState_MAX; ++k) {
-        if (k == wire::JOB_STATE_UNSPECIFIED || !wire::JobState_IsValid(k)) continue;
-        std::string name = wire::JobState_Name(static_cast<wire::JobState>(k));
-        states[name.substr(name.rfind('_') + 1)] = 0;  // "queued", "running", ...
-      }
-      double rate = 0, paused = 0;
-      for (const auto& st : snap->jobs.jobs()) {
-        std::string name = wire::JobState_Name(st.state());
-        states[name.substr(name.rfind('_') + 1)] += 1;
-        if (st.state() == wire::JOB_RUNNING) rate += st.samples_per_second();
-        if (st.paused()) paused += 1;
-      }
-      std::map<std::string, double> lower;
-      for (auto& [k, v] : states) {
-        std::string l = k;
-        for (char& c : l) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-        lower[l] = v;
-      }
-      text.family("rayfarm_jobs", "gauge",
-                  "Jobs (a sequence counts once) by state, as listed by rayfarm list.", "state",
-                  lower);
-      text.gauge("rayfarm_jobs_paused", "Queued or running jobs that are paused.", paused);
-      text.gauge("rayfarm_samples_per_second",
-                 "Pixel samples per second of the running jobs, as their status reports.", rate);
+      farm_metrics(text, *snap);
     }
     res.set_content(text.text(), "text/plain; version=0.0.4; charset=utf-8");
   });

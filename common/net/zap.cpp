@@ -143,14 +143,18 @@ void AllowListPolicy::reload(Decision& out) {
   }
 }
 
-AllowListPolicy::Decision AllowListPolicy::decide(const ZapRequest& request) {
-  std::lock_guard lock(mutex_);
-  Decision out;
+void AllowListPolicy::reload_if_due(Decision& out) {
   const auto now = std::chrono::steady_clock::now();
   if (now - loaded_ >= reload_interval_) {
     reload(out);
     loaded_ = now;
   }
+}
+
+AllowListPolicy::Decision AllowListPolicy::decide(const ZapRequest& request) {
+  std::lock_guard lock(mutex_);
+  Decision out;
+  reload_if_due(out);
   if (request.mechanism != "CURVE") {
     out.reason = "it connected without CURVE (" + request.mechanism + ")";
     return out;
@@ -179,11 +183,7 @@ AllowListPolicy::Decision AllowListPolicy::admits_name(const std::string& domain
                                                        const std::string& name) {
   std::lock_guard lock(mutex_);
   Decision out;
-  const auto now = std::chrono::steady_clock::now();
-  if (now - loaded_ >= reload_interval_) {
-    reload(out);
-    loaded_ = now;
-  }
+  reload_if_due(out);
   auto it = domains_.find(domain);
   const std::string* key = it == domains_.end() ? nullptr : it->second.keys.key_named(name);
   if (key) {

@@ -108,6 +108,7 @@ class AllowListPolicy {
   std::chrono::steady_clock::time_point loaded_;
 
   void reload(Decision& out);  // mutex held
+  void reload_if_due(Decision& out);  // mutex held: reload() once reload_interval_ has passed
 };
 
 }  // namespace rayfarm::net

@@ -1,0 +1,129 @@
+#include "master/http_util.h"
+
+#include <cctype>
+#include <fstream>
+#include <iterator>
+#include <map>
+#include <regex>
+#include <stdexcept>
+
+#include <google/protobuf/util/json_util.h>
+
+namespace rayfarm::master::http_util {
+
+using nlohmann::json;
+
+BoundedPool::BoundedPool(size_t threads) {
+  for (size_t i = 0; i < threads; ++i) threads_.emplace_back([this] { work(); });
+}
+
+void BoundedPool::enqueue(std::function<void()> fn) {
+  {
+    std::unique_lock lock(mutex_);
+    if (queue_.size() < kMaxQueuedConnections) {
+      queue_.push_back(std::move(fn));
+      ready_.notify_one();
+      return;
+    }
+  }
+  fn();
+}
+
+void BoundedPool::shutdown() {
+  {
+    std::lock_guard lock(mutex_);
+    stopping_ = true;
+  }
+  ready_.notify_all();
+  for (auto& t : threads_) t.join();
+}
+
+void BoundedPool::work() {
+  for (;;) {
+    std::function<void()> fn;
+    {
+      std::unique_lock lock(mutex_);
+      ready_.wait(lock, [&] { return stopping_ || !queue_.empty(); });
+      if (queue_.empty()) return;  // stopping, nothing left
+      fn = std::move(queue_.front());
+      queue_.pop_front();
+    }
+    fn();
+  }
+}
+
+json message_json(const google::protobuf::Message& m) {
+  google::protobuf::util::JsonPrintOptions options;
+  options.preserve_proto_field_names = true;
+  options.always_print_primitive_fields = true;
+  std::string text;
+  if (!google::protobuf::util::MessageToJsonString(m, &text, options).ok()) {
+    throw std::runtime_error("cannot write " + m.GetTypeName() + " as JSON");
+  }
+  json out = json::parse(text);
+  out.erase("protocol_version");
+  return out;
+}
+
+void send_json(httplib::Response& res, const json& body, int status) {
+  res.status = status;
+  res.set_header("Cache-Control", "no-store");
+  // Text from peers (names, errors) may hold bytes that are not UTF-8: replaced, not fatal.
+  res.set_content(body.dump(-1, ' ', false, json::error_handler_t::replace), "application/json");
+}
+
+void send_error(httplib::Response& res, int status, const std::string& error) {
+  send_json(res, json{{"error", error}}, status);
+}
+
+std::optional<std::string> bearer(const httplib::Request& req) {
+  if (!req.has_header("Authorization")) return std::string();
+  const std::string value = req.get_header_value("Authorization");
+  const std::string scheme = "Bearer ";
+  if (value.size() <= scheme.size() || value.compare(0, scheme.size(), scheme) != 0) {
+    return std::nullopt;
+  }
+  return value.substr(scheme.size());
+}
+
+bool plausible_job_id(const std::string& id) {
+  static const std::regex pattern("[A-Za-z0-9_-]{1,64}(\\.-?[0-9]{1,19})?");
+  return std::regex_match(id, pattern);
+}
+
+std::string read_file(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return {};
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+
+void farm_metrics(PrometheusText& text, const FarmSnapshot& snap) {
+  std::map<std::string, double> states;
+  for (int k = wire::JobState_MIN; k <= wire::JobState_MAX; ++k) {
+    if (k == wire::JOB_STATE_UNSPECIFIED || !wire::JobState_IsValid(k)) continue;
+    std::string name = wire::JobState_Name(static_cast<wire::JobState>(k));
+    states[name.substr(name.rfind('_') + 1)] = 0;  // "queued", "running", ...
+  }
+  double rate = 0, paused = 0;
+  for (const auto& st : snap.jobs.jobs()) {
+    std::string name = wire::JobState_Name(st.state());
+    states[name.substr(name.rfind('_') + 1)] += 1;
+    if (st.state() == wire::JOB_RUNNING) rate += st.samples_per_second();
+    if (st.paused()) paused += 1;
+  }
+  std::map<std::string, double> lower;
+  for (auto& [k, v] : states) {
+    std::string l = k;
+    for (char& c : l) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    lower[l] = v;
+  }
+  text.family("rayfarm_jobs", "gauge",
+              "Jobs (a sequence counts once) by state, as listed by rayfarm list.", "state",
+              lower);
+  text.gauge("rayfarm_jobs_paused", "Queued or running jobs that are paused.", paused);
+  text.gauge("rayfarm_samples_per_second",
+             "Pixel samples per second of the running jobs, as their status reports.", rate);
+}
+
+}  // namespace rayfarm::master::http_util
