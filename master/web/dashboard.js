@@ -236,6 +236,7 @@ async function refreshDetail() {
     $("preview").dataset.version = String(++state.loads);
   }
   $("error-plot").parentElement.hidden = sequence;
+  $("preview").previousElementSibling.textContent = sequence ? "Contact sheet" : "Current image";
   $("frames-box").hidden = !sequence;
   if (sequence) drawFrames(job.frames || []);
 }
@@ -258,7 +259,7 @@ function drawFrames(frames) {
           .catch(() => state.thumbs.delete(f.job_id));
       }
     }
-    box.append(el("div", {}, "frame " + f.frame + " · " +
+    box.append(el("div", {}, f.frame + " · " +
       (done ? "done" : STATES[f.state] === "running" ? Number(f.percent).toFixed(0) + "%" : STATES[f.state])));
     return box;
   });
