@@ -26,6 +26,7 @@
 #include <vector>
 
 #include <fmt/format.h>
+#include <httplib.h>
 #include <pthread.h>
 #include <unistd.h>
 #include <CLI/CLI.hpp>
@@ -90,6 +91,45 @@ struct BrokerRun {
   double seconds = 0;       // the measured window; 0: the whole job
   double warmup = -1;       // before the window; negative: chosen from the mode
   uint32_t size = 1024, tile = 64, spp = 16, pass_spp = 4;
+  int http_pollers = 0;         // dashboard pages polling the master's HTTP endpoint
+  int http_interval_ms = 1000;  // each page's round of /api/jobs, /api/workers and /metrics
+};
+
+/// Pages polling the master's HTTP endpoint, as the dashboard and Prometheus do: each a round of
+/// /api/jobs, /api/workers and /metrics every interval, on threads of their own.
+class HttpPollers {
+ public:
+  HttpPollers(const std::string& url, int pollers, int interval_ms) {
+    for (int i = 0; i < pollers; ++i) {
+      threads_.emplace_back([this, url, interval_ms] {
+        httplib::Client c(url.substr(0, url.size() - 1));
+        c.set_keep_alive(true);
+        while (!stop_) {
+          const auto next = Clock::now() + milliseconds{interval_ms};
+          for (const char* path : {"/api/jobs", "/api/workers", "/metrics"}) {
+            auto res = c.Get(path);
+            if (res && res->status == 200) {
+              ++ok_;
+            } else {
+              ++failed_;
+            }
+          }
+          std::this_thread::sleep_until(next);
+        }
+      });
+    }
+  }
+  ~HttpPollers() {
+    stop_ = true;
+    for (auto& t : threads_) t.join();
+  }
+  uint64_t ok() const { return ok_; }
+  uint64_t failed() const { return failed_; }
+
+ private:
+  std::atomic<bool> stop_{false};
+  std::atomic<uint64_t> ok_{0}, failed_{0};
+  std::vector<std::thread> threads_;
 };
 
 /// What is counted at each end of the measured window.
@@ -102,6 +142,7 @@ struct Sample {
   uint64_t merged = 0;  // units merged, as the job's status says
   uint64_t sent = 0;    // results the fake workers sent
   uint64_t bytes = 0;   // their bytes
+  uint64_t http = 0;    // HTTP requests answered 200
 };
 
 /// A thread's time on a CPU and waiting for one (runnable but not running), from Linux's
@@ -127,6 +168,7 @@ void bench_broker(const BrokerRun& run) {
   options.worker_endpoint = "tcp://127.0.0.1:0";
   options.client_endpoint = "tcp://127.0.0.1:0";
   options.data_dir = dir / "data";
+  if (run.http_pollers > 0) options.http_endpoint = "127.0.0.1:0";
   // The master's defaults: an image and a checkpoint after a round of passes, at most every 3 s
   // and every 2 s.
   rayfarm::master::Broker broker(options);
@@ -163,9 +205,11 @@ void bench_broker(const BrokerRun& run) {
   };
 
   std::optional<rayfarm::bench::FakeFleet> fleet;
+  std::optional<HttpPollers> pollers;
   // The master and the fleet stop on every way out, also when the master stops answering; the
   // master first, so that it does not see its workers vanish.
   const auto stop_all = [&] {
+    pollers.reset();
     stop_master = true;
     if (master.joinable()) master.join();
     fleet.reset();
@@ -179,6 +223,7 @@ void bench_broker(const BrokerRun& run) {
       out.sent = fleet->counters().results.load();
       out.bytes = fleet->counters().bytes.load();
     }
+    if (pollers) out.http = pollers->ok();
     return out;
   };
   const auto fleet_error = [&] {
@@ -192,6 +237,7 @@ void bench_broker(const BrokerRun& run) {
     const Sample before = sample(0);
     fleet.emplace(broker.worker_endpoint(),
                   rayfarm::bench::FleetOptions{run.workers, run.worker_threads, run.unit_seconds});
+    if (run.http_pollers > 0) pollers.emplace(broker.http_url(), run.http_pollers, run.http_interval_ms);
     first = before;
     if (run.seconds > 0) {
       const double warmup = run.warmup >= 0 ? run.warmup : std::max(2.0, 1.5 * run.unit_seconds);
@@ -220,6 +266,7 @@ void bench_broker(const BrokerRun& run) {
     error = e.what();
   }
   const uint64_t connected = fleet ? fleet->counters().connected.load() : 0;
+  const uint64_t http_failed = pollers ? pollers->failed() : 0;
   stop_all();
   std::error_code ec;
   fs::remove_all(dir, ec);
@@ -255,6 +302,11 @@ void bench_broker(const BrokerRun& run) {
       (last.bytes - first.bytes) / 1e6 / wall, (last.sent - first.sent) / wall,
       (last.busy - first.busy) / wall, (last.cpu - first.cpu) / wall,
       (last.queued - first.queued) / wall, (last.polls - first.polls) / wall);
+  if (run.http_pollers > 0) {
+    std::cout << fmt::format(
+        "  HTTP: {} pages polling every {} ms: {:.0f} requests/s answered, {} failed\n",
+        run.http_pollers, run.http_interval_ms, (last.http - first.http) / wall, http_failed);
+  }
 }
 
 }  // namespace
@@ -277,6 +329,11 @@ int main(int argc, char** argv) {
   app.add_option("--tile", run.tile, "tile size")->capture_default_str();
   app.add_option("--spp", run.spp, "samples per pixel")->capture_default_str();
   app.add_option("--pass-spp", run.pass_spp, "samples per pass")->capture_default_str();
+  app.add_option("--http-pollers", run.http_pollers,
+                 "pages polling the master's HTTP endpoint (/api/jobs, /api/workers, /metrics)")
+      ->capture_default_str();
+  app.add_option("--http-interval-ms", run.http_interval_ms, "each page's polling interval")
+      ->capture_default_str();
   std::string log_level = "warn";
   app.add_option("--log-level", log_level, "the master's log level")->capture_default_str();
   bool skip_in_process = false;

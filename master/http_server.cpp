@@ -6,6 +6,7 @@
 #include <set>
 #include <stdexcept>
 
+#include <fmt/format.h>
 #include <httplib.h>
 #include <nlohmann/json.hpp>
 
@@ -92,6 +93,7 @@ HttpServer::HttpServer(HttpOptions options, HttpFeed& feed, const HttpTokens& to
                              ": the address is in use or not this machine's");
   }
   thread_ = std::thread([this] {
+    lower_thread_priority();  // below the reactor, as the pool's threads are
     server_->listen_after_bind();
     listening_ended_ = true;
   });
@@ -114,6 +116,34 @@ HttpServer::HttpServer(HttpOptions options, HttpFeed& feed, const HttpTokens& to
 HttpServer::~HttpServer() {
   server_->stop();
   if (thread_.joinable()) thread_.join();
+}
+
+struct HttpServer::SnapshotJson {
+  std::shared_ptr<const FarmSnapshot> snap;
+  std::vector<json> jobs;      ///< each job's status, in the snapshot's order
+  std::string jobs_anonymous;  ///< all of them with can_manage false, as text
+  std::string workers_all;     ///< /api/workers for a reader who sees every job
+};
+
+std::shared_ptr<const HttpServer::SnapshotJson> HttpServer::json_of(
+    const std::shared_ptr<const FarmSnapshot>& snap) {
+  std::lock_guard lock(json_mutex_);
+  if (json_ && json_->snap == snap) return json_;
+  auto fresh = std::make_shared<SnapshotJson>();
+  fresh->snap = snap;
+  json anonymous = json::array();
+  for (const auto& st : snap->jobs.jobs()) {
+    fresh->jobs.push_back(message_json(st));
+    json j = fresh->jobs.back();
+    j["can_manage"] = false;
+    anonymous.push_back(std::move(j));
+  }
+  fresh->jobs_anonymous = anonymous.dump(-1, ' ', false, json::error_handler_t::replace);
+  json workers = message_json(snap->workers);
+  if (!workers.contains("workers")) workers["workers"] = json::array();
+  fresh->workers_all = workers.dump(-1, ' ', false, json::error_handler_t::replace);
+  json_ = fresh;
+  return json_;
 }
 
 std::string HttpServer::url() const {
@@ -256,30 +286,45 @@ void HttpServer::routes() {
                         {"build", options_.build}});
   });
 
-  s.Get("/api/jobs", [=](const httplib::Request& req, httplib::Response& res) {
+  s.Get("/api/jobs", [=, this](const httplib::Request& req, httplib::Response& res) {
     const auto user = reader_of(req, res);
     if (!user) return;
     const auto snap = snapshot(res);
     if (!snap) return;
+    const auto cached = json_of(snap);
+    const double age =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - snap->taken).count();
+    if (!user->authenticated && !options_.private_jobs) {
+      // Every job, none of them the reader's: the same text for every such reader.
+      res.set_header("Cache-Control", "no-store");
+      res.set_content(fmt::format(R"({{"age_seconds":{},"jobs":{},"workers_total":{}}})", age,
+                                  cached->jobs_anonymous, snap->workers.workers_size()),
+                      "application/json");
+      return;
+    }
     json jobs = json::array();
-    for (const auto& st : snap->jobs.jobs()) {
+    for (int i = 0; i < snap->jobs.jobs_size(); ++i) {
+      const auto& st = snap->jobs.jobs(i);
       if (!may_see(st.owner(), *user)) continue;
-      json j = message_json(st);
+      json j = cached->jobs[static_cast<size_t>(i)];
       j["can_manage"] = may_manage(st.owner(), *user);
       jobs.push_back(std::move(j));
     }
     send_json(res, json{{"jobs", std::move(jobs)},
                         {"workers_total", snap->workers.workers_size()},
-                        {"age_seconds", std::chrono::duration<double>(
-                                            std::chrono::steady_clock::now() - snap->taken)
-                                            .count()}});
+                        {"age_seconds", age}});
   });
 
-  s.Get("/api/workers", [=](const httplib::Request& req, httplib::Response& res) {
+  s.Get("/api/workers", [=, this](const httplib::Request& req, httplib::Response& res) {
     const auto user = reader_of(req, res);
     if (!user) return;
     const auto snap = snapshot(res);
     if (!snap) return;
+    if (!options_.private_jobs || is_admin(*user)) {
+      res.set_header("Cache-Control", "no-store");
+      res.set_content(json_of(snap)->workers_all, "application/json");
+      return;
+    }
     // A worker's units name their jobs: only those this user may see are shown.
     std::set<std::string> visible;
     for (const auto& st : snap->jobs.jobs()) {

@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <set>
 #include <string>
 #include <thread>
@@ -74,6 +75,11 @@ class HttpServer {
   bool loopback_ = false;
   std::atomic<bool> listening_ended_{false};
   std::thread thread_;
+  // The latest snapshot as JSON, made once for all the requests that read it (pages poll).
+  struct SnapshotJson;  // http_server.cpp
+  std::mutex json_mutex_;
+  std::shared_ptr<const SnapshotJson> json_;
+  std::shared_ptr<const SnapshotJson> json_of(const std::shared_ptr<const FarmSnapshot>& snap);
 
   void routes();
 };

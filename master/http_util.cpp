@@ -1,5 +1,8 @@
 #include "master/http_util.h"
 
+#include <sys/resource.h>
+#include <unistd.h>
+
 #include <cctype>
 #include <fstream>
 #include <iterator>
@@ -12,6 +15,15 @@
 namespace rayfarm::master::http_util {
 
 using nlohmann::json;
+
+namespace {
+/// The niceness of the threads that serve HTTP requests.
+constexpr int kNice = 10;
+}  // namespace
+
+void lower_thread_priority() {
+  ::setpriority(PRIO_PROCESS, static_cast<id_t>(::gettid()), kNice);
+}
 
 BoundedPool::BoundedPool(size_t threads) {
   for (size_t i = 0; i < threads; ++i) threads_.emplace_back([this] { work(); });
@@ -39,6 +51,7 @@ void BoundedPool::shutdown() {
 }
 
 void BoundedPool::work() {
+  lower_thread_priority();
   for (;;) {
     std::function<void()> fn;
     {

@@ -24,6 +24,10 @@ namespace rayfarm::master::http_util {
 /// Connections queued for the pool at most; beyond, the accepting thread serves one itself.
 constexpr size_t kMaxQueuedConnections = 256;
 
+/// Lowers the calling thread's priority (Linux: its niceness, 10) below the reactor's and the
+/// writers': when the cores are short, the page waits, not the farm.
+void lower_thread_priority();
+
 /// A fixed pool of threads with a bounded queue of connections. When the queue is full the
 /// accepting thread serves the connection itself: it accepts no more meanwhile, and the kernel's
 /// backlog holds (or refuses) the rest, rather than the master's memory.
