@@ -199,7 +199,11 @@ void HttpServer::routes() {
         host = host.substr(0, colon);
       }
       for (char& c : host) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-      const bool local = host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
+      // No Host at all (HTTP/1.0 tools) is no browser being rebound.
+      // 127.x.x.x written as numbers ("127.evil.example" is a name that could be rebound).
+      const bool local = host.empty() || host == "localhost" || host == "::1" ||
+                         (host.rfind("127.", 0) == 0 &&
+                          host.find_first_not_of("0123456789.") == std::string::npos);
       if (local) return httplib::Server::HandlerResponse::Unhandled;
       send_error(res, 403, "this endpoint serves loopback only: ask for http://127.0.0.1:PORT/ "
                            "or http://localhost:PORT/");

@@ -159,14 +159,16 @@ function clearImage(img) {
 }
 
 async function loadImage(img, path) {
+  const id = state.selected;
   try {
     const blob = await (await api(path)).blob();
+    if (id !== state.selected) return false;  // another job was selected meanwhile
     const old = img.src;
     img.src = URL.createObjectURL(blob);
     if (old.startsWith("blob:")) URL.revokeObjectURL(old);
     return true;
   } catch (e) {
-    clearImage(img);  // not written yet: no other job's image left showing
+    if (id === state.selected) clearImage(img);  // not written yet: no other job's image shown
     return false;
   }
 }
