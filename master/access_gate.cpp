@@ -36,13 +36,13 @@ net::ZapVerdict AccessGate::decide(const net::ZapRequest& r) {
   return {};
 }
 
-std::optional<std::string> AccessGate::client_key_named(const std::string& name) {
-  const net::AllowListPolicy::Decision d = policy_.admits_name(kClientDomain, name);
+std::optional<std::string> AccessGate::client_name_of(const std::string& key) {
+  const net::AllowListPolicy::Decision d = policy_.admits_key(kClientDomain, key);
   if (!d.reload_note.empty()) {
     log()->log(d.reload_warning ? spdlog::level::warn : spdlog::level::info, "{}", d.reload_note);
   }
   if (!d.admitted) return std::nullopt;
-  return d.key;
+  return d.name;
 }
 
 std::unique_ptr<AccessGate> AccessGate::open(const MasterOptions& options) {

@@ -29,9 +29,9 @@ class AccessGate {
   AccessGate(const AccessGate&) = delete;
   AccessGate& operator=(const AccessGate&) = delete;
 
-  /// The key the clients' allow-list names `name` now (an HTTP token's key), nullopt when it
-  /// names none. Thread-safe.
-  std::optional<std::string> client_key_named(const std::string& name);
+  /// The name the clients' allow-list lists `key` (Z85) under now (an HTTP token's key),
+  /// nullopt when it does not list it. Thread-safe.
+  std::optional<std::string> client_name_of(const std::string& key);
 
  private:
   net::AllowListPolicy policy_;

@@ -72,7 +72,7 @@ Broker::Broker(MasterOptions options)
     http.jobs_dir = options_.data_dir / "jobs";
     if (gate_) {
       AccessGate* gate = gate_.get();
-      http.key_of = [gate](const std::string& name) { return gate->client_key_named(name); };
+      http.name_of = [gate](const std::string& key) { return gate->client_name_of(key); };
     }
     // Jobs are read without a token on this machine only, unless asked.
     http.anonymous_read = options_.http_anonymous_read ||

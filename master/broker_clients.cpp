@@ -234,19 +234,21 @@ void Broker::handle_client(const net::Delivery& delivery) {
               error_frames(wire::Error::REFUSED, jobs_.for_clients(e.what()), change->job_id()));
       }
     } else if (msg.as<wire::TokenRequest>()) {
-      // CURVE has proven the key (without keys every client is the one nameless user).
-      const std::optional<std::string> key =
-          gate_ ? gate_->client_key_named(delivery.user) : std::optional<std::string>("");
+      // CURVE has proven the key this connection uses (without keys every client is the one
+      // nameless user); the allow-list must still list it under the same name, since a
+      // connection outlives a change of the list.
+      const std::optional<std::string> listed =
+          gate_ ? gate_->client_name_of(delivery.key) : std::optional<std::string>("");
       if (!tokens_) {
         reply(peer, error_frames(wire::Error::REFUSED,
                                  "this master serves no HTTP endpoint (--http-endpoint), so it "
                                  "has no tokens"));
-      } else if (!key) {
+      } else if (!listed || *listed != delivery.user) {
         reply(peer, error_frames(wire::Error::FORBIDDEN,
                                  "this client's key is no longer on the master's allow-list"));
       } else {
         wire::TokenReply out;
-        out.set_token(tokens_->issue(delivery.user, *key));
+        out.set_token(tokens_->issue(delivery.user, delivery.key));
         out.set_key_name(protocol::printable(delivery.user));
         reply(peer, encode(std::move(out)));
       }

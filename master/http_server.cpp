@@ -97,14 +97,10 @@ HttpServer::HttpServer(HttpOptions options, HttpFeed& feed, const HttpTokens& to
     server_->listen_after_bind();
     listening_ended_ = true;
   });
-  // stop() does nothing before the server runs: wait for it, so that a server destroyed at once
-  // still stops.
-  const auto deadline = std::chrono::steady_clock::now() + 10s;
-  while (!server_->is_running() && !listening_ended_ && std::chrono::steady_clock::now() < deadline) {
-    std::this_thread::sleep_for(1ms);
-  }
+  // stop() does nothing before the server runs: wait until it does (or its listening ended at
+  // once), so that a server destroyed at once still stops.
+  while (!server_->is_running() && !listening_ended_) std::this_thread::sleep_for(1ms);
   if (!server_->is_running()) {
-    server_->stop();
     if (thread_.joinable()) thread_.join();
     throw std::runtime_error("cannot serve --http-endpoint " + options_.endpoint);
   }
@@ -212,9 +208,9 @@ void HttpServer::routes() {
   }
 
   // Who asks: nullopt (and the response set to 401) for a token that is not valid.
-  const HttpTokens::KeyOf key_of =
-      options_.key_of ? options_.key_of : [](const std::string& name) -> std::optional<std::string> {
-        if (name.empty()) return std::string();
+  const HttpTokens::NameOf name_of =
+      options_.name_of ? options_.name_of : [](const std::string& key) -> std::optional<std::string> {
+        if (key.empty()) return std::string();
         return std::nullopt;
       };
   // A 401, counted: nullopt for the handlers to return.
@@ -223,7 +219,7 @@ void HttpServer::routes() {
     send_error(res, 401, why);
     return std::nullopt;
   };
-  auto user_of = [this, key_of, unauthorized](const httplib::Request& req,
+  auto user_of = [this, name_of, unauthorized](const httplib::Request& req,
                                               httplib::Response& res) -> std::optional<HttpUser> {
     const auto token = bearer(req);
     if (!token) {
@@ -231,7 +227,7 @@ void HttpServer::routes() {
                                "TOKEN' with a token from `rayfarm token`");
     }
     if (token->empty()) return HttpUser{};
-    const auto name = tokens_.verify(*token, key_of);
+    const auto name = tokens_.verify(*token, name_of);
     if (!name) {
       return unauthorized(res,
                           "this token is not valid here: not issued by this master (or its secret "

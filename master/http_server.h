@@ -37,9 +37,9 @@ struct HttpOptions {
   std::set<std::string> admin_clients;
   /// <data>/jobs: where the images, error plots and contact sheets are read from.
   std::filesystem::path jobs_dir;
-  /// The public key the clients' allow-list names a token's key name by now (http_tokens.h);
-  /// unset: a master without keys, whose one nameless key is "".
-  HttpTokens::KeyOf key_of;
+  /// The name the clients' allow-list lists a token's key under now (http_tokens.h); unset: a
+  /// master without keys, whose one nameless key is "".
+  HttpTokens::NameOf name_of;
   /// Whether jobs and workers may be read without a token (the default on loopback endpoints);
   /// otherwise only the page itself and /metrics are.
   bool anonymous_read = true;

@@ -100,23 +100,26 @@ std::string HttpTokens::mac(const std::string& key_name, const std::string& publ
 }
 
 std::string HttpTokens::issue(const std::string& key_name, const std::string& public_key) const {
-  return kPrefix + hex(key_name) + "." + hex(mac(key_name, public_key));
+  return kPrefix + hex(key_name) + "." + hex(public_key) + "." + hex(mac(key_name, public_key));
 }
 
-std::optional<std::string> HttpTokens::verify(const std::string& token, const KeyOf& key_of) const {
+std::optional<std::string> HttpTokens::verify(const std::string& token, const NameOf& name_of) const {
   const std::string prefix = kPrefix;
-  if (token.size() > prefix.size() + 2 * kMaxNameBytes + 1 + 64 ||
+  if (token.size() > prefix.size() + 2 * kMaxNameBytes + 1 + 2 * 64 + 1 + 64 ||
       token.compare(0, prefix.size(), prefix) != 0) {
     return std::nullopt;
   }
+  // NAME.KEY.MAC, each in hex (Z85, the key's own text, has '.' in its alphabet).
   const std::string rest = token.substr(prefix.size());
-  const size_t dot = rest.find('.');
-  if (dot == std::string::npos) return std::nullopt;
-  const auto name = unhex(rest.substr(0, dot));
-  const auto given = unhex(rest.substr(dot + 1));
-  if (!name || !given) return std::nullopt;
-  const std::optional<std::string> key = key_of(*name);
-  if (!key) return std::nullopt;
+  const size_t dot1 = rest.find('.');
+  const size_t dot2 = dot1 == std::string::npos ? dot1 : rest.find('.', dot1 + 1);
+  if (dot2 == std::string::npos) return std::nullopt;
+  const auto name = unhex(rest.substr(0, dot1));
+  const auto key = unhex(rest.substr(dot1 + 1, dot2 - dot1 - 1));
+  const auto given = unhex(rest.substr(dot2 + 1));
+  if (!name || !key || !given) return std::nullopt;
+  const std::optional<std::string> listed_as = name_of(*key);
+  if (!listed_as || *listed_as != *name) return std::nullopt;
   const std::string expected = mac(*name, *key);
   if (given->size() != expected.size() ||
       CRYPTO_memcmp(given->data(), expected.data(), expected.size()) != 0) {

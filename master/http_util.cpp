@@ -3,7 +3,9 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <fstream>
 #include <iterator>
 #include <map>
@@ -22,7 +24,11 @@ constexpr int kNice = 10;
 }  // namespace
 
 void lower_thread_priority() {
-  ::setpriority(PRIO_PROCESS, static_cast<id_t>(::gettid()), kNice);
+  const id_t self = static_cast<id_t>(::gettid());
+  errno = 0;
+  const int now = ::getpriority(PRIO_PROCESS, self);
+  if (errno != 0) return;
+  ::setpriority(PRIO_PROCESS, self, std::min(19, now + kNice));
 }
 
 BoundedPool::BoundedPool(size_t threads) {

@@ -24,7 +24,7 @@ namespace rayfarm::master::http_util {
 /// Connections queued for the pool at most; beyond, the accepting thread serves one itself.
 constexpr size_t kMaxQueuedConnections = 256;
 
-/// Lowers the calling thread's priority (Linux: its niceness, 10) below the reactor's and the
+/// Lowers the calling thread's priority (Linux: its niceness, by 10) below the reactor's and the
 /// writers': when the cores are short, the page waits, not the farm.
 void lower_thread_priority();
 

@@ -378,13 +378,6 @@ const std::string* AllowList::find(const std::string& key) const {
   return it == keys_.end() ? nullptr : &it->second;
 }
 
-const std::string* AllowList::key_named(const std::string& name) const {
-  for (const auto& [key, n] : keys_) {
-    if (n == name) return &key;
-  }
-  return nullptr;
-}
-
 bool is_loopback_endpoint(const std::string& endpoint) {
   if (endpoint.rfind("ipc://", 0) == 0 || endpoint.rfind("inproc://", 0) == 0) return true;
   if (endpoint.rfind("tcp://", 0) != 0) return false;

@@ -96,8 +96,6 @@ class AllowList {
 
   /// The name of `key` (Z85) when it is listed, else nullptr.
   const std::string* find(const std::string& key) const;
-  /// The key (Z85) listed under `name`, else nullptr.
-  const std::string* key_named(const std::string& name) const;
   size_t size() const { return keys_.size(); }
   bool operator==(const AllowList& other) const { return keys_ == other.keys_; }
 

@@ -319,6 +319,7 @@ std::optional<Delivery> Router::receive(std::chrono::milliseconds timeout) {
   d.frames = to_frames(messages, 1);
   // The routing frame is made by the ROUTER; the peer's own frames carry its metadata.
   if (const char* user = zmq_msg_gets(messages.back().handle(), "User-Id")) d.user = user;
+  if (const char* key = zmq_msg_gets(messages.back().handle(), kKeyProperty)) d.key = key;
   return d;
 }
 

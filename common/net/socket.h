@@ -47,11 +47,17 @@ struct QueueBounds {
 };
 
 /// One message received on a Router: who sent it and its frames (the routing frame removed).
+/// The message property in which the ZAP handler (zap.h) gives an admitted CURVE peer's public
+/// key (Z85), beside its User-Id.
+inline constexpr const char* kKeyProperty = "X-Key";
+
 struct Delivery {
   PeerId peer;
   Frames frames;
   /// With CURVE, the name the ZAP handler gave the peer's key (its User-Id); else "".
   std::string user;
+  /// With CURVE, the peer's public key (Z85) as the ZAP handler admitted it; else "".
+  std::string key;
 };
 
 /// What a Dealer knows of its security handshake with the peer.

@@ -84,7 +84,18 @@ void ZapHandler::serve() {
     }
     ++requests_;
     if (status != "200") ++refusals_;
-    const std::vector<std::string> reply{"1.0", frame(1), status, text, user, ""};
+    // An admitted CURVE peer's key goes with its messages as the property X-Key (ZMTP metadata:
+    // a name of 1-byte length, a value of 4-byte big-endian length), beside its User-Id.
+    std::string metadata;
+    if (status == "200" && !r.key.empty()) {
+      const std::string name = kKeyProperty;
+      metadata += static_cast<char>(name.size());
+      metadata += name;
+      const uint32_t n = static_cast<uint32_t>(r.key.size());
+      for (int shift = 24; shift >= 0; shift -= 8) metadata += static_cast<char>((n >> shift) & 0xff);
+      metadata += r.key;
+    }
+    const std::vector<std::string> reply{"1.0", frame(1), status, text, user, metadata};
     std::vector<zmq::const_buffer> parts;
     for (const auto& p : reply) parts.push_back(zmq::buffer(p));
     try {
@@ -179,19 +190,18 @@ AllowListPolicy::Decision AllowListPolicy::decide(const ZapRequest& request) {
   return out;
 }
 
-AllowListPolicy::Decision AllowListPolicy::admits_name(const std::string& domain,
-                                                       const std::string& name) {
+AllowListPolicy::Decision AllowListPolicy::admits_key(const std::string& domain,
+                                                      const std::string& key) {
   std::lock_guard lock(mutex_);
   Decision out;
   reload_if_due(out);
   auto it = domains_.find(domain);
-  const std::string* key = it == domains_.end() ? nullptr : it->second.keys.key_named(name);
-  if (key) {
+  const std::string* name = it == domains_.end() ? nullptr : it->second.keys.find(key);
+  if (name) {
     out.admitted = true;
-    out.name = name;
-    out.key = *key;
+    out.name = *name;
   } else {
-    out.reason = "no key named '" + name + "' is on the " + domain + " allow-list";
+    out.reason = "key " + key_label(key) + " is not on the " + domain + " allow-list";
   }
   return out;
 }

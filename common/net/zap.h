@@ -77,7 +77,6 @@ class AllowListPolicy {
   struct Decision {
     bool admitted = false;
     std::string name;         ///< the key's name in its list, when admitted
-    std::string key;          ///< admits_name(): the key (Z85) listed under the name
     std::string reason;       ///< why it was refused
     std::string reload_note;  ///< a list was read again and changed, or could not all be read
     /// `reload_note` reports a file, line or list that could not be read (log it as a warning);
@@ -90,9 +89,10 @@ class AllowListPolicy {
                            std::chrono::milliseconds reload_interval = std::chrono::seconds{1});
 
   Decision decide(const ZapRequest& request);
-  /// Whether `domain`'s list (read again when due, as decide() does) still names a key `name`:
-  /// admitted only when it does, with that key; reload_note as decide() reports it.
-  Decision admits_name(const std::string& domain, const std::string& name);
+  /// Whether `domain`'s list (read again when due, as decide() does) still lists `key` (Z85):
+  /// admitted, with the name it lists the key under, only when it does; reload_note as decide()
+  /// reports it.
+  Decision admits_key(const std::string& domain, const std::string& key);
   /// Keys in `domain`'s list (0 for an unknown domain).
   size_t size(const std::string& domain) const;
 

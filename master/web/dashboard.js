@@ -158,8 +158,8 @@ function clearImage(img) {
   img.removeAttribute("src");
 }
 
-async function loadImage(img, path) {
-  const id = state.selected;
+// Shows the image at `path` of job `id` in `img`, unless another job was selected meanwhile.
+async function loadImage(img, id, path) {
   try {
     const blob = await (await api(path)).blob();
     if (id !== state.selected) return false;  // another job was selected meanwhile
@@ -223,18 +223,20 @@ async function refreshDetail() {
   const now = Date.now();
   if (state.shown.state !== s) { state.shown.state = s; state.shown.at = 0; }
   if (!finished(job)) state.shown.open = now;
-  const fresh = now - (state.shown.open || now) < 15000 || !state.shown.at;
+  const fresh = !state.shown.at ||
+    (state.shown.open !== undefined && now - state.shown.open < 15000);
   if (fresh && now - (state.shown.at || 0) >= 3000) {
     state.shown.at = now;
     const base = "/api/jobs/" + encodeURIComponent(id);
     if (sequence) {
-      await loadImage($("preview"), base + "/contact.png");
+      await loadImage($("preview"), id, base + "/contact.png");
       $("preview").alt = "contact sheet of the finished frames";
     } else {
-      await loadImage($("preview"), base + "/image.png");
-      await loadImage($("error-plot"), base + "/error.png");
+      await loadImage($("preview"), id, base + "/image.png");
+      await loadImage($("error-plot"), id, base + "/error.png");
       $("preview").alt = "the job's current image";
     }
+    if (id !== state.selected) return;  // another job was selected meanwhile
     $("preview").dataset.version = String(++state.loads);
   }
   $("error-plot").parentElement.hidden = sequence;

@@ -59,38 +59,50 @@ TEST(PrometheusTextTest, HistogramBucketsAreCumulativeAndFamiliesEscaped) {
 TEST(HttpTokensTest, VerifiesItsOwnTokensForTheSameKeyOnlyAndKeepsItsSecret) {
   TempDir dir;
   const HttpTokens tokens(dir.path());
-  std::map<std::string, std::string> list{{"alice", "KEY-A"}, {"bob", "KEY-B"}, {"", ""}};
-  const HttpTokens::KeyOf key_of = [&](const std::string& name) -> std::optional<std::string> {
-    auto it = list.find(name);
+  // Two keys of alice (a laptop's and a desktop's), one of bob; "" for a master without keys.
+  std::map<std::string, std::string> list{
+      {"KEY-LAPTOP", "alice"}, {"KEY-DESKTOP", "alice"}, {"KEY-B", "bob"}, {"", ""}};
+  const HttpTokens::NameOf name_of = [&](const std::string& key) -> std::optional<std::string> {
+    auto it = list.find(key);
     if (it == list.end()) return std::nullopt;
     return it->second;
   };
-  const std::string t = tokens.issue("alice", "KEY-A");
-  EXPECT_EQ(tokens.verify(t, key_of), "alice");
-  EXPECT_EQ(tokens.verify(tokens.issue("", ""), key_of), "");  // a master without keys
-  // Tampered: another name with alice's MAC, a flipped MAC digit, garbage, empty.
+  const std::string t = tokens.issue("alice", "KEY-LAPTOP");
+  const std::string desktop = tokens.issue("alice", "KEY-DESKTOP");
+  EXPECT_NE(t, desktop);
+  EXPECT_EQ(tokens.verify(t, name_of), "alice");
+  EXPECT_EQ(tokens.verify(tokens.issue("", ""), name_of), "");  // a master without keys
+  // Tampered: another name with alice's MAC, a flipped MAC digit, bob's key in alice's token,
+  // garbage, empty.
   std::string forged = t;
   forged.replace(5, 10, "626f62");  // "bob"
-  EXPECT_FALSE(tokens.verify(forged, key_of));
+  EXPECT_FALSE(tokens.verify(forged, name_of));
   std::string flipped = t;
   flipped.back() = flipped.back() == '0' ? '1' : '0';
-  EXPECT_FALSE(tokens.verify(flipped, key_of));
-  EXPECT_FALSE(tokens.verify("rft1.zz.00", key_of));
-  EXPECT_FALSE(tokens.verify("", key_of));
-  EXPECT_FALSE(tokens.verify(std::string(100000, 'a'), key_of));
-  // A key replaced under the same name, or taken off the list, takes its token with it.
-  list["alice"] = "KEY-A2";
-  EXPECT_FALSE(tokens.verify(t, key_of));
-  list.erase("alice");
-  EXPECT_FALSE(tokens.verify(t, key_of));
-  list["alice"] = "KEY-A";
+  EXPECT_FALSE(tokens.verify(flipped, name_of));
+  const std::string bobs = tokens.issue("bob", "KEY-B");
+  const std::string swapped = t.substr(0, t.find('.', 5) + 1) +
+                              bobs.substr(bobs.find('.', 5) + 1, bobs.rfind('.') - bobs.find('.', 5) - 1) +
+                              t.substr(t.rfind('.'));
+  EXPECT_FALSE(tokens.verify(swapped, name_of));
+  EXPECT_FALSE(tokens.verify("rft1.zz.00.00", name_of));
+  EXPECT_FALSE(tokens.verify("", name_of));
+  EXPECT_FALSE(tokens.verify(std::string(100000, 'a'), name_of));
+  // A key taken off the list takes its token with it, and only its own: the other key of the
+  // same name keeps its token; a key listed under another name loses it too.
+  list.erase("KEY-LAPTOP");
+  EXPECT_FALSE(tokens.verify(t, name_of));
+  EXPECT_EQ(tokens.verify(desktop, name_of), "alice");
+  list["KEY-LAPTOP"] = "mallory";
+  EXPECT_FALSE(tokens.verify(t, name_of));
+  list["KEY-LAPTOP"] = "alice";
   // The secret survives a restart, is private to the user, and another master's differs.
-  EXPECT_EQ(HttpTokens(dir.path()).verify(t, key_of), "alice");
+  EXPECT_EQ(HttpTokens(dir.path()).verify(t, name_of), "alice");
   struct stat st {};
   ASSERT_EQ(::stat((dir.path() / HttpTokens::kSecretFile).c_str(), &st), 0);
   EXPECT_EQ(st.st_mode & 0777, 0600u);
   TempDir other;
-  EXPECT_FALSE(HttpTokens(other.path()).verify(t, key_of));
+  EXPECT_FALSE(HttpTokens(other.path()).verify(t, name_of));
   // A secret file that is not one is named, not used.
   dir.write(HttpTokens::kSecretFile, "short");
   try {
@@ -290,7 +302,11 @@ TEST_F(BrokerHttpTest, ATokenCarriesExactlyItsKeysRights) {
   EXPECT_EQ(c["state"], "JOB_CANCELLED");
   EXPECT_EQ(post("/api/jobs/" + id + "/pause", owner).first, 409);  // over: named, not changed
 
-  // A key taken off the allow-list loses its token's rights (the list is read again each second).
+  // A key taken off the allow-list loses its token's rights (the list is read again each second),
+  // and a connection it opened before gets no new token.
+  auto still_open = client("other");
+  still_open->send(protocol::encode(wire::ListJobs{}));
+  ASSERT_TRUE(test_peer::next(*still_open));
   fs::remove(dir.path() / "clients" / "other.key");
   int revoked = 0;
   for (int i = 0; i < 50 && revoked != 401; ++i) {
@@ -299,6 +315,10 @@ TEST_F(BrokerHttpTest, ATokenCarriesExactlyItsKeysRights) {
   }
   EXPECT_EQ(revoked, 401);
   EXPECT_EQ(get("/api/session", owner).second["key"], "owner");
+  still_open->send(protocol::encode(wire::TokenRequest{}));
+  auto refused_token = test_peer::next(*still_open);
+  ASSERT_TRUE(refused_token && refused_token->as<wire::Error>()) << refused_token->type;
+  EXPECT_EQ(refused_token->as<wire::Error>()->code(), wire::Error::FORBIDDEN);
 
   // A page elsewhere that rebinds its name to this machine is refused.
   {
