@@ -40,6 +40,7 @@ constexpr auto kRefusalLogInterval = std::chrono::seconds{10};
 
 Broker::Broker(MasterOptions options)
     : options_(std::move(options)),
+      rights_{options_.security.private_jobs, options_.security.admin_clients},
       store_(options_.data_dir),
       jobs_(store_,
             [this] {
@@ -67,8 +68,7 @@ Broker::Broker(MasterOptions options)
     HttpOptions http;
     http.endpoint = options_.http_endpoint;
     http.keys = options_.security.key.has_value();
-    http.private_jobs = options_.security.private_jobs;
-    http.admin_clients = options_.security.admin_clients;
+    http.rights = rights_;
     http.jobs_dir = options_.data_dir / "jobs";
     if (gate_) {
       AccessGate* gate = gate_.get();

@@ -25,6 +25,7 @@
 #include "master/http_server.h"
 #include "master/http_tokens.h"
 #include "master/job_manager.h"
+#include "master/job_rights.h"
 #include "master/job_store.h"
 #include "master/log_budget.h"
 #include "master/master_options.h"
@@ -90,6 +91,7 @@ class Broker {
   LogBudget refusal_log_;  // lines about refused submissions, per key
 
   MasterOptions options_;
+  JobRights rights_;  // from options_.security
   JobStore store_;
   JobManager jobs_;
   std::unique_ptr<SubmissionQueue> submissions_;  // uses jobs_: destroyed before it
@@ -134,8 +136,12 @@ class Broker {
   void heard_from(Worker& w);
   std::string worker_label(const net::PeerId& peer) const;
   /// Whether client key `user` may cancel (may_manage) or see (may_see) a job of `owner`.
-  bool may_manage(const std::string& owner, const std::string& user) const;
-  bool may_see(const std::string& owner, const std::string& user) const;
+  bool may_manage(const std::string& owner, const std::string& user) const {
+    return rights_.may_manage(owner, &user);
+  }
+  bool may_see(const std::string& owner, const std::string& user) const {
+    return rights_.may_see(owner, &user);
+  }
   /// Why client key `user` may not give a job `priority` (MasterSecurity::max_client_priority);
   /// nullopt when it may.
   std::optional<std::string> priority_refusal(int32_t priority, const std::string& user) const;

@@ -58,14 +58,6 @@ void Broker::admit_submissions() {
   if (admitted) dispatch();
 }
 
-bool Broker::may_manage(const std::string& owner, const std::string& user) const {
-  return owner == user || options_.security.admin_clients.count(user) != 0;
-}
-
-bool Broker::may_see(const std::string& owner, const std::string& user) const {
-  return !options_.security.private_jobs || may_manage(owner, user);
-}
-
 std::optional<std::string> Broker::priority_refusal(int32_t priority,
                                                     const std::string& user) const {
   // Out of range: the job manager names it, for every key alike.

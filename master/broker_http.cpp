@@ -66,16 +66,15 @@ HttpAnswer Broker::answer_http(const HttpCall& call, bool& changed) {
   // The client socket's rules, for the token's key; without a token a job is visible unless
   // the master keeps jobs private, and nothing may be changed.
   const std::string& user = call.user.key_name;
-  const bool sees = owner && (!options_.security.private_jobs ||
-                              (call.user.authenticated && may_manage(*owner, user)));
-  if (!owner || !sees) return failure(404, unknown);
+  const std::string* key = call.user.authenticated ? &user : nullptr;
+  if (!owner || !rights_.may_see(*owner, key)) return failure(404, unknown);
   using Kind = HttpCall::Kind;
   if (call.kind == Kind::kStatus) {
     auto st = jobs_.status(id, static_cast<uint32_t>(workers_.size()));
     if (!st) return failure(404, unknown);
     return success(std::move(*st));
   }
-  if (!call.user.authenticated || !may_manage(*owner, user)) {
+  if (!rights_.may_manage(*owner, key)) {
     metrics().refusals.add("http_forbidden");
     return failure(403, fmt::format("job {} belongs to key '{}': only that key or an admin key "
                                     "(rayfarm-master --admin-clients) may change it",

@@ -248,14 +248,14 @@ void HttpServer::routes() {
     }
     return user;
   };
-  auto is_admin = [this](const HttpUser& u) {
-    return u.authenticated && options_.admin_clients.count(u.key_name) != 0;
+  // The client socket's rules (job_rights.h), for a token's key or for nobody.
+  auto key = [](const HttpUser& u) { return u.authenticated ? &u.key_name : nullptr; };
+  auto is_admin = [this, key](const HttpUser& u) { return options_.rights.is_admin(key(u)); };
+  auto may_manage = [this, key](const std::string& owner, const HttpUser& u) {
+    return options_.rights.may_manage(owner, key(u));
   };
-  auto may_manage = [is_admin](const std::string& owner, const HttpUser& u) {
-    return u.authenticated && (owner == u.key_name || is_admin(u));
-  };
-  auto may_see = [this, may_manage](const std::string& owner, const HttpUser& u) {
-    return !options_.private_jobs || may_manage(owner, u);
+  auto may_see = [this, key](const std::string& owner, const HttpUser& u) {
+    return options_.rights.may_see(owner, key(u));
   };
   auto snapshot = [this](httplib::Response& res) -> std::shared_ptr<const FarmSnapshot> {
     auto snap = feed_.snapshot(std::chrono::duration_cast<std::chrono::milliseconds>(kReactorWait));
@@ -281,7 +281,7 @@ void HttpServer::routes() {
                         {"key", user->key_name},
                         {"admin", is_admin(*user)},
                         {"keys", options_.keys},
-                        {"private_jobs", options_.private_jobs},
+                        {"private_jobs", options_.rights.private_jobs},
                         {"anonymous_read", options_.anonymous_read},
                         {"build", options_.build}});
   });
@@ -294,7 +294,7 @@ void HttpServer::routes() {
     const auto cached = json_of(snap);
     const double age =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - snap->taken).count();
-    if (!user->authenticated && !options_.private_jobs) {
+    if (!user->authenticated && !options_.rights.private_jobs) {
       // Every job, none of them the reader's: the same text for every such reader.
       res.set_header("Cache-Control", "no-store");
       res.set_content(fmt::format(R"({{"age_seconds":{},"jobs":{},"workers_total":{}}})", age,
@@ -320,7 +320,7 @@ void HttpServer::routes() {
     if (!user) return;
     const auto snap = snapshot(res);
     if (!snap) return;
-    if (!options_.private_jobs || is_admin(*user)) {
+    if (!options_.rights.private_jobs || is_admin(*user)) {
       res.set_header("Cache-Control", "no-store");
       res.set_content(json_of(snap)->workers_all, "application/json");
       return;

@@ -20,6 +20,7 @@
 
 #include "master/http_feed.h"
 #include "master/http_tokens.h"
+#include "master/job_rights.h"
 
 namespace httplib {
 class Server;
@@ -33,8 +34,8 @@ struct HttpOptions {
   /// Whether the master checks client keys. Without (rayfarm-master --insecure) the endpoint
   /// must be on loopback, as the master's sockets must.
   bool keys = true;
-  bool private_jobs = false;
-  std::set<std::string> admin_clients;
+  /// Who may see and change which job, as on the client socket.
+  JobRights rights;
   /// <data>/jobs: where the images, error plots and contact sheets are read from.
   std::filesystem::path jobs_dir;
   /// The name the clients' allow-list lists a token's key under now (http_tokens.h); unset: a

@@ -118,28 +118,27 @@ std::string read_file(const std::filesystem::path& path) {
 
 
 void farm_metrics(PrometheusText& text, const FarmSnapshot& snap) {
+  // "JOB_RUNNING" -> "running"; every state listed, also at 0.
+  const auto label = [](wire::JobState state) {
+    std::string name = wire::JobState_Name(state);
+    name = name.substr(name.rfind('_') + 1);
+    for (char& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    return name;
+  };
   std::map<std::string, double> states;
   for (int k = wire::JobState_MIN; k <= wire::JobState_MAX; ++k) {
-    if (k == wire::JOB_STATE_UNSPECIFIED || !wire::JobState_IsValid(k)) continue;
-    std::string name = wire::JobState_Name(static_cast<wire::JobState>(k));
-    states[name.substr(name.rfind('_') + 1)] = 0;  // "queued", "running", ...
+    if (k != wire::JOB_STATE_UNSPECIFIED && wire::JobState_IsValid(k)) {
+      states[label(static_cast<wire::JobState>(k))] = 0;
+    }
   }
   double rate = 0, paused = 0;
   for (const auto& st : snap.jobs.jobs()) {
-    std::string name = wire::JobState_Name(st.state());
-    states[name.substr(name.rfind('_') + 1)] += 1;
+    states[label(st.state())] += 1;
     if (st.state() == wire::JOB_RUNNING) rate += st.samples_per_second();
     if (st.paused()) paused += 1;
   }
-  std::map<std::string, double> lower;
-  for (auto& [k, v] : states) {
-    std::string l = k;
-    for (char& c : l) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    lower[l] = v;
-  }
   text.family("rayfarm_jobs", "gauge",
-              "Jobs (a sequence counts once) by state, as listed by rayfarm list.", "state",
-              lower);
+              "Jobs (a sequence counts once) by state, as listed by rayfarm list.", "state", states);
   text.gauge("rayfarm_jobs_paused", "Queued or running jobs that are paused.", paused);
   text.gauge("rayfarm_samples_per_second",
              "Pixel samples per second of the running jobs, as their status reports.", rate);

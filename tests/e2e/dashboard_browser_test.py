@@ -23,6 +23,7 @@ from selenium.common.exceptions import (NoSuchElementException, StaleElementRefe
                                         TimeoutException)
 from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.by import By
+from selenium.webdriver.support import expected_conditions as EC
 from selenium.webdriver.support.ui import WebDriverWait
 
 BUILD, SOURCE = sys.argv[1], sys.argv[2]
@@ -73,6 +74,13 @@ def attribute(d, selector, name):
 
 def click(d, selector):
     d.execute_script("document.querySelector(arguments[0]).click();", selector)
+
+
+def accept_confirm(driver):
+    try:
+        WebDriverWait(driver, 10).until(EC.alert_is_present()).accept()
+    except TimeoutException:
+        raise AssertionError("the page asked for no confirmation of the cancel") from None
 
 
 def wait_for(driver, what, predicate):
@@ -169,9 +177,10 @@ def main():
         time.sleep(1.5)  # a refresh with the session
         check(not driver.find_element(By.ID, "cancel").is_enabled(),
               "cancel is offered to a key that does not own the job")
-        driver.execute_script("document.getElementById('cancel').disabled = false;")
-        driver.find_element(By.ID, "cancel").click()
-        driver.switch_to.alert.accept()
+        # Enabled and clicked in one turn of the page's loop, which re-disables it every second.
+        driver.execute_script("setTimeout(() => { const b = document.getElementById('cancel');"
+                              " b.disabled = false; b.click(); }, 0);")
+        accept_confirm(driver)
         wait_for(driver, "bob's cancel refused",
                  lambda d: "belongs to key 'alice'" in (text(d, "#message") or ""))
         check(attribute(driver, row, "data-state") == "running",
@@ -187,7 +196,7 @@ def main():
                  lambda d: d.find_element(By.ID, "cancel").is_enabled())
         driver.save_screenshot(os.path.join(BUILD, "dashboard-screenshot.png"))
         driver.find_element(By.ID, "cancel").click()
-        driver.switch_to.alert.accept()
+        accept_confirm(driver)
         wait_for(driver, "the job cancelled",
                  lambda d: attribute(d, row, "data-state") == "cancelled")
         state = json.loads(cli("status", job, "--json", key="alice"))

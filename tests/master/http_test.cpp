@@ -182,11 +182,16 @@ class BrokerHttpTest : public ::testing::Test {
   std::atomic<bool> stop{false};
   std::thread reactor;
 
-  void start(bool private_jobs) {
-    net::write_key_pair(dir.path() / "workers", "w1", net::generate_key_pair());
-    for (const auto& [name, keys] : clients) net::write_key_pair(dir.path() / "clients", name, keys);
-    // Only the public halves on the allow-list.
-    for (const auto& [name, keys] : clients) fs::remove(dir.path() / "clients" / (name + ".key_secret"));
+  /// The master's options: keys and allow-lists (written once), HTTP on loopback.
+  MasterOptions options(bool private_jobs) {
+    if (!fs::exists(dir.path() / "clients")) {
+      net::write_key_pair(dir.path() / "workers", "w1", net::generate_key_pair());
+      for (const auto& [name, keys] : clients) {
+        net::write_key_pair(dir.path() / "clients", name, keys);
+        // Only the public halves on the allow-list.
+        fs::remove(dir.path() / "clients" / (name + ".key_secret"));
+      }
+    }
     MasterOptions o;
     o.worker_endpoint = "tcp://127.0.0.1:0";
     o.client_endpoint = "tcp://127.0.0.1:0";
@@ -197,13 +202,20 @@ class BrokerHttpTest : public ::testing::Test {
     o.security.client_keys = dir.path() / "clients";
     o.security.admin_clients = {"boss"};
     o.security.private_jobs = private_jobs;
+    return o;
+  }
+  void start(bool private_jobs) { start(options(private_jobs)); }
+  void start(const MasterOptions& o) {
     broker = std::make_unique<Broker>(o);
     reactor = std::thread([this] { broker->run(stop); });
   }
-  void TearDown() override {
+  void halt() {
     stop = true;
     if (reactor.joinable()) reactor.join();
+    broker.reset();
+    stop = false;
   }
+  void TearDown() override { halt(); }
 
   std::unique_ptr<net::Dealer> client(const std::string& name) {
     const net::KeyPair& k = clients.at(name);
@@ -410,37 +422,24 @@ TEST_F(BrokerHttpTest, PrivateJobsAreHiddenFromOtherKeysAndFromNoKey) {
   EXPECT_EQ(get("/api/workers").first, 200);
 }
 
-TEST(BrokerHttpReadTest, BeyondLoopbackReadingNeedsATokenUnlessAllowed) {
-  TempDir dir;
-  const net::KeyPair master_keys = net::generate_key_pair(), c1 = net::generate_key_pair();
-  net::write_key_pair(dir.path() / "workers", "w1", net::generate_key_pair());
-  net::write_key_pair(dir.path() / "clients", "c1", c1);
-  fs::remove(dir.path() / "clients" / "c1.key_secret");
+TEST_F(BrokerHttpTest, BeyondLoopbackReadingNeedsATokenUnlessAllowed) {
   for (bool anonymous : {false, true}) {
-    MasterOptions o;
-    o.worker_endpoint = "tcp://127.0.0.1:0";
-    o.client_endpoint = "tcp://127.0.0.1:0";
+    MasterOptions o = options(/*private_jobs=*/false);
     o.http_endpoint = "0.0.0.0:0";
     o.http_anonymous_read = anonymous;
     o.data_dir = dir.path() / ("data" + std::to_string(anonymous));
-    o.security.key = master_keys;
-    o.security.worker_keys = dir.path() / "workers";
-    o.security.client_keys = dir.path() / "clients";
-    Broker broker(o);
-    std::atomic<bool> stop{false};
-    std::thread reactor([&] { broker.run(stop); });
-    const std::string url = broker.http_url();
-    httplib::Client h(url.substr(0, url.size() - 1));
-    h.set_read_timeout(10, 0);
+    start(o);
+    auto h = http();
     auto jobs = h.Get("/api/jobs");
     auto metrics_page = h.Get("/metrics");
     auto page = h.Get("/");
-    stop = true;
-    reactor.join();
-    ASSERT_TRUE(jobs && metrics_page && page);
+    auto signed_in = h.Get("/api/jobs", bearer(token("owner")));
+    halt();
+    ASSERT_TRUE(jobs && metrics_page && page && signed_in);
     EXPECT_EQ(jobs->status, anonymous ? 200 : 401) << jobs->body;
     EXPECT_EQ(metrics_page->status, 200);  // counts only, for Prometheus
     EXPECT_EQ(page->status, 200);          // the page, which then asks for a token
+    EXPECT_EQ(signed_in->status, 200);
   }
 }
 
