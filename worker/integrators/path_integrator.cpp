@@ -28,6 +28,15 @@ PathIntegratorFor<BsdfT>::PathIntegratorFor(const SceneData& data, const LightSe
   plan_.light_tree = lights.selection().uses_tree();
   plan_.surface = data.uses_surface();
   plan_.plain = data.plain();
+  // Specular objects worth aiming at: where BSDF rays can find emitters through them, from
+  // surfaces that sample lights (the naive integrator stays plain BSDF sampling).
+  if (plan_.sample_lights && plan_.emitters_reachable) {
+    std::vector<bool> specular;
+    for (const Material& m : data.scene().materials)
+      specular.push_back(!m.textured && !m.is_emissive() && BsdfT(m).is_specular());
+    targets_ = SpecularTargets::of_scene(data.scene(), specular);
+    plan_.specular_targets = !targets_.empty();
+  }
 }
 
 template <class BsdfT>
@@ -60,7 +69,7 @@ Vec3 PathIntegratorFor<BsdfT>::sample_light(const SurfaceHit& hit, const Vec3& s
                                             const Vec3& wo, const Vec3& wo_local,
                                             const Frame& frame, const BsdfT& bsdf,
                                             const std::array<uint32_t, 3>& u,
-                                            uint64_t& rays) const {
+                                            const TargetCones* cones, uint64_t& rays) const {
   LightSample ls;
   if (!lights_.sample(hit.p, select_n, SelectionNumber{u[0]}, sobol::to_unit_float(u[1]),
                       sobol::to_unit_float(u[2]), ls))
@@ -78,10 +87,51 @@ Vec3 PathIntegratorFor<BsdfT>::sample_light(const SurfaceHit& hit, const Vec3& s
   Ray shadow = ls.infinite ? Ray{origin, ls.wi} : Ray{origin, ls.target - origin, 0.f, 1.f};
   shadow.time = hit.time;
   if (data_.bvh().occluded(shadow)) return Vec3(0.f);
-  const float w = (ls.delta || !plan_.weight_emission)
-                      ? 1.f
-                      : power_heuristic(ls.pdf, bsdf.pdf(wo_local, wi_local));
+  float w = 1.f;
+  if (!ls.delta && plan_.weight_emission) {
+    // Against the density with which the vertex draws its next direction: the BSDF's, or its
+    // mixture with the specular targets' cones.
+    float bsdf_pdf = bsdf.pdf(wo_local, wi_local);
+    if (cones)
+      bsdf_pdf = (1.f - SpecularTargets::kShare) * bsdf_pdf +
+                 SpecularTargets::kShare * cones->pdf(ls.wi);
+    w = power_heuristic(ls.pdf, bsdf_pdf);
+  }
   return f * ls.radiance * (w / ls.pdf);
+}
+
+template <class BsdfT>
+bool PathIntegratorFor<BsdfT>::aim_sample(const BsdfT& bsdf, const TargetCones& cones,
+                                          const Vec3& wo_local, const Frame& frame,
+                                          const std::array<float, 3>& u, BsdfSample& bs,
+                                          Vec3& wi) const {
+  // One-sample MIS over the mixture: u[0] chooses the strategy and, rescaled, the lobe or cone.
+  constexpr float kShare = SpecularTargets::kShare;
+  constexpr float kBelowOne = 0x1.fffffep-1f;
+  Vec3 f;
+  if (u[0] < kShare) {
+    wi = SpecularTargets::sample(cones, std::min(u[0] / kShare, kBelowOne), u[1], u[2]);
+    bs.wi = frame.to_local(wi);
+    bs.specular = false;
+    bs.eta = 1.f;
+    f = bsdf.eval(wo_local, bs.wi);
+    bs.pdf = bsdf.pdf(wo_local, bs.wi);
+  } else {
+    if (!bsdf.sample(wo_local, std::min((u[0] - kShare) / (1.f - kShare), kBelowOne), u[1], u[2],
+                     bs))
+      return false;
+    wi = frame.to_world(bs.wi);
+    if (bs.specular) {  // a Dirac lobe, which the cones never draw
+      bs.weight = bs.weight * (1.f / (1.f - kShare));
+      return true;
+    }
+    f = bsdf.eval(wo_local, bs.wi);
+  }
+  const float pdf = (1.f - kShare) * bs.pdf + kShare * cones.pdf(wi);
+  if (!(pdf > 0.f) || is_black(f)) return false;
+  bs.pdf = pdf;
+  bs.weight = f / pdf;
+  return true;
 }
 
 template <class BsdfT>
@@ -171,15 +221,26 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, PathSampler& sampler, PathStats& s
     const std::array<uint32_t, 3> light_u =
         sample_light_here ? sampler.light_bits(depth) : std::array<uint32_t, 3>{};
     const std::array<float, 3> u = sampler.scatter(depth);
+    // The specular targets' cones seen from here, if this vertex aims at them.
+    TargetCones cones;
+    const bool aim = plan_.specular_targets && sample_light_here && bsdf.reflects_only() &&
+                     (targets_.cones(hit.p, dot(wo, hit.n) >= 0.f ? hit.n : -hit.n, cones),
+                      cones.count > 0);
     if (sample_light_here) {
-      radiance +=
-          beta * sample_light(hit, select_n, flat, wo, wo_local, frame, bsdf, light_u, rays);
+      radiance += beta * sample_light(hit, select_n, flat, wo, wo_local, frame, bsdf, light_u,
+                                      aim ? &cones : nullptr, rays);
     }
 
-    // BSDF sampling for the next direction.
+    // BSDF sampling for the next direction, or a direction into a specular target's cone.
     BsdfSample bs;
-    if (!bsdf.sample(wo_local, u[0], u[1], u[2], bs)) break;
-    if (!same_sides(hit, flat, wo, frame.to_world(bs.wi), wo_local, bs.wi)) break;
+    Vec3 wi;
+    if (!aim) {
+      if (!bsdf.sample(wo_local, u[0], u[1], u[2], bs)) break;
+      wi = frame.to_world(bs.wi);
+    } else if (!aim_sample(bsdf, cones, wo_local, frame, u, bs, wi)) {
+      break;
+    }
+    if (!same_sides(hit, flat, wo, wi, wo_local, bs.wi)) break;
     if (shading_sided && !(bs.wi.z > 0.f)) break;
 
     if (throughput_roulette) {
@@ -219,7 +280,6 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, PathSampler& sampler, PathStats& s
       truncate(beta);
       break;
     }
-    const Vec3 wi = frame.to_world(bs.wi);
     ray = Ray{offset_ray_origin(hit.p, hit.p_error, leaving_side(hit, flat, wi, bs.wi.z)), wi};
     ray.time = hit.time;
   }

@@ -7,6 +7,7 @@
 
 #include "common/scene/scene.h"
 #include "worker/bsdfs/bsdf.h"
+#include "worker/integrators/specular_targets.h"
 #include "worker/lights/light_set.h"
 #include "worker/samplers/path_sampler.h"
 #include "worker/scene_data.h"
@@ -30,6 +31,9 @@ struct IntegratorPlan {
   bool surface = false;
   /// Every hit is flat and nothing reads a texture (SceneData::plain()).
   bool plain = false;
+  /// Non-specular vertices that only reflect mix BSDF sampling with sampling the cones of the
+  /// scene's specular objects (specular_targets.h).
+  bool specular_targets = false;
 };
 
 /// The path loop's variants, from what the scene uses (IntegratorPlan): each leaves out the
@@ -80,7 +84,13 @@ class PathIntegratorFor {
                                                   bool flat, const Vec3& wo, const Vec3& wo_local,
                                                   const Frame& frame, const BsdfT& bsdf,
                                                   const std::array<uint32_t, 3>& u,
-                                                  uint64_t& rays) const;
+                                                  const TargetCones* cones, uint64_t& rays) const;
+  // The next direction from the mixture of BSDF sampling and the specular targets' cones, with
+  // the mixture's weight and density; false when it carries nothing.
+  [[gnu::always_inline]] inline bool aim_sample(const BsdfT& bsdf, const TargetCones& cones,
+                                                const Vec3& wo_local, const Frame& frame,
+                                                const std::array<float, 3>& u, BsdfSample& bs,
+                                                Vec3& wi) const;
   float emission_weight(const SurfaceHit& hit, bool specular_bounce, float bsdf_pdf,
                         const Vec3& prev_p, const Vec3& prev_n) const;
   float environment_weight(bool specular_bounce, float bsdf_pdf, const Vec3& dir) const;
@@ -89,6 +99,7 @@ class PathIntegratorFor {
   const LightSet& lights_;
   IntegratorPlan plan_;
   Vec3 background_;
+  SpecularTargets targets_;
 };
 
 using PathIntegrator = PathIntegratorFor<Bsdf>;
