@@ -82,7 +82,7 @@ inline constexpr uint32_t kDefaultSpp = 64;
 /// Scattering vertices per path when the scene does not say: no cap.
 inline constexpr uint32_t kDefaultMaxDepth = kUnlimitedDepth;
 /// Vertex from which throughput roulette may end paths when the scene does not say.
-inline constexpr uint32_t kDefaultRouletteDepth = 3;
+inline constexpr uint32_t kDefaultRouletteDepth = 5;
 /// Most a roulette_depth may be.
 inline constexpr uint32_t kMaxRouletteDepth = 1000000;
 /// Most frames a shutter may reach before or after its frame (RenderSettings::shutter_open and

@@ -251,7 +251,7 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, PathSampler& sampler, PathStats& s
       if (depth >= plan_.roulette_depth) {
         const float weight = max_component(beta) * eta_scale;
         if (!(weight > 0.f)) break;  // also NaN: 0 x an eta^2 that overflowed
-        const float survive = std::min(kMaxSurvival, weight);
+        const float survive = throughput_survival(weight);
         if (!(sampler.roulette() < survive)) break;
         beta /= survive;
       } else if (!(max_component(beta) > 0.f)) {

@@ -2,6 +2,8 @@
 // The path tracer: naive (BSDF sampling only), NEE (one light per vertex, light_selection.h) and
 // MIS (light and BSDF sampling, power heuristic), each with Russian roulette (on the path's
 // throughput or on each vertex's update) and the max_depth cap of RenderSettings, if any.
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <string>
 
@@ -136,6 +138,18 @@ inline Vec3 leaving_side(const SurfaceHit& hit, bool flat, const Vec3& wi, float
 /// vertices with probability 1/e. Below it sit all albedos up to 0.9998, whose estimates keep a
 /// finite variance (that needs albedo^2 < the survival).
 inline constexpr float kMaxSurvival = 1.f - 0x1p-12f;
+/// Probability with which throughput roulette lets a path go on whose throughput (its largest
+/// component, the refractions' 1 / eta^2 undone) is `weight`: the fourth root, up to
+/// kMaxSurvival. Survival by the throughput itself ends dim paths early, the paths that carry
+/// most of the light in the dark parts of an image (lit from far along the path, or through
+/// glass and mirrors); the root spares them at first, and once the weights that survivors carry
+/// settle (after a few vertices the throughput is about albedo^3) survival is the albedo per
+/// vertex, as with the throughput itself, so path lengths keep the same geometric tail and the
+/// same finite variance below kMaxSurvival (docs/benchmarks.md, "Russian roulette that spares
+/// dim paths").
+inline float throughput_survival(float weight) {
+  return std::min(kMaxSurvival, std::sqrt(std::sqrt(weight)));
+}
 /// Deepest cap under which update roulette keeps survival min(1, update), the rule of jobs
 /// stored when 1024 was the most a cap could be; above it (or with no cap) kMaxSurvival bounds it.
 inline constexpr uint32_t kUncappedUpdateDepth = 1024;
