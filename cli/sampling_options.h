@@ -61,11 +61,12 @@ inline void add_sampling_options(CLI::App* cmd, SamplingArgs& args) {
                   "random stream per sample)")
       ->check(CLI::IsMember({"sobol", "independent"}));
   cmd->add_option("--roulette", args.roulette,
-                  "How Russian roulette ends paths: throughput (on the path's throughput from "
-                  "--roulette-depth on, the default) or update (on each vertex's BSDF weight)")
-      ->check(CLI::IsMember({"throughput", "update"}));
+                  "How Russian roulette ends paths: root (on the fourth root of the path's "
+                  "throughput from --roulette-depth on, the default), throughput (on the "
+                  "throughput itself) or update (on each vertex's BSDF weight)")
+      ->check(CLI::IsMember({"root", "throughput", "update"}));
   cmd->add_option("--roulette-depth", args.roulette_depth,
-                  "With --roulette throughput: the vertex from which roulette may end a path "
+                  "With --roulette root or throughput: the vertex from which roulette may end a path "
                   "(0 = the camera ray's hit; default " +
                       std::to_string(kDefaultRouletteDepth) + ")")
       ->check(CLI::Range(0u, kMaxRouletteDepth));

@@ -333,7 +333,7 @@ std::string Renderer::plan() const {
   }
   out +=
       "; max_depth " + depth_name(p.max_depth) + ", " + roulette_name(p.roulette) + " roulette" +
-      (p.roulette == RouletteType::kThroughput ? " from vertex " + std::to_string(p.roulette_depth)
+      (p.roulette != RouletteType::kUpdate ? " from vertex " + std::to_string(p.roulette_depth)
                                                : std::string()) +
       ", " + sampler_name(impl_->settings.sampler) + " sampler";
   if (const SceneMotion* m = data.scene().motion.get()) {

@@ -45,10 +45,16 @@ SamplerType sampler_from_wire(wire::Sampler value) {
 }
 
 wire::Roulette roulette_to_wire(RouletteType type) {
-  return type == RouletteType::kThroughput ? wire::ROULETTE_THROUGHPUT : wire::ROULETTE_UPDATE;
+  switch (type) {
+    case RouletteType::kThroughput: return wire::ROULETTE_THROUGHPUT;
+    case RouletteType::kRoot: return wire::ROULETTE_ROOT;
+    case RouletteType::kUpdate: break;
+  }
+  return wire::ROULETTE_UPDATE;
 }
 
 RouletteType roulette_from_wire(wire::Roulette value) {
+  if (value == wire::ROULETTE_ROOT) return RouletteType::kRoot;
   if (value == wire::ROULETTE_THROUGHPUT) return RouletteType::kThroughput;
   if (value == wire::ROULETTE_UPDATE) return RouletteType::kUpdate;
   throw ProtocolError("unknown roulette " + std::to_string(static_cast<int>(value)));

@@ -19,7 +19,9 @@ namespace rayfarm::protocol {
 // rendering the first frame instead.
 // 7: RenderSettings carries the shutter of motion blur, which a version-6 worker would ignore,
 // rendering the frame unblurred (the image would no longer be the local one).
-inline constexpr uint32_t kProtocolVersion = 7;
+// 8: RenderSettings may carry the roulette rule ROULETTE_ROOT (the default), which a version-7
+// worker would refuse unit by unit.
+inline constexpr uint32_t kProtocolVersion = 8;
 
 /// Software version of this build, sent in Hello and Welcome for the logs.
 inline constexpr const char* kBuildVersion = "rayfarm 0.2.0";

@@ -32,7 +32,7 @@ void read_render_settings(const Node& n, RenderSettings& r) {
   if (auto s = n.find("roulette")) {
     const auto type = parse_roulette(read_string(*s));
     if (!type)
-      s->fail("unknown roulette " + as_written(s->json()) + "; expected throughput or update");
+      s->fail("unknown roulette " + as_written(s->json()) + "; expected root, throughput or update");
     r.roulette = *type;
   }
   if (auto d = n.find("roulette_depth"))

@@ -29,10 +29,16 @@ std::optional<SamplerType> parse_sampler(const std::string& name) {
 }
 
 const char* roulette_name(RouletteType type) {
-  return type == RouletteType::kThroughput ? "throughput" : "update";
+  switch (type) {
+    case RouletteType::kThroughput: return "throughput";
+    case RouletteType::kRoot: return "root";
+    case RouletteType::kUpdate: break;
+  }
+  return "update";
 }
 
 std::optional<RouletteType> parse_roulette(const std::string& name) {
+  if (name == "root") return RouletteType::kRoot;
   if (name == "throughput") return RouletteType::kThroughput;
   if (name == "update") return RouletteType::kUpdate;
   return std::nullopt;

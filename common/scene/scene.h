@@ -327,8 +327,11 @@ enum class RouletteType : uint8_t {
   /// From vertex roulette_depth on, survival min(1, largest component of the path's throughput
   /// times eta^2 for each refraction it went through).
   kThroughput,
+  /// As kThroughput, survival the fourth root of that (throughput_survival(),
+  /// worker/integrators/path_integrator.h): dim paths are spared at first.
+  kRoot,
 };
-/// "update" or "throughput".
+/// "update", "throughput" or "root".
 const char* roulette_name(RouletteType type);
 std::optional<RouletteType> parse_roulette(const std::string& name);
 
@@ -346,8 +349,8 @@ struct RenderSettings {
   /// fireflies, at the cost of a bias (the image no longer converges to the true one). 0 = off.
   float clamp = 0.f;
   SamplerType sampler = SamplerType::kSobol;
-  RouletteType roulette = RouletteType::kThroughput;
-  /// kThroughput: the vertex (0 = the camera ray's hit) from which roulette may end a path.
+  RouletteType roulette = RouletteType::kRoot;
+  /// kRoot, kThroughput: the vertex (0 = the camera ray's hit) from which roulette may end a path.
   uint32_t roulette_depth = kDefaultRouletteDepth;
   /// Motion blur: the shutter is open from frame + shutter_open to frame + shutter_close (in
   /// frames, open <= close); each sample is taken at its own time within it. Closed (equal) by

@@ -96,11 +96,12 @@ TEST_P(NearlyWhiteFurnace, WithoutADepthCapReadsItsExactValue) {
 INSTANTIATE_TEST_SUITE_P(
     NoCap, NearlyWhiteFurnace,
     ::testing::Values(
-        NoCapCase{IntegratorType::kNaive, RouletteType::kThroughput, SamplerType::kSobol},
-        NoCapCase{IntegratorType::kNee, RouletteType::kThroughput, SamplerType::kSobol},
+        NoCapCase{IntegratorType::kNaive, RouletteType::kRoot, SamplerType::kSobol},
+        NoCapCase{IntegratorType::kNee, RouletteType::kRoot, SamplerType::kSobol},
+        NoCapCase{IntegratorType::kMis, RouletteType::kRoot, SamplerType::kSobol},
         NoCapCase{IntegratorType::kMis, RouletteType::kThroughput, SamplerType::kSobol},
         NoCapCase{IntegratorType::kMis, RouletteType::kUpdate, SamplerType::kSobol},
-        NoCapCase{IntegratorType::kMis, RouletteType::kThroughput, SamplerType::kIndependent}),
+        NoCapCase{IntegratorType::kMis, RouletteType::kRoot, SamplerType::kIndependent}),
     [](const auto& test_info) {
       const NoCapCase& c = test_info.param;
       return std::string(integrator_name(c.integrator)) + "_" + roulette_name(c.roulette) + "_" +

@@ -1,7 +1,7 @@
 // Sampling towards specular objects (worker/integrators/specular_targets.h): which objects are
 // targets, and that the cone strategy's density is the one its samples follow. That the path
 // tracer stays unbiased with it is integrators_test.cpp's (naive, which never aims, against NEE
-// and MIS on scenes with mirror and glass).
+// and MIS on the Cornell box with its mirror and glass spheres).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -102,6 +102,10 @@ TEST(SpecularTargets, ConesSkipTargetsAroundThePointAndBelowItsSurface) {
   ASSERT_EQ(cones.count, 1u);
   EXPECT_EQ(cones.axis[0], Vec3(0.f, 0.f, 1.f));
   EXPECT_NEAR(cones.total, 2.0 * kPi * (1.0 - std::sqrt(1.0 - 1.0 / 25.0)), 1e-6);
+  // A target too small to resolve from afar is not aimed at.
+  const SpecularTargets far({{Vec3(0.f, 0.f, 40.f), 1.f}});
+  far.cones(Vec3(0.f), Vec3(0.f), cones);
+  EXPECT_EQ(cones.count, 0u);
   // A cone that reaches above the plane stays, though its axis points below it.
   const SpecularTargets low({{Vec3(4.f, 0.f, -0.5f), 1.f}});
   low.cones(Vec3(0.f), Vec3(0.f, 0.f, 1.f), cones);
@@ -112,7 +116,7 @@ TEST(SpecularTargets, ConesSkipTargetsAroundThePointAndBelowItsSurface) {
 TEST(SpecularTargets, SamplesFollowTheirDensity) {
   const SpecularTargets t({{Vec3(0.f, 0.f, 3.f), 1.f},
                            {Vec3(0.6f, 0.f, 3.f), 0.8f},
-                           {Vec3(-40.f, 2.f, 1.f), 0.5f},
+                           {Vec3(-14.f, 2.f, 1.f), 0.5f},
                            {Vec3(0.f, -1.3f, 0.f), 1.2f}});
   TargetCones cones;
   t.cones(Vec3(0.f), Vec3(0.f), cones);
@@ -140,6 +144,18 @@ TEST(SpecularTargets, SamplesFollowTheirDensity) {
     const double exact = 2.0 * kPi * cones.one_minus_cos[k];
     EXPECT_NEAR(mean, exact, z * se + 1e-6 * exact) << "cone " << k;
   }
+  // The narrowest cone aimed at holds its own samples (membership is decided in float).
+  const float d = 1.f / std::sqrt(SpecularTargets::kMinSin2) * 0.99f;
+  const SpecularTargets narrow({{Vec3(0.3f, -0.2f, 1.f) * (d / length(Vec3(0.3f, -0.2f, 1.f))),
+                                 1.f}});
+  TargetCones thin;
+  narrow.cones(Vec3(0.f), Vec3(0.f), thin);
+  ASSERT_EQ(thin.count, 1u);
+  int outside = 0;
+  for (int i = 0; i < n; ++i)
+    outside += !(thin.pdf(SpecularTargets::sample(thin, rng.next_float(), rng.next_float(),
+                                                  rng.next_float())) > 0.f);
+  EXPECT_LE(outside, n / 1000) << "samples of a narrow cone judged outside it";
   // And pdf() integrates to 1 over the sphere (uniform directions, 1 / (4 pi) each).
   double total = 0.0, total2 = 0.0;
   for (int i = 0; i < n; ++i) {

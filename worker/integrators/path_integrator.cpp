@@ -30,7 +30,10 @@ PathIntegratorFor<BsdfT>::PathIntegratorFor(const SceneData& data, const LightSe
   plan_.plain = data.plain();
   // Specular objects worth aiming at: where BSDF rays can find emitters through them, from
   // surfaces that sample lights (the naive integrator stays plain BSDF sampling).
-  if (plan_.sample_lights && plan_.emitters_reachable) {
+  // Not under update roulette, which would end aimed paths in proportion to the weight that
+  // aiming takes from them.
+  if (plan_.sample_lights && plan_.emitters_reachable &&
+      settings.roulette != RouletteType::kUpdate) {
     std::vector<bool> specular;
     for (const Material& m : data.scene().materials)
       specular.push_back(!m.textured && !m.is_emissive() && BsdfT(m).is_specular());
@@ -157,7 +160,8 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, PathSampler& sampler, PathStats& s
   };
   Vec3 radiance(0.f), beta(1.f);
   float eta_scale = 1.f;  // product of eta^2 over the refractions so far (throughput roulette)
-  const bool throughput_roulette = plan_.roulette == RouletteType::kThroughput;
+  const bool throughput_roulette = plan_.roulette != RouletteType::kUpdate;
+  const bool root_roulette = plan_.roulette == RouletteType::kRoot;
   const float update_cap = plan_.max_depth > kUncappedUpdateDepth ? kMaxSurvival : 1.f;
   bool specular_bounce = true;  // the camera ray: emitters it sees count fully
   float bsdf_pdf = 0.f;
@@ -251,7 +255,8 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, PathSampler& sampler, PathStats& s
       if (depth >= plan_.roulette_depth) {
         const float weight = max_component(beta) * eta_scale;
         if (!(weight > 0.f)) break;  // also NaN: 0 x an eta^2 that overflowed
-        const float survive = throughput_survival(weight);
+        const float survive =
+            root_roulette ? throughput_survival(weight) : std::min(kMaxSurvival, weight);
         if (!(sampler.roulette() < survive)) break;
         beta /= survive;
       } else if (!(max_component(beta) > 0.f)) {

@@ -24,7 +24,7 @@ struct IntegratorPlan {
   bool weight_emission = false;   ///< MIS weights on emitters hit by BSDF rays
   bool emitters_reachable = false;  ///< area lights or a background that BSDF rays can find
   uint32_t max_depth = 0;           ///< kUnlimitedDepth: no cap
-  RouletteType roulette = RouletteType::kThroughput;
+  RouletteType roulette = RouletteType::kRoot;
   uint32_t roulette_depth = 0;
   /// Lights are chosen through a light tree (light_selection.h): selection reads the vertex.
   bool light_tree = false;

@@ -14,6 +14,7 @@
 // sample's numbers still depend only on (seed, pixel, sample index).
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include "common/math/vec3.h"
@@ -49,6 +50,11 @@ class SpecularTargets {
  public:
   /// Most targets kept: the largest bounding spheres when a scene has more specular objects.
   static constexpr uint32_t kMaxTargets = TargetCones::kMax;
+  /// Targets whose cone is narrower (sin^2 of its half-angle below this: the object's radius
+  /// under 3% of its distance, about 0.003 sr) are not aimed at from that point. Float rounding
+  /// decides membership of directions within about 3e-7 of a cone's edge in cosine, wrongly for
+  /// some; over a cone this wide that is 1 sample in 2000 near its edge.
+  static constexpr float kMinSin2 = 1e-3f;
   /// Probability of the cone strategy at a vertex that sees at least one cone.
   static constexpr float kShare = 0.25f;
 
@@ -71,8 +77,12 @@ class SpecularTargets {
       const Vec3 d = t.center - p;
       const float d2 = dot(d, d);
       const float r2 = t.radius * t.radius;
-      if (!(d2 > r2 * 1.0001f)) continue;  // inside or on it: no cone
+      // Inside or on it: no cone; nor below float's normal range, where the axis would lose
+      // its length.
+      if (!(d2 > r2 * 1.0001f) || !(d2 >= std::numeric_limits<float>::min())) continue;
       const float sin2 = r2 / d2;
+      // A cone narrower than float's directions can resolve would not hold its own samples.
+      if (!(sin2 > kMinSin2)) continue;
       const float inv_d = 1.f / std::sqrt(d2);
       const Vec3 axis = d * inv_d;
       const float cos_max = std::sqrt(std::max(0.f, 1.f - sin2));
