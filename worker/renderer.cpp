@@ -336,6 +336,9 @@ std::string Renderer::plan() const {
       (p.roulette != RouletteType::kUpdate ? " from vertex " + std::to_string(p.roulette_depth)
                                                : std::string()) +
       ", " + sampler_name(impl_->settings.sampler) + " sampler";
+  if (p.specular_targets > 0)
+    out += fmt::format("; aims a quarter of diffuse bounces at {} mirror or glass object{}",
+                       p.specular_targets, p.specular_targets == 1 ? "" : "s");
   if (const SceneMotion* m = data.scene().motion.get()) {
     out += fmt::format("; shutter [{:g}, {:g}] frames, {} poses: ", m->times.front(),
                        m->times.back(), m->steps());

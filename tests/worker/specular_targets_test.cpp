@@ -100,7 +100,7 @@ TEST(SpecularTargets, ConesSkipTargetsAroundThePointAndBelowItsSurface) {
   EXPECT_EQ(cones.count, 2u);
   t.cones(Vec3(0.f), Vec3(0.f, 0.f, 1.f), cones);  // the one below the surface too
   ASSERT_EQ(cones.count, 1u);
-  EXPECT_EQ(cones.axis[0], Vec3(0.f, 0.f, 1.f));
+  EXPECT_EQ(cones.axis(0), Vec3(0.f, 0.f, 1.f));
   EXPECT_NEAR(cones.total, 2.0 * kPi * (1.0 - std::sqrt(1.0 - 1.0 / 25.0)), 1e-6);
   // A target too small to resolve from afar is not aimed at.
   const SpecularTargets far({{Vec3(0.f, 0.f, 40.f), 1.f}});
@@ -132,7 +132,7 @@ TEST(SpecularTargets, SamplesFollowTheirDensity) {
     const float pdf = cones.pdf(w);
     ASSERT_GT(pdf, 0.f) << "a sample outside every cone";
     for (uint32_t k = 0; k < cones.count; ++k) {
-      const double v = dot(w, cones.axis[k]) >= cones.cos_max[k] ? 1.0 / pdf : 0.0;
+      const double v = dot(w, cones.axis(k)) >= cones.cos_max[k] ? 1.0 / pdf : 0.0;
       sum[k] += v;
       sum2[k] += v * v;
     }

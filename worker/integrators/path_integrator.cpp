@@ -38,7 +38,7 @@ PathIntegratorFor<BsdfT>::PathIntegratorFor(const SceneData& data, const LightSe
     for (const Material& m : data.scene().materials)
       specular.push_back(!m.textured && !m.is_emissive() && BsdfT(m).is_specular());
     targets_ = SpecularTargets::of_scene(data.scene(), specular);
-    plan_.specular_targets = !targets_.empty();
+    plan_.specular_targets = static_cast<uint32_t>(targets_.targets().size());
   }
 }
 
@@ -227,9 +227,11 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, PathSampler& sampler, PathStats& s
     const std::array<float, 3> u = sampler.scatter(depth);
     // The specular targets' cones seen from here, if this vertex aims at them.
     TargetCones cones;
-    const bool aim = plan_.specular_targets && sample_light_here && bsdf.reflects_only() &&
-                     (targets_.cones(hit.p, dot(wo, hit.n) >= 0.f ? hit.n : -hit.n, cones),
-                      cones.count > 0);
+    bool aim = false;
+    if (plan_.specular_targets > 0 && sample_light_here && bsdf.reflects_only()) {
+      targets_.cones(hit.p, dot(wo, hit.n) >= 0.f ? hit.n : -hit.n, cones);
+      aim = cones.count > 0;
+    }
     if (sample_light_here) {
       radiance += beta * sample_light(hit, select_n, flat, wo, wo_local, frame, bsdf, light_u,
                                       aim ? &cones : nullptr, rays);

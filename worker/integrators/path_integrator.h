@@ -33,9 +33,9 @@ struct IntegratorPlan {
   bool surface = false;
   /// Every hit is flat and nothing reads a texture (SceneData::plain()).
   bool plain = false;
-  /// Non-specular vertices that only reflect mix BSDF sampling with sampling the cones of the
-  /// scene's specular objects (specular_targets.h).
-  bool specular_targets = false;
+  /// Specular objects that non-specular vertices which only reflect aim at (specular_targets.h):
+  /// their BSDF sampling is mixed with sampling these objects' cones; 0 = none.
+  uint32_t specular_targets = 0;
 };
 
 /// The path loop's variants, from what the scene uses (IntegratorPlan): each leaves out the

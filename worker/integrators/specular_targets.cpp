@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cmath>
 
+#include "common/math/transform.h"
+#include "common/math/wide.h"
+#include "common/scene/instances.h"
 #include "common/scene/motion.h"
 
 namespace rayfarm {
@@ -10,43 +13,35 @@ namespace rayfarm {
 namespace {
 
 // The bounding sphere (centre of the box, farthest point's distance) of the triangles of `mesh`
-// whose material is specular, mapped by the affine `m` (row-major 4x4; null: identity). False
-// when there is none.
+// whose material is specular, placed by `placement` (null: where they are). False when there is
+// none.
 bool specular_bounds(const TriangleMesh& mesh, const std::vector<bool>& specular,
-                     const std::array<double, 16>* m, SpecularTarget& out) {
-  const auto place = [m](const Vec3& p) {
-    if (!m) return std::array<double, 3>{p.x, p.y, p.z};
-    const auto& a = *m;
-    return std::array<double, 3>{a[0] * p.x + a[1] * p.y + a[2] * p.z + a[3],
-                                 a[4] * p.x + a[5] * p.y + a[6] * p.z + a[7],
-                                 a[8] * p.x + a[9] * p.y + a[10] * p.z + a[11]};
-  };
-  std::array<double, 3> lo{HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi{-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
-  bool any = false;
-  const size_t n = mesh.triangle_count();
+                     const Transform* placement, SpecularTarget& out) {
   const auto each_vertex = [&](auto&& f) {
-    for (size_t t = 0; t < n; ++t) {
+    for (size_t t = 0; t < mesh.triangle_count(); ++t) {
       const uint32_t mat = mesh.materials[t];
       if (mat >= specular.size() || !specular[mat]) continue;
-      for (int v = 0; v < 3; ++v) f(place(mesh.positions[mesh.indices[3 * t + v]]));
+      for (int v = 0; v < 3; ++v) {
+        const WideVec3 p = wide(mesh.positions[mesh.indices[3 * t + v]]);
+        f(placement ? placement->point(p) : p);
+      }
     }
   };
-  each_vertex([&](const std::array<double, 3>& p) {
+  WideVec3 lo{HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi{-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
+  bool any = false;
+  each_vertex([&](const WideVec3& p) {
     any = true;
-    for (int i = 0; i < 3; ++i) {
-      lo[i] = std::min(lo[i], p[i]);
-      hi[i] = std::max(hi[i], p[i]);
-    }
+    lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
+    hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
   });
   if (!any) return false;
-  const std::array<double, 3> c{0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]),
-                                0.5 * (lo[2] + hi[2])};
+  const WideVec3 c{0.5 * (lo.x + hi.x), 0.5 * (lo.y + hi.y), 0.5 * (lo.z + hi.z)};
   double r2 = 0.0;
-  each_vertex([&](const std::array<double, 3>& p) {
-    const double dx = p[0] - c[0], dy = p[1] - c[1], dz = p[2] - c[2];
-    r2 = std::max(r2, dx * dx + dy * dy + dz * dz);
+  each_vertex([&](const WideVec3& p) {
+    const WideVec3 d = p - c;
+    r2 = std::max(r2, d.x * d.x + d.y * d.y + d.z * d.z);
   });
-  out.center = Vec3(static_cast<float>(c[0]), static_cast<float>(c[1]), static_cast<float>(c[2]));
+  out.center = Vec3(static_cast<float>(c.x), static_cast<float>(c.y), static_cast<float>(c.z));
   // A little larger than exact, so that rounding in float never leaves a point of the object
   // outside its cone.
   out.radius = static_cast<float>(std::sqrt(r2) * (1.0 + 1e-5)) + 1e-6f * max_component(abs(out.center));
@@ -91,8 +86,9 @@ SpecularTargets SpecularTargets::of_scene(const Scene& scene, const std::vector<
   for (size_t i = 0; i < scene.instances.size(); ++i) {
     const Instance& inst = scene.instances[i];
     if (moving_instance[i] || inst.group >= scene.groups.size()) continue;
+    const Transform placement = instance_transform(inst);
     for (const TriangleMesh& mesh : scene.groups[inst.group].meshes)
-      if (specular_bounds(mesh, specular, &inst.world_from_object, t)) targets.push_back(t);
+      if (specular_bounds(mesh, specular, &placement, t)) targets.push_back(t);
   }
   return SpecularTargets(std::move(targets));
 }

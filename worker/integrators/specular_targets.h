@@ -28,20 +28,22 @@ struct SpecularTarget {
   float radius = 0.f;
 };
 
-/// The cones of the targets seen from one vertex.
+/// The cones of the targets seen from one vertex. Its arrays are left uninitialised (the path
+/// loop declares one at every vertex); only the first `count` entries are set.
 struct TargetCones {
   static constexpr uint32_t kMax = 8;
   uint32_t count = 0;
-  std::array<Vec3, kMax> axis;       ///< unit, towards the target's centre
-  std::array<float, kMax> cos_max;   ///< cosine of the cone's half-angle
+  std::array<float, kMax> axis_x, axis_y, axis_z;  ///< unit, towards the target's centre
+  std::array<float, kMax> cos_max;        ///< cosine of the cone's half-angle
   std::array<float, kMax> one_minus_cos;  ///< 1 - cos_max, without cancellation
-  std::array<float, kMax> cdf;       ///< running sums of the solid angles
-  float total = 0.f;                 ///< sum of the solid angles
+  std::array<float, kMax> cdf;            ///< running sums of the solid angles
+  float total = 0.f;                      ///< sum of the solid angles
 
+  Vec3 axis(uint32_t k) const { return {axis_x[k], axis_y[k], axis_z[k]}; }
   /// Density of the cone strategy at unit direction wi.
   float pdf(const Vec3& wi) const {
     uint32_t inside = 0;
-    for (uint32_t k = 0; k < count; ++k) inside += dot(wi, axis[k]) >= cos_max[k];
+    for (uint32_t k = 0; k < count; ++k) inside += dot(wi, axis(k)) >= cos_max[k];
     return inside ? static_cast<float>(inside) / total : 0.f;
   }
 };
@@ -91,7 +93,7 @@ class SpecularTargets {
         if (dot(axis, side) < -std::sqrt(sin2)) continue;
       }
       const uint32_t k = out.count++;
-      out.axis[k] = axis;
+      out.axis_x[k] = axis.x, out.axis_y[k] = axis.y, out.axis_z[k] = axis.z;
       out.cos_max[k] = cos_max;
       out.one_minus_cos[k] = sin2 / (1.f + cos_max);
       out.total += 2.f * kPi * out.one_minus_cos[k];
@@ -109,7 +111,7 @@ class SpecularTargets {
     const float cos_t = 1.f - one_minus_cos;
     const float sin_t = std::sqrt(std::max(0.f, one_minus_cos * (2.f - one_minus_cos)));
     const float phi = 2.f * kPi * u2;
-    const Frame frame(cones.axis[k]);
+    const Frame frame(cones.axis(k));
     return frame.to_world(Vec3(sin_t * std::cos(phi), sin_t * std::sin(phi), cos_t));
   }
 
