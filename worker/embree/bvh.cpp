@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "common/util/log.h"
+#include "worker/embree/build_choice.h"
 
 namespace rayfarm {
 namespace {
@@ -70,6 +71,25 @@ bool to_embree(const Ray& ray, RTCRay& r, float& t_scale) {
   r.id = 0;
   r.flags = 0;
   return true;
+}
+
+// The box of a mesh (over every pose of a moving one), for build_geometries_apart().
+BuildBox mesh_box(const Bvh::Mesh& mesh) {
+  BuildBox box;
+  if (mesh.indices->empty()) return box;
+  if (mesh.poses != nullptr) {
+    for (const std::vector<Vec3>& pose : *mesh.poses)
+      for (const Vec3& p : pose) box.add(p);
+  } else {
+    for (const Vec3& p : *mesh.positions) box.add(p);
+  }
+  return box;
+}
+
+// The build quality that selects the build of build_choice.h: Embree builds a scene's geometries
+// apart (two-level) at low quality, as one tree with spatial splits at high.
+RTCBuildQuality build_quality(const std::vector<BuildBox>& boxes) {
+  return build_geometries_apart(boxes) ? RTC_BUILD_QUALITY_LOW : RTC_BUILD_QUALITY_HIGH;
 }
 
 [[noreturn]] void fail(RTCDevice device, const std::string& what) {
@@ -135,6 +155,45 @@ struct Bvh::Impl {
     rtcSetGeometryOccludedFilterFunction(geometry.get(), filter_hit);
   }
   uint32_t instance_base = 0;  // Embree's id of instance 0 (after the spheres)
+  std::vector<BuildBox> group_boxes;  // each group's box, in its own coordinates
+
+  // The boxes of the world's geometries (each mesh, the sphere set, each instance over its
+  // poses), after the groups were added.
+  std::vector<BuildBox> world_boxes(const std::vector<Mesh>& meshes,
+                                    const std::vector<SphereInput>& spheres,
+                                    const std::vector<std::vector<SphereInput>>& sphere_poses,
+                                    const std::vector<InstanceInput>& instances) const {
+    std::vector<BuildBox> boxes;
+    for (const Mesh& mesh : meshes) boxes.push_back(mesh_box(mesh));
+    BuildBox sphere_box;
+    const auto add_spheres = [&sphere_box](const std::vector<SphereInput>& at) {
+      for (const SphereInput& s : at) {
+        sphere_box.add(s.center - Vec3(s.radius));
+        sphere_box.add(s.center + Vec3(s.radius));
+      }
+    };
+    add_spheres(spheres);
+    for (const std::vector<SphereInput>& pose : sphere_poses) add_spheres(pose);
+    boxes.push_back(sphere_box);
+    for (const InstanceInput& instance : instances) {
+      const BuildBox& local = group_boxes.at(instance.group);
+      BuildBox box;
+      const auto place = [&](const std::array<float, 12>& m) {
+        if (local.empty()) return;
+        for (int corner = 0; corner < 8; ++corner) {
+          const Vec3 c((corner & 1) ? local.hi.x : local.lo.x, (corner & 2) ? local.hi.y : local.lo.y,
+                       (corner & 4) ? local.hi.z : local.lo.z);
+          box.add(Vec3(m[0] * c.x + m[1] * c.y + m[2] * c.z + m[3],
+                       m[4] * c.x + m[5] * c.y + m[6] * c.z + m[7],
+                       m[8] * c.x + m[9] * c.y + m[10] * c.z + m[11]));
+        }
+      };
+      if (instance.poses.empty()) place(instance.world_from_object);
+      for (const std::array<float, 12>& pose : instance.poses) place(pose);
+      boxes.push_back(box);
+    }
+    return boxes;
+  }
 
   GeometryHandle new_geometry(RTCGeometryType type, const char* what) {
     GeometryHandle geometry(rtcNewGeometry(device.get(), type));
@@ -178,7 +237,12 @@ struct Bvh::Impl {
   void add_group(const std::vector<Mesh>& meshes) {
     SceneHandle group(rtcNewScene(device.get()));
     if (!group) fail(device.get(), "rtcNewScene(group)");
-    rtcSetSceneBuildQuality(group.get(), RTC_BUILD_QUALITY_HIGH);
+    std::vector<BuildBox> boxes;
+    for (const Mesh& mesh : meshes) boxes.push_back(mesh_box(mesh));
+    rtcSetSceneBuildQuality(group.get(), build_quality(boxes));
+    BuildBox all;
+    for (const BuildBox& b : boxes) all.add(b);
+    group_boxes.push_back(all);
     for (uint32_t i = 0; i < meshes.size(); ++i) {
       if (!meshes[i].indices->empty()) add_mesh_to(group.get(), meshes[i], i);
     }
@@ -250,7 +314,6 @@ Bvh::Bvh(const std::vector<Mesh>& meshes, const std::vector<SphereInput>& sphere
   rtcSetDeviceErrorFunction(impl_->device.get(), log_device_error, nullptr);
   impl_->scene.reset(rtcNewScene(impl_->device.get()));
   if (!impl_->scene) fail(impl_->device.get(), "rtcNewScene");
-  rtcSetSceneBuildQuality(impl_->scene.get(), RTC_BUILD_QUALITY_HIGH);
   // Default (non-robust) traversal, as Embree's own tutorials use: robust mode costs ~30% of the
   // traversal time; ray origins are already offset past the hit point's error bound.
   for (uint32_t i = 0; i < meshes.size(); ++i) {
@@ -265,6 +328,8 @@ Bvh::Bvh(const std::vector<Mesh>& meshes, const std::vector<SphereInput>& sphere
     for (uint32_t i = 0; i < instances.size(); ++i)
       impl_->add_instance(instances[i], impl_->instance_base + i);
   }
+  rtcSetSceneBuildQuality(impl_->scene.get(),
+                          build_quality(impl_->world_boxes(meshes, spheres, sphere_poses, instances)));
   rtcCommitScene(impl_->scene.get());
   if (rtcGetDeviceError(impl_->device.get()) != RTC_ERROR_NONE) {
     fail(impl_->device.get(), "rtcCommitScene");
