@@ -73,15 +73,19 @@ bool to_embree(const Ray& ray, RTCRay& r, float& t_scale) {
   return true;
 }
 
-// The box of a mesh (over every pose of a moving one), for build_geometries_apart().
+// The box of a mesh's triangles (over every pose of a moving one), for build_geometries_apart():
+// its vertices that triangles use, since a file may carry others.
 BuildBox mesh_box(const Bvh::Mesh& mesh) {
   BuildBox box;
-  if (mesh.indices->empty()) return box;
+  const auto add_pose = [&](const std::vector<Vec3>& positions) {
+    for (uint32_t i : *mesh.indices) {
+      if (i < positions.size()) box.add(positions[i]);
+    }
+  };
   if (mesh.poses != nullptr) {
-    for (const std::vector<Vec3>& pose : *mesh.poses)
-      for (const Vec3& p : pose) box.add(p);
+    for (const std::vector<Vec3>& pose : *mesh.poses) add_pose(pose);
   } else {
-    for (const Vec3& p : *mesh.positions) box.add(p);
+    add_pose(*mesh.positions);
   }
   return box;
 }
