@@ -42,6 +42,7 @@ struct ObjRead {
   bool faces_without_usemtl = false;   ///< a face comes before any usemtl
   std::vector<std::string> warnings;
   size_t dropped = 0;  ///< zero-area triangles
+  std::vector<uint32_t> object_starts;  ///< MeshFile::object_starts
 };
 
 constexpr uint32_t kNoMaterial = UINT32_MAX;
@@ -103,7 +104,12 @@ class ObjReader {
       out_.usemtl_has_faces.push_back(false);
     } else if (keyword == "mtllib") {
       mtllib(at, line);
-    } else if (keyword != "o" && keyword != "g" && keyword != "s") {
+    } else if (keyword == "o" || keyword == "g") {
+      // A new object or group: its triangles start here, if the one before has any.
+      const auto start = static_cast<uint32_t>(out_.mesh.materials.size());
+      const uint32_t previous = out_.object_starts.empty() ? 0 : out_.object_starts.back();
+      if (start > previous) out_.object_starts.push_back(start);
+    } else if (keyword != "s") {
       ignore(at, keyword);
     }
   }
@@ -345,7 +351,48 @@ MeshFile load_obj(const fs::path& scene_dir, const fs::path& relative, bool mate
   }
   result.mesh = std::move(obj.mesh);
   result.mesh.origin = relative.generic_string();
+  // Only starts before the last triangle begin an object (a trailing "o" names nothing).
+  const auto triangles = static_cast<uint32_t>(result.mesh.triangle_count());
+  for (uint32_t start : obj.object_starts) {
+    if (start < triangles) result.object_starts.push_back(start);
+  }
   return result;
+}
+
+std::vector<TriangleMesh> split_objects(TriangleMesh&& mesh, const std::vector<uint32_t>& starts) {
+  std::vector<TriangleMesh> parts;
+  const size_t triangles = mesh.triangle_count();
+  if (starts.empty() || starts.size() >= kMaxMeshObjects) {
+    parts.push_back(std::move(mesh));
+    return parts;
+  }
+  // Each part keeps the vertices its triangles use, in the order they are first used; `slot`
+  // maps a vertex of the whole mesh to its index in the part being built, valid when `owner`
+  // names that part.
+  std::vector<uint32_t> slot(mesh.positions.size()), owner(mesh.positions.size(), UINT32_MAX);
+  for (size_t k = 0; k <= starts.size(); ++k) {
+    const size_t first = k == 0 ? 0 : starts[k - 1];
+    const size_t last = k == starts.size() ? triangles : starts[k];
+    if (first >= last) continue;
+    TriangleMesh part;
+    part.origin = mesh.origin + " (object " + std::to_string(k + 1) + ")";
+    part.materials.assign(mesh.materials.begin() + first, mesh.materials.begin() + last);
+    part.indices.reserve(3 * (last - first));
+    for (size_t i = 3 * first; i < 3 * last; ++i) {
+      const uint32_t v = mesh.indices[i];
+      if (owner[v] != k) {
+        owner[v] = static_cast<uint32_t>(k);
+        slot[v] = static_cast<uint32_t>(part.positions.size());
+        part.positions.push_back(mesh.positions[v]);
+        if (!mesh.normals.empty()) part.normals.push_back(mesh.normals[v]);
+        if (!mesh.uvs.empty()) part.uvs.push_back(mesh.uvs[v]);
+        if (!mesh.tangents.empty()) part.tangents.push_back(mesh.tangents[v]);
+      }
+      part.indices.push_back(slot[v]);
+    }
+    parts.push_back(std::move(part));
+  }
+  return parts;
 }
 
 }  // namespace rayfarm

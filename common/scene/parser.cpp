@@ -391,7 +391,8 @@ class SceneReader {
       return;
     }
     if (auto t = n.find("transform")) transform_mesh(loaded.mesh, read_transform(*t), *t);
-    meshes_->push_back(std::move(loaded.mesh));
+    for (TriangleMesh& part : split_objects(std::move(loaded.mesh), loaded.object_starts))
+      meshes_->push_back(std::move(part));
   }
 
   /// The mesh file, relative to the scene's folder; it must stay inside and exist.

@@ -39,7 +39,20 @@ struct MeshFile {
   std::vector<Material> materials;           ///< named "<file>:<name>" (MTL ones, or "default")
   std::vector<std::filesystem::path> files;  ///< files read, relative to the scene
   std::vector<std::string> warnings;         ///< problems that were tolerated, with their place
+  /// OBJ: the first triangle of each object ("o") or group ("g") after the first, ascending;
+  /// empty when the file holds one (split_objects() makes each a mesh of its own).
+  std::vector<uint32_t> object_starts;
 };
+
+/// Most objects of an OBJ file that become meshes of their own; a file with more stays one mesh.
+inline constexpr size_t kMaxMeshObjects = 4096;
+
+/// The meshes of `mesh`'s objects, `starts` their first triangles (MeshFile::object_starts): each
+/// keeps its triangles in order and the vertices they use (with their normals, texture
+/// coordinates and tangents), its origin "<origin> (object N)". The mesh itself when `starts` is
+/// empty or holds kMaxMeshObjects or more. Apart, each object gets a tree of its own in the BVH
+/// where objects keep to their own space (worker/embree/build_choice.h).
+std::vector<TriangleMesh> split_objects(TriangleMesh&& mesh, const std::vector<uint32_t>& starts);
 
 /// Resolves `reference` (as written in a file) against `base_dir`, both relative to the scene
 /// folder. Returns the lexically normal path relative to the scene folder, or nullopt with `why`

@@ -9,6 +9,7 @@
 
 #include "common/math/transform.h"
 #include "common/scene/parser.h"
+#include "common/scene/scene_files.h"
 #include "tests/support/temp_dir.h"
 
 namespace rayfarm {
@@ -199,6 +200,52 @@ TEST(ObjAttributesTest, PlainFacesKeepThePositionsAsWritten) {
   EXPECT_EQ(mesh.positions.size(), 4u);
   EXPECT_TRUE(mesh.uvs.empty());
   EXPECT_TRUE(mesh.normals.empty());
+}
+
+TEST(ObjObjectsTest, EachObjectOrGroupBecomesAMeshOfItsOwn) {
+  TempDir dir;
+  // Three objects over shared vertex lists: a wall (two triangles, with texture coordinates),
+  // a group with one triangle, and a trailing "o" with no faces, which names nothing.
+  dir.write("m.mtl", "newmtl a\nKd 1 0 0\nnewmtl b\nKd 0 1 0\n");
+  dir.write("m.obj",
+            "mtllib m.mtl\n"
+            "v 0 0 0\nv 4 0 0\nv 4 4 0\nv 0 4 0\nv 9 9 9\nv 1 1 1\nv 2 1 1\nv 1 2 1\n"
+            "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+            "o wall\nusemtl a\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n"
+            "g block\nusemtl b\nf 6 7 8\n"
+            "o empty\n");
+  const Scene scene = load_one_shape(dir, R"({"type": "mesh", "file": "m.obj"})");
+  ASSERT_EQ(scene.meshes.size(), 2u);
+  const TriangleMesh& wall = scene.meshes[0];
+  const TriangleMesh& block = scene.meshes[1];
+  ASSERT_EQ(wall.triangle_count(), 2u);
+  ASSERT_EQ(block.triangle_count(), 1u);
+  // Each keeps the vertices its triangles use, and nothing else (not v 9 9 9).
+  EXPECT_EQ(wall.positions.size(), 4u);
+  EXPECT_EQ(wall.uvs.size(), 4u);
+  ASSERT_EQ(block.positions.size(), 3u);
+  EXPECT_EQ(block.uvs.size(), 3u);  // the file's welded vertices all carry one
+  EXPECT_EQ(block.positions[block.indices[0]], Vec3(1, 1, 1));
+  EXPECT_EQ(block.positions[block.indices[2]], Vec3(1, 2, 1));
+  EXPECT_EQ(wall.positions[wall.indices[5]], Vec3(0, 4, 0));
+  EXPECT_EQ(wall.uvs[wall.indices[5]], Vec2(0, 1));
+  // Materials follow their triangles; origins say which object.
+  EXPECT_EQ(scene.materials[wall.materials[0]].name, "m.obj:a");
+  EXPECT_EQ(scene.materials[block.materials[0]].name, "m.obj:b");
+  EXPECT_EQ(wall.origin, "m.obj (object 1)");
+  EXPECT_EQ(block.origin, "m.obj (object 2)");
+}
+
+TEST(ObjObjectsTest, OneObjectOrTooManyStayOneMesh) {
+  TempDir dir;
+  dir.write("one.obj", "o only\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 3 2 1\n");
+  EXPECT_EQ(load_one_shape(dir, R"({"type": "mesh", "file": "one.obj"})").meshes.size(), 1u);
+  std::string many = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+  for (size_t i = 0; i <= kMaxMeshObjects; ++i) many += "o x\nf 1 2 3\n";
+  dir.write("many.obj", many);
+  const Scene scene = load_one_shape(dir, R"({"type": "mesh", "file": "many.obj"})");
+  ASSERT_EQ(scene.meshes.size(), 1u);
+  EXPECT_EQ(scene.meshes[0].triangle_count(), kMaxMeshObjects + 1);
 }
 
 TEST(CameraInputTest, OrthographicTakesAViewHeightInsteadOfAFieldOfView) {

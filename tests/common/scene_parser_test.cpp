@@ -299,9 +299,16 @@ TEST(SceneBundled, MaterialPreviewHasOneSphereOfEveryKind) {
 TEST(SceneBundled, EmbreeCornellMatchesTheTutorial) {
   const Scene scene = load_scene(bundled("embree-cornell"));
   EXPECT_TRUE(scene.warnings.empty()) << warnings_of(scene);
-  ASSERT_EQ(scene.meshes.size(), 1u);
-  EXPECT_EQ(scene.meshes[0].triangle_count(), 34u);  // 17 quads: the light and front are comments
-  EXPECT_EQ(scene.meshes[0].origin, "cornell_box.obj");
+  // One mesh per object that has faces: floor, ceiling, back, green and red walls, two blocks
+  // (the light's and the front wall's faces are comments).
+  ASSERT_EQ(scene.meshes.size(), 7u);
+  size_t triangles = 0;
+  for (const TriangleMesh& m : scene.meshes) triangles += m.triangle_count();
+  EXPECT_EQ(triangles, 34u);  // 17 quads
+  EXPECT_EQ(scene.meshes[0].triangle_count(), 6u);  // the floor: 3 quads
+  EXPECT_EQ(scene.meshes[6].triangle_count(), 10u);  // the tall block
+  EXPECT_EQ(scene.meshes[0].origin, "cornell_box.obj (object 1)");
+  EXPECT_EQ(scene.meshes[6].origin, "cornell_box.obj (object 7)");
   EXPECT_TRUE(scene.spheres.empty());
   ASSERT_EQ(scene.point_lights.size(), 1u);
   EXPECT_EQ(scene.point_lights[0].position, Vec3(213.f, 300.f, 227.f));
