@@ -5,8 +5,10 @@
 #include <gtest/gtest.h>
 
 #include <limits>
+#include <optional>
 #include <vector>
 
+#include "worker/embree/bvh.h"
 #include "worker/embree/build_choice.h"
 
 namespace rayfarm {
@@ -64,6 +66,53 @@ TEST(BuildChoice, FewerThanTwoGeometriesOrDegenerateBoxesKeepOneTree) {
   EXPECT_FALSE(build_geometries_apart({box({-inf, 0, 0}, {0, 1, 1}), box({0, 0, 0}, {1, 1, 1})}));
   EXPECT_FALSE(
       build_geometries_apart({box({-3e38f, 0, 0}, {0, 1, 1}), box({0, 0, 0}, {3e38f, 1, 1})}));
+}
+
+}  // namespace
+}  // namespace rayfarm
+
+namespace rayfarm {
+namespace {
+
+// Where two geometries' surfaces coincide, a ray meets both at exactly the same distance and
+// reports whichever the tree's traversal finds first. The two-level build must make that the
+// same tree on every build (every worker, every run), or farm images could differ from local ones
+// in such pixels.
+TEST(BuildChoice, CoincidentSurfacesReportTheSameHitOnEveryBuild) {
+  // 32 tiles apart from each other on a plane, each there twice (two geometries).
+  std::vector<std::vector<Vec3>> positions;
+  const std::vector<uint32_t> indices{0, 1, 2, 0, 2, 3};
+  for (int copy = 0; copy < 2; ++copy) {
+    for (int i = 0; i < 32; ++i) {
+      const float x = 20.f * float(i % 8), z = 20.f * float(i / 8);
+      positions.push_back({{x, 0, z}, {x + 10, 0, z}, {x + 10, 0, z + 10}, {x, 0, z + 10}});
+    }
+  }
+  std::vector<Bvh::Mesh> meshes;
+  std::vector<BuildBox> boxes;
+  for (const std::vector<Vec3>& p : positions) {
+    meshes.push_back(Bvh::Mesh{&p, &indices});
+    BuildBox b;
+    for (const Vec3& v : p) b.add(v);
+    boxes.push_back(b);
+  }
+  ASSERT_TRUE(build_geometries_apart(boxes));  // the build this test is about
+  const auto hits = [&] {
+    const Bvh bvh(meshes, {});
+    std::vector<uint32_t> found;
+    for (int i = 0; i < 32; ++i) {
+      for (float u : {2.5f, 5.f, 7.5f}) {
+        const Ray ray{Vec3(20.f * float(i % 8) + u, 5.f, 20.f * float(i / 8) + 10.f - u),
+                      Vec3(0.f, -1.f, 0.f)};
+        const std::optional<RayHit> hit = bvh.intersect(ray);
+        found.push_back(hit ? hit->geom * 2 + hit->prim : UINT32_MAX);
+      }
+    }
+    return found;
+  };
+  const std::vector<uint32_t> first = hits();
+  for (uint32_t h : first) EXPECT_NE(h, UINT32_MAX);
+  for (int build = 0; build < 30; ++build) ASSERT_EQ(hits(), first) << "build " << build;
 }
 
 }  // namespace

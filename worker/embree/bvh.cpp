@@ -1,6 +1,7 @@
 #include "worker/embree/bvh.h"
 
 #include <embree3/rtcore.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <cmath>
@@ -94,6 +95,21 @@ BuildBox mesh_box(const Bvh::Mesh& mesh) {
 // apart (two-level) at low quality, as one tree with spatial splits at high.
 RTCBuildQuality build_quality(const std::vector<BuildBox>& boxes) {
   return build_geometries_apart(boxes) ? RTC_BUILD_QUALITY_LOW : RTC_BUILD_QUALITY_HIGH;
+}
+
+// Builds `scene`'s BVH. The two-level build gathers its geometries' trees into a list in
+// parallel, in the order threads happen to finish, and that order can shape the top of the tree
+// (where boxes tie) and so decide which of two surfaces at exactly the same distance a ray
+// reports. Built on one thread it gathers them in geometry order, and every worker builds the
+// same tree. (It is the fast build: 29 ms on one thread for 80,000 triangles, where the
+// spatial-split build takes 75 ms on two.)
+void commit_scene(RTCScene scene, RTCBuildQuality quality) {
+  if (quality == RTC_BUILD_QUALITY_LOW) {
+    tbb::task_arena one_thread(1);
+    one_thread.execute([scene] { rtcCommitScene(scene); });
+  } else {
+    rtcCommitScene(scene);
+  }
 }
 
 [[noreturn]] void fail(RTCDevice device, const std::string& what) {
@@ -243,14 +259,15 @@ struct Bvh::Impl {
     if (!group) fail(device.get(), "rtcNewScene(group)");
     std::vector<BuildBox> boxes;
     for (const Mesh& mesh : meshes) boxes.push_back(mesh_box(mesh));
-    rtcSetSceneBuildQuality(group.get(), build_quality(boxes));
+    const RTCBuildQuality quality = build_quality(boxes);
+    rtcSetSceneBuildQuality(group.get(), quality);
     BuildBox all;
     for (const BuildBox& b : boxes) all.add(b);
     group_boxes.push_back(all);
     for (uint32_t i = 0; i < meshes.size(); ++i) {
       if (!meshes[i].indices->empty()) add_mesh_to(group.get(), meshes[i], i);
     }
-    rtcCommitScene(group.get());
+    commit_scene(group.get(), quality);
     if (rtcGetDeviceError(device.get()) != RTC_ERROR_NONE) fail(device.get(), "group commit");
     groups.push_back(std::move(group));
   }
@@ -332,9 +349,10 @@ Bvh::Bvh(const std::vector<Mesh>& meshes, const std::vector<SphereInput>& sphere
     for (uint32_t i = 0; i < instances.size(); ++i)
       impl_->add_instance(instances[i], impl_->instance_base + i);
   }
-  rtcSetSceneBuildQuality(impl_->scene.get(),
-                          build_quality(impl_->world_boxes(meshes, spheres, sphere_poses, instances)));
-  rtcCommitScene(impl_->scene.get());
+  const RTCBuildQuality quality =
+      build_quality(impl_->world_boxes(meshes, spheres, sphere_poses, instances));
+  rtcSetSceneBuildQuality(impl_->scene.get(), quality);
+  commit_scene(impl_->scene.get(), quality);
   if (rtcGetDeviceError(impl_->device.get()) != RTC_ERROR_NONE) {
     fail(impl_->device.get(), "rtcCommitScene");
   }
