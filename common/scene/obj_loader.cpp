@@ -108,7 +108,9 @@ class ObjReader {
       // A new object or group: its triangles start here, if the one before has any.
       const auto start = static_cast<uint32_t>(out_.mesh.materials.size());
       const uint32_t previous = out_.object_starts.empty() ? 0 : out_.object_starts.back();
-      if (start > previous) out_.object_starts.push_back(start);
+      // One past the most that split_objects() splits is enough to know the file has too many.
+      if (start > previous && out_.object_starts.size() <= kMaxMeshObjects)
+        out_.object_starts.push_back(start);
     } else if (keyword != "s") {
       ignore(at, keyword);
     }
@@ -356,6 +358,7 @@ MeshFile load_obj(const fs::path& scene_dir, const fs::path& relative, bool mate
   for (uint32_t start : obj.object_starts) {
     if (start < triangles) result.object_starts.push_back(start);
   }
+  if (result.object_starts.size() >= kMaxMeshObjects) result.object_starts.clear();
   return result;
 }
 

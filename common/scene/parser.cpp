@@ -391,6 +391,8 @@ class SceneReader {
       return;
     }
     if (auto t = n.find("transform")) transform_mesh(loaded.mesh, read_transform(*t), *t);
+    if (split_meshes_ + loaded.object_starts.size() >= kMaxSplitMeshes) loaded.object_starts = {};
+    if (!loaded.object_starts.empty()) split_meshes_ += loaded.object_starts.size() + 1;
     for (TriangleMesh& part : split_objects(std::move(loaded.mesh), loaded.object_starts))
       meshes_->push_back(std::move(part));
   }
@@ -425,6 +427,7 @@ class SceneReader {
   std::map<std::string, uint32_t> material_index_;
   TextureReader textures_;
   std::vector<TriangleMesh>* meshes_ = &scene_.meshes;  // where shapes go: the world or a group
+  size_t split_meshes_ = 0;  // meshes that OBJ objects became so far (kMaxSplitMeshes)
   std::map<std::string, uint32_t> group_index_;
   InstanceBudget instance_budget_;
 };

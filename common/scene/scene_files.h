@@ -44,8 +44,14 @@ struct MeshFile {
   std::vector<uint32_t> object_starts;
 };
 
-/// Most objects of an OBJ file that become meshes of their own; a file with more stays one mesh.
+/// Most objects of an OBJ file that become meshes of their own; a file with more stays one mesh
+/// (MeshFile::object_starts is then empty).
 inline constexpr size_t kMaxMeshObjects = 4096;
+/// Most meshes that the objects of a scene's OBJ files may become in all; the files read after
+/// the budget is spent stay one mesh each. Each mesh is an Embree geometry on every worker: the
+/// budget keeps a small scene naming a file of thousands of one-triangle objects many times from
+/// making the master and the workers hold a mesh per triangle.
+inline constexpr size_t kMaxSplitMeshes = 65536;
 
 /// The meshes of `mesh`'s objects, `starts` their first triangles (MeshFile::object_starts): each
 /// keeps its triangles in order and the vertices they use (with their normals, texture

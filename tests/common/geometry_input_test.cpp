@@ -240,12 +240,35 @@ TEST(ObjObjectsTest, OneObjectOrTooManyStayOneMesh) {
   TempDir dir;
   dir.write("one.obj", "o only\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 3 2 1\n");
   EXPECT_EQ(load_one_shape(dir, R"({"type": "mesh", "file": "one.obj"})").meshes.size(), 1u);
-  std::string many = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
-  for (size_t i = 0; i <= kMaxMeshObjects; ++i) many += "o x\nf 1 2 3\n";
-  dir.write("many.obj", many);
+  // Exactly the most objects that are split, and one more.
+  std::string most = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+  for (size_t i = 0; i < kMaxMeshObjects; ++i) most += "o x\nf 1 2 3\n";
+  dir.write("most.obj", most);
+  dir.write("many.obj", most + "o x\nf 1 2 3\n");
+  EXPECT_EQ(load_one_shape(dir, R"({"type": "mesh", "file": "most.obj"})").meshes.size(),
+            kMaxMeshObjects);
   const Scene scene = load_one_shape(dir, R"({"type": "mesh", "file": "many.obj"})");
   ASSERT_EQ(scene.meshes.size(), 1u);
   EXPECT_EQ(scene.meshes[0].triangle_count(), kMaxMeshObjects + 1);
+}
+
+TEST(ObjObjectsTest, AScenesSplitMeshesHaveABudget) {
+  // A small scene naming a file of 4,096 one-triangle objects again and again: once the split
+  // meshes would pass kMaxSplitMeshes, the files stay whole.
+  TempDir dir;
+  std::string most = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+  for (size_t i = 0; i < kMaxMeshObjects; ++i) most += "o x\nf 1 2 3\n";
+  dir.write("most.obj", most);
+  const size_t files = kMaxSplitMeshes / kMaxMeshObjects + 2;
+  std::string shapes;
+  for (size_t i = 0; i < files; ++i)
+    shapes += std::string(i ? ", " : "") + R"({"type": "mesh", "file": "most.obj"})";
+  const Scene scene = load_one_shape(dir, shapes);
+  const size_t split = kMaxSplitMeshes / kMaxMeshObjects;
+  EXPECT_EQ(scene.meshes.size(), split * kMaxMeshObjects + (files - split));
+  size_t triangles = 0;
+  for (const TriangleMesh& m : scene.meshes) triangles += m.triangle_count();
+  EXPECT_EQ(triangles, files * kMaxMeshObjects);
 }
 
 TEST(CameraInputTest, OrthographicTakesAViewHeightInsteadOfAFieldOfView) {
