@@ -7,13 +7,14 @@
 #   shared2  two meshes of 10,000 small triangles each, both scattered through the whole room
 #            (their boxes overlap: built as one tree);
 #   shared400  400 meshes of 50 such triangles (likewise).
-# With two build folders it alternates them, round by round (for a before/after comparison).
+# With two build folders it alternates them, round by round, and prints the second's speed over
+# the first's (a before/after comparison: bench/bvh_build.sh BEFORE AFTER).
 #
 # Usage: bench/bvh_build.sh [BUILD_DIR [OTHER_BUILD_DIR]] [--rounds R] [--threads T]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 builds=()
-rounds=3
+rounds=5
 threads=2
 while [[ $# -gt 0 ]]; do
   case "$1" in
@@ -116,7 +117,7 @@ for s in "${scenes[@]}"; do
     meds+=("$m")
   done
   if [[ ${#builds[@]} -eq 2 ]]; then
-    line="$line  ratio $(awk -v a="${meds[-2]}" -v b="${meds[-1]}" 'BEGIN{printf "%.2f", a/b}')"
+    line="$line  ratio $(awk -v a="${meds[-1]}" -v b="${meds[-2]}" 'BEGIN{printf "%.2f", a/b}')"
   fi
   echo "$line"
   unset figures
