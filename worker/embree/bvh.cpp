@@ -101,8 +101,8 @@ RTCBuildQuality build_quality(const std::vector<BuildBox>& boxes) {
 // parallel, in the order threads happen to finish, and that order can shape the top of the tree
 // (where boxes tie) and so decide which of two surfaces at exactly the same distance a ray
 // reports. Built on one thread it gathers them in geometry order, and every worker builds the
-// same tree. (It is the fast build: 29 ms on one thread for 80,000 triangles, where the
-// spatial-split build takes 75 ms on two.)
+// same tree. (It is the fast build: 29 ms on two threads for 80,000 triangles, where the
+// spatial-split build takes 75 ms.)
 void commit_scene(RTCScene scene, RTCBuildQuality quality) {
   if (quality == RTC_BUILD_QUALITY_LOW) {
     tbb::task_arena one_thread(1);
