@@ -43,6 +43,7 @@ struct ObjRead {
   std::vector<std::string> warnings;
   size_t dropped = 0;  ///< zero-area triangles
   std::vector<uint32_t> object_starts;  ///< MeshFile::object_starts
+  std::vector<std::string> object_names{""};  ///< one per object: the o or g line's name, or ""
 };
 
 constexpr uint32_t kNoMaterial = UINT32_MAX;
@@ -105,12 +106,18 @@ class ObjReader {
     } else if (keyword == "mtllib") {
       mtllib(at, line);
     } else if (keyword == "o" || keyword == "g") {
-      // A new object or group: its triangles start here, if the one before has any.
+      // A new object or group: its triangles start here, if the one before has any; if not, this
+      // line names the one that has not begun. One past the most that split_objects() splits is
+      // enough to know the file has too many.
       const auto start = static_cast<uint32_t>(out_.mesh.materials.size());
       const uint32_t previous = out_.object_starts.empty() ? 0 : out_.object_starts.back();
-      // One past the most that split_objects() splits is enough to know the file has too many.
-      if (start > previous && out_.object_starts.size() <= kMaxMeshObjects)
+      std::string name(scene_text::rest_after_keyword(line, keyword));
+      if (start == previous) {
+        out_.object_names.back() = std::move(name);
+      } else if (out_.object_starts.size() <= kMaxMeshObjects) {
         out_.object_starts.push_back(start);
+        out_.object_names.push_back(std::move(name));
+      }
     } else if (keyword != "s") {
       ignore(at, keyword);
     }
@@ -355,14 +362,18 @@ MeshFile load_obj(const fs::path& scene_dir, const fs::path& relative, bool mate
   result.mesh.origin = relative.generic_string();
   // Only starts before the last triangle begin an object (a trailing "o" names nothing).
   const auto triangles = static_cast<uint32_t>(result.mesh.triangle_count());
-  for (uint32_t start : obj.object_starts) {
-    if (start < triangles) result.object_starts.push_back(start);
-  }
+  for (size_t k = 0; k < obj.object_starts.size() && obj.object_starts[k] < triangles; ++k)
+    result.object_starts.push_back(obj.object_starts[k]);
   if (result.object_starts.size() >= kMaxMeshObjects) result.object_starts.clear();
+  if (!result.object_starts.empty()) {
+    result.object_names.assign(obj.object_names.begin(),
+                               obj.object_names.begin() + result.object_starts.size() + 1);
+  }
   return result;
 }
 
-std::vector<TriangleMesh> split_objects(TriangleMesh&& mesh, const std::vector<uint32_t>& starts) {
+std::vector<TriangleMesh> split_objects(TriangleMesh&& mesh, const std::vector<uint32_t>& starts,
+                                        const std::vector<std::string>& names) {
   std::vector<TriangleMesh> parts;
   const size_t triangles = mesh.triangle_count();
   if (starts.empty() || starts.size() >= kMaxMeshObjects) {
@@ -378,7 +389,8 @@ std::vector<TriangleMesh> split_objects(TriangleMesh&& mesh, const std::vector<u
     const size_t last = k == starts.size() ? triangles : starts[k];
     if (first >= last) continue;
     TriangleMesh part;
-    part.origin = mesh.origin + " (object " + std::to_string(k + 1) + ")";
+    const bool named = k < names.size() && !names[k].empty();
+    part.origin = mesh.origin + " (object " + (named ? in_quotes(names[k]) : std::to_string(k + 1)) + ")";
     part.materials.assign(mesh.materials.begin() + first, mesh.materials.begin() + last);
     part.indices.reserve(3 * (last - first));
     for (size_t i = 3 * first; i < 3 * last; ++i) {

@@ -393,8 +393,7 @@ class SceneReader {
     if (auto t = n.find("transform")) transform_mesh(loaded.mesh, read_transform(*t), *t);
     if (split_meshes_ + loaded.object_starts.size() >= kMaxSplitMeshes) loaded.object_starts = {};
     if (!loaded.object_starts.empty()) split_meshes_ += loaded.object_starts.size() + 1;
-    for (TriangleMesh& part : split_objects(std::move(loaded.mesh), loaded.object_starts))
-      meshes_->push_back(std::move(part));
+    for (TriangleMesh& part : split_objects(std::move(loaded))) meshes_->push_back(std::move(part));
   }
 
   /// The mesh file, relative to the scene's folder; it must stay inside and exist.

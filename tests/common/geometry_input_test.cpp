@@ -232,8 +232,15 @@ TEST(ObjObjectsTest, EachObjectOrGroupBecomesAMeshOfItsOwn) {
   // Materials follow their triangles; origins say which object.
   EXPECT_EQ(scene.materials[wall.materials[0]].name, "m.obj:a");
   EXPECT_EQ(scene.materials[block.materials[0]].name, "m.obj:b");
-  EXPECT_EQ(wall.origin, "m.obj (object 1)");
-  EXPECT_EQ(block.origin, "m.obj (object 2)");
+  EXPECT_EQ(wall.origin, "m.obj (object \"wall\")");
+  EXPECT_EQ(block.origin, "m.obj (object \"block\")");
+  // Faces before any o or g are an object without a name; of two names in a row, the later one
+  // names the faces that follow.
+  dir.write("n.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\no first\no second\nf 3 2 1\n");
+  const Scene named = load_one_shape(dir, R"({"type": "mesh", "file": "n.obj"})");
+  ASSERT_EQ(named.meshes.size(), 2u);
+  EXPECT_EQ(named.meshes[0].origin, "n.obj (object 1)");
+  EXPECT_EQ(named.meshes[1].origin, "n.obj (object \"second\")");
 }
 
 TEST(ObjObjectsTest, OneObjectOrTooManyStayOneMesh) {

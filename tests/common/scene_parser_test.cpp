@@ -307,8 +307,8 @@ TEST(SceneBundled, EmbreeCornellMatchesTheTutorial) {
   EXPECT_EQ(triangles, 34u);  // 17 quads
   EXPECT_EQ(scene.meshes[0].triangle_count(), 6u);  // the floor: 3 quads
   EXPECT_EQ(scene.meshes[6].triangle_count(), 10u);  // the tall block
-  EXPECT_EQ(scene.meshes[0].origin, "cornell_box.obj (object 1)");
-  EXPECT_EQ(scene.meshes[6].origin, "cornell_box.obj (object 7)");
+  EXPECT_EQ(scene.meshes[0].origin, "cornell_box.obj (object \"floor\")");
+  EXPECT_EQ(scene.meshes[6].origin, "cornell_box.obj (object \"tall_block\")");
   EXPECT_TRUE(scene.spheres.empty());
   ASSERT_EQ(scene.point_lights.size(), 1u);
   EXPECT_EQ(scene.point_lights[0].position, Vec3(213.f, 300.f, 227.f));
