@@ -43,7 +43,7 @@ struct ObjRead {
   std::vector<std::string> warnings;
   size_t dropped = 0;  ///< zero-area triangles
   std::vector<uint32_t> object_starts;  ///< MeshFile::object_starts
-  std::vector<std::string> object_names{""};  ///< one per object: the o or g line's name, or ""
+  std::vector<std::string> object_names{""};  ///< MeshFile::object_names
 };
 
 constexpr uint32_t kNoMaterial = UINT32_MAX;
@@ -111,7 +111,8 @@ class ObjReader {
       // enough to know the file has too many.
       const auto start = static_cast<uint32_t>(out_.mesh.materials.size());
       const uint32_t previous = out_.object_starts.empty() ? 0 : out_.object_starts.back();
-      std::string name(scene_text::rest_after_keyword(line, keyword));
+      const std::string_view written = scene_text::rest_after_keyword(line, keyword);
+      std::string name = written.empty() ? std::string() : in_quotes(written);  // shortened
       if (start == previous) {
         out_.object_names.back() = std::move(name);
       } else if (out_.object_starts.size() <= kMaxMeshObjects) {
@@ -390,7 +391,7 @@ std::vector<TriangleMesh> split_objects(TriangleMesh&& mesh, const std::vector<u
     if (first >= last) continue;
     TriangleMesh part;
     const bool named = k < names.size() && !names[k].empty();
-    part.origin = mesh.origin + " (object " + (named ? in_quotes(names[k]) : std::to_string(k + 1)) + ")";
+    part.origin = mesh.origin + " (object " + (named ? names[k] : std::to_string(k + 1)) + ")";
     part.materials.assign(mesh.materials.begin() + first, mesh.materials.begin() + last);
     part.indices.reserve(3 * (last - first));
     for (size_t i = 3 * first; i < 3 * last; ++i) {

@@ -42,7 +42,8 @@ struct MeshFile {
   /// OBJ: the first triangle of each object ("o") or group ("g") after the first, ascending;
   /// empty when the file holds one (split_objects() makes each a mesh of its own).
   std::vector<uint32_t> object_starts;
-  /// With object_starts: each object's name (its o or g line's), "" where it has none.
+  /// With object_starts: each object's name (its o or g line's, quoted and shortened as messages
+  /// show names), "" where it has none.
   std::vector<std::string> object_names;
 };
 
@@ -57,8 +58,8 @@ inline constexpr size_t kMaxSplitMeshes = 65536;
 
 /// The meshes of `mesh`'s objects, `starts` their first triangles (MeshFile::object_starts): each
 /// keeps its triangles in order and the vertices they use (with their normals, texture
-/// coordinates and tangents), its origin `<origin> (object "NAME")` with its name from `names`,
-/// or `<origin> (object N)` (N from 1) without one. The mesh itself when `starts` is empty or
+/// coordinates and tangents), its origin `<origin> (object NAME)` with its (quoted) name from
+/// `names`, or `<origin> (object N)` (N from 1) without one. The mesh itself when `starts` is empty or
 /// holds kMaxMeshObjects or more. Apart, each object gets a tree of its own in the BVH where
 /// objects keep to their own space (worker/embree/build_choice.h).
 std::vector<TriangleMesh> split_objects(TriangleMesh&& mesh, const std::vector<uint32_t>& starts,
