@@ -202,6 +202,13 @@ TEST(ObjAttributesTest, PlainFacesKeepThePositionsAsWritten) {
   EXPECT_TRUE(mesh.normals.empty());
 }
 
+// An OBJ file of `count` objects, each one triangle over the same three vertices.
+std::string one_triangle_objects(size_t count) {
+  std::string text = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+  for (size_t i = 0; i < count; ++i) text += "o x\nf 1 2 3\n";
+  return text;
+}
+
 TEST(ObjObjectsTest, EachObjectOrGroupBecomesAMeshOfItsOwn) {
   TempDir dir;
   // Three objects over shared vertex lists: a wall (two triangles, with texture coordinates),
@@ -248,8 +255,7 @@ TEST(ObjObjectsTest, OneObjectOrTooManyStayOneMesh) {
   dir.write("one.obj", "o only\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 3 2 1\n");
   EXPECT_EQ(load_one_shape(dir, R"({"type": "mesh", "file": "one.obj"})").meshes.size(), 1u);
   // Exactly the most objects that are split, and one more.
-  std::string most = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
-  for (size_t i = 0; i < kMaxMeshObjects; ++i) most += "o x\nf 1 2 3\n";
+  const std::string most = one_triangle_objects(kMaxMeshObjects);
   dir.write("most.obj", most);
   dir.write("many.obj", most + "o x\nf 1 2 3\n");
   EXPECT_EQ(load_one_shape(dir, R"({"type": "mesh", "file": "most.obj"})").meshes.size(),
@@ -263,9 +269,7 @@ TEST(ObjObjectsTest, AScenesSplitMeshesHaveABudget) {
   // A small scene naming a file of 4,096 one-triangle objects again and again: once the split
   // meshes would pass kMaxSplitMeshes, the files stay whole.
   TempDir dir;
-  std::string most = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
-  for (size_t i = 0; i < kMaxMeshObjects; ++i) most += "o x\nf 1 2 3\n";
-  dir.write("most.obj", most);
+  dir.write("most.obj", one_triangle_objects(kMaxMeshObjects));
   const size_t files = kMaxSplitMeshes / kMaxMeshObjects + 2;
   std::string shapes;
   for (size_t i = 0; i < files; ++i)
