@@ -610,5 +610,36 @@ TEST(LightSetTest, PointLightGivesIntensityOverDistanceSquared) {
   }
 }
 
+TEST(LightSetTest, OnlyAChoiceOrAnExtentReadsTheNumbers) {
+  // One point light: sample() gives the same sample whatever its numbers, so the path sampler
+  // may leave them out (PathSampler::light_bits).
+  SceneSpec point_only;
+  point_only.with_square = point_only.with_sphere = false;
+  const Lights one{point_only};
+  ASSERT_EQ(one.set.size(), 1u);
+  EXPECT_FALSE(one.set.reads_numbers());
+  const Vec3 ref{-1.f, 0.5f, 0.f};
+  LightSample zero;
+  ASSERT_TRUE(one.set.sample(ref, Vec3(0.f), SelectionNumber::from_float(0.f), 0.f, 0.f, zero));
+  Pcg32 rng(11, 2);
+  for (int k = 0; k < 50; ++k) {
+    LightSample out;
+    ASSERT_TRUE(draw(one.set, ref, rng, out));
+    EXPECT_EQ(out.wi, zero.wi);
+    EXPECT_EQ(out.target, zero.target);
+    EXPECT_EQ(out.radiance, zero.radiance);
+    EXPECT_EQ(out.pdf, zero.pdf);
+  }
+  // A second point light needs the choice; a sphere alone, the point on it.
+  Scene two_points = build_scene(point_only);
+  two_points.point_lights.push_back({Vec3(0.f, 3.f, 1.f), Vec3(1.f)});
+  SceneData two_data(two_points);
+  EXPECT_TRUE(LightSet(two_data, LightChoice::kPower).reads_numbers());
+  SceneSpec sphere_only;
+  sphere_only.with_square = sphere_only.with_point = false;
+  EXPECT_TRUE(Lights{sphere_only}.set.reads_numbers());
+  EXPECT_TRUE(Lights{SceneSpec{}}.set.reads_numbers());
+}
+
 }  // namespace
 }  // namespace rayfarm

@@ -207,5 +207,26 @@ TEST(PathSampler, DeepVerticesFallBackToTheStream) {
   EXPECT_EQ(s.light(PathSampler::kSobolVertices)[0], rng.next_float());
 }
 
+TEST(PathSampler, UnreadLightNumbersLeaveTheOthersAlone) {
+  // A vertex whose light reads no numbers: the Sobol' sampler leaves its group out, the stream
+  // still draws it, and every other number of the path stays the same either way.
+  for (SamplerType type : {SamplerType::kSobol, SamplerType::kIndependent}) {
+    PathSampler read(type, 9, 4321, 77), unread(type, 9, 4321, 77);
+    EXPECT_EQ(read.camera(), unread.camera());
+    for (uint32_t depth : {0u, 1u, 2u, PathSampler::kSobolVertices - 1,
+                           PathSampler::kSobolVertices, PathSampler::kSobolVertices + 1}) {
+      const std::array<uint32_t, 3> all = read.light_bits(depth, true);
+      const std::array<uint32_t, 3> some = unread.light_bits(depth, false);
+      if (type == SamplerType::kSobol && depth < PathSampler::kSobolVertices) {
+        EXPECT_EQ(some, (std::array<uint32_t, 3>{}));
+      } else {
+        EXPECT_EQ(some, all);  // drawn from the stream, in order
+      }
+      EXPECT_EQ(read.scatter(depth), unread.scatter(depth)) << "depth " << depth;
+      EXPECT_EQ(read.roulette(), unread.roulette()) << "depth " << depth;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace rayfarm

@@ -19,6 +19,7 @@ PathIntegratorFor<BsdfT>::PathIntegratorFor(const SceneData& data, const LightSe
   // Light sampling only where there are lights and surfaces that light sampling can serve.
   plan_.sample_lights =
       settings.integrator != IntegratorType::kNaive && !lights.empty() && any_diffuse;
+  plan_.light_numbers = lights.reads_numbers();
   // MIS weights matter only when BSDF rays can also find the sampled emitters (area lights and
   // the environment).
   const bool hittable = lights.area_light_count() > 0 || lights.environment() != nullptr;
@@ -223,7 +224,8 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, PathSampler& sampler, PathStats& s
     // independent sampler reads its stream): the BSDF's are ready when its sampling needs them.
     const bool sample_light_here = plan_.sample_lights && !bsdf.is_specular();
     const std::array<uint32_t, 3> light_u =
-        sample_light_here ? sampler.light_bits(depth) : std::array<uint32_t, 3>{};
+        sample_light_here ? sampler.light_bits(depth, plan_.light_numbers)
+                          : std::array<uint32_t, 3>{};
     const std::array<float, 3> u = sampler.scatter(depth);
     // The specular targets' cones seen from here, if this vertex aims at them.
     TargetCones cones;

@@ -21,6 +21,9 @@ namespace rayfarm {
 struct IntegratorPlan {
   IntegratorType integrator = IntegratorType::kMis;
   bool sample_lights = false;     ///< NEE / MIS light sampling at non-specular vertices
+  /// Light sampling reads its numbers (LightSet::reads_numbers()); without, the Sobol' sampler
+  /// leaves them out.
+  bool light_numbers = true;
   bool weight_emission = false;   ///< MIS weights on emitters hit by BSDF rays
   bool emitters_reachable = false;  ///< area lights or a background that BSDF rays can find
   uint32_t max_depth = 0;           ///< kUnlimitedDepth: no cap

@@ -80,6 +80,16 @@ class LightSet {
           return light.sample(ref, p_select, u1, u2, out);
         });
   }
+  /// Whether sample() reads its numbers (the choice and the point on the light): not where the
+  /// one light is a point, spot or directional light chosen without a tree, which sample()
+  /// returns whatever the numbers.
+  bool reads_numbers() const {
+    if (lights_.size() != 1 || selection_.uses_tree()) return true;
+    const Light& light = lights_.front();
+    return !std::holds_alternative<DeltaPointLight>(light) &&
+           !std::holds_alternative<DeltaSpotLight>(light) &&
+           !std::holds_alternative<DeltaDirectionalLight>(light);
+  }
   /// Whether sample() can choose light `light` somewhere (false for -1: an emitter it cannot
   /// sample, and for a light whose share of the power rounds to nothing).
   bool selectable(int32_t light) const { return selection_.selectable(light); }

@@ -67,6 +67,14 @@ class PathSampler {
     const uint32_t choice = rng.next_u32(), u1 = rng.next_u32();
     return {choice, u1, rng.next_u32()};
   }
+  /// light_bits() for a vertex whose light may read none of them (`read` false: one point,
+  /// spot or directional light, LightSet::reads_numbers()): the Sobol' sampler then leaves its
+  /// group out (each group has its own key, so no other number changes) and returns zeros; the
+  /// hashed stream still draws them, so that the numbers after them stay where they were.
+  std::array<uint32_t, 3> light_bits(uint32_t depth, bool read) {
+    if (!read && sobol_ && depth < kSobolVertices) return {};
+    return light_bits(depth);
+  }
   /// light_bits() as floats in [0, 1).
   std::array<float, 3> light(uint32_t depth) {
     const std::array<uint32_t, 3> b = light_bits(depth);
