@@ -1,7 +1,8 @@
 #pragma once
 // Scattering at a path vertex: a variant with one alternative per BSDF kind, each in its own
-// header, dispatched by std::visit (a switch on the variant's index, no virtual call). Built per
-// vertex from the hit's material. Adding a kind: its header here and one line in `Bsdf`.
+// header, dispatched without a virtual call (an inlined chain of index tests for a few kinds,
+// std::visit's table for many). Built per vertex from the hit's material. Adding a kind: its
+// header here and one line in `Bsdf`.
 #include <cassert>
 #include <type_traits>
 #include <variant>
@@ -18,6 +19,7 @@
 #include "worker/bsdfs/rough_dielectric.h"
 #include "worker/bsdfs/thin_dielectric.h"
 #include "worker/textures/texture_lookup.h"
+#include "worker/variant_chain.h"
 
 namespace rayfarm {
 
@@ -56,33 +58,31 @@ class BsdfOf {
 
   /// True when every lobe is a Dirac delta (light sampling cannot help).
   bool is_specular() const {
-    return std::visit([](const auto& k) { return k.is_specular(); }, kind_);
+    return dispatch([](const auto& k) { return k.is_specular(); });
   }
   /// True when f(wo, wi) is zero for every wi on the other side of the surface from wo (the kind
   /// says so with kReflectsOnly; kinds that do not may transmit).
   bool reflects_only() const {
-    return std::visit(
-        [](const auto& k) {
-          using K = std::decay_t<decltype(k)>;
-          if constexpr (requires { K::kReflectsOnly; }) {
-            return K::kReflectsOnly;
-          } else {
-            return false;
-          }
-        },
-        kind_);
+    return dispatch([](const auto& k) {
+      using K = std::decay_t<decltype(k)>;
+      if constexpr (requires { K::kReflectsOnly; }) {
+        return K::kReflectsOnly;
+      } else {
+        return false;
+      }
+    });
   }
   /// f(wo, wi) * |cos(wi)|; zero for specular kinds.
   Vec3 eval(const Vec3& wo, const Vec3& wi) const {
-    return std::visit([&](const auto& k) { return k.eval(wo, wi); }, kind_);
+    return dispatch([&](const auto& k) { return k.eval(wo, wi); });
   }
   /// Solid-angle density with which sample() draws wi given wo; zero for specular kinds.
   float pdf(const Vec3& wo, const Vec3& wi) const {
-    return std::visit([&](const auto& k) { return k.pdf(wo, wi); }, kind_);
+    return dispatch([&](const auto& k) { return k.pdf(wo, wi); });
   }
   /// Draws wi from three uniform numbers; false when no direction carries energy.
   bool sample(const Vec3& wo, float u_lobe, float u1, float u2, BsdfSample& out) const {
-    return std::visit([&](const auto& k) { return k.sample(wo, u_lobe, u1, u2, out); }, kind_);
+    return dispatch([&](const auto& k) { return k.sample(wo, u_lobe, u1, u2, out); });
   }
 
  private:
@@ -118,6 +118,17 @@ class BsdfOf {
       return make_first<Kinds...>(m, tex);
     } else {
       return std::visit([&tex](const auto& params) { return make_kind(params, tex); }, m.kind);
+    }
+  }
+
+  // The kind's method: a few kinds through an inlined chain of index tests (variant_chain.h),
+  // many through std::visit's table, which keeps every call site from holding all their code.
+  template <class F>
+  [[gnu::always_inline]] auto dispatch(F&& f) const {
+    if constexpr (sizeof...(Kinds) <= 4) {
+      return visit_chain(kind_, f);
+    } else {
+      return std::visit(f, kind_);
     }
   }
 

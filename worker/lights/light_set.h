@@ -17,20 +17,9 @@
 #include "worker/lights/textured_area_lights.h"
 #include "worker/lights/triangle_light.h"
 #include "worker/scene_data.h"
+#include "worker/variant_chain.h"
 
 namespace rayfarm {
-
-// std::visit over many kinds becomes a call through a table that the compiler does not inline,
-// paid at every light sample; a chain of index tests is inlined, and the common kinds come first.
-template <size_t I = 0, class Variant, class F>
-[[gnu::always_inline]] inline auto dispatch_light(const Variant& light, F&& f) {
-  if constexpr (I + 1 == std::variant_size_v<Variant>) {
-    return f(*std::get_if<I>(&light));
-  } else {
-    if (light.index() == I) return f(*std::get_if<I>(&light));
-    return dispatch_light<I + 1>(light, f);
-  }
-}
 
 class LightSet {
  public:
@@ -75,7 +64,7 @@ class LightSet {
     int32_t index = -1;
     float p_select = 0.f;
     if (!selection_.choose(ref, ref_n, select, index, p_select)) return false;
-    return dispatch_light(
+    return visit_chain(
         lights_[index], [&](const auto& light) __attribute__((always_inline)) {
           return light.sample(ref, p_select, u1, u2, out);
         });
@@ -104,7 +93,7 @@ class LightSet {
   float pdf(int32_t light, const Vec3& ref, const Vec3& ref_n, const Vec3& p, const Vec3& n) const {
     if (light < 0) return 0.f;
     const float p_select = selection_.probability(ref, ref_n, light);
-    return dispatch_light(lights_[light],
+    return visit_chain(lights_[light],
                           [&](const auto& l) { return l.pdf(p_select, ref, p, n); });
   }
 
