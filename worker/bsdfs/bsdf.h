@@ -57,12 +57,12 @@ class BsdfOf {
   explicit BsdfOf(const Material& m, const TextureLookup& tex = {}) : kind_(make(m, tex)) {}
 
   /// True when every lobe is a Dirac delta (light sampling cannot help).
-  bool is_specular() const {
+  [[gnu::always_inline]] bool is_specular() const {
     return dispatch([](const auto& k) { return k.is_specular(); });
   }
   /// True when f(wo, wi) is zero for every wi on the other side of the surface from wo (the kind
   /// says so with kReflectsOnly; kinds that do not may transmit).
-  bool reflects_only() const {
+  [[gnu::always_inline]] bool reflects_only() const {
     return dispatch([](const auto& k) {
       using K = std::decay_t<decltype(k)>;
       if constexpr (requires { K::kReflectsOnly; }) {
@@ -73,15 +73,16 @@ class BsdfOf {
     });
   }
   /// f(wo, wi) * |cos(wi)|; zero for specular kinds.
-  Vec3 eval(const Vec3& wo, const Vec3& wi) const {
+  [[gnu::always_inline]] Vec3 eval(const Vec3& wo, const Vec3& wi) const {
     return dispatch([&](const auto& k) { return k.eval(wo, wi); });
   }
   /// Solid-angle density with which sample() draws wi given wo; zero for specular kinds.
-  float pdf(const Vec3& wo, const Vec3& wi) const {
+  [[gnu::always_inline]] float pdf(const Vec3& wo, const Vec3& wi) const {
     return dispatch([&](const auto& k) { return k.pdf(wo, wi); });
   }
   /// Draws wi from three uniform numbers; false when no direction carries energy.
-  bool sample(const Vec3& wo, float u_lobe, float u1, float u2, BsdfSample& out) const {
+  [[gnu::always_inline]] bool sample(const Vec3& wo, float u_lobe, float u1, float u2,
+                                     BsdfSample& out) const {
     return dispatch([&](const auto& k) { return k.sample(wo, u_lobe, u1, u2, out); });
   }
 
