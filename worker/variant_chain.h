@@ -1,8 +1,10 @@
 #pragma once
-// Calls on the alternative a std::variant holds through a chain of index tests, in the
-// variant's order, inlined: std::visit over more than a few alternatives becomes a call through
-// a table that GCC does not inline, paid at every path vertex for each BSDF and light call.
-// Listing the common kinds first makes their tests the first and best predicted.
+// Calls f on the alternative a std::variant holds through a chain of index tests, in the
+// variant's order, always inlined: GCC compiles std::visit into an out-of-line function (a
+// switch, behind a test for a valueless variant) that it may leave uninlined, a call paid at
+// every path vertex for each BSDF and light method. Listing the common kinds first makes their
+// tests the first and best predicted. The variant must hold a value (the BSDFs and lights are
+// built whole and never assigned).
 #include <cstddef>
 #include <variant>
 

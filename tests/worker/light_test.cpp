@@ -630,6 +630,34 @@ TEST(LightSetTest, OnlyAChoiceOrAnExtentReadsTheNumbers) {
     EXPECT_EQ(out.radiance, zero.radiance);
     EXPECT_EQ(out.pdf, zero.pdf);
   }
+  // A lone spot or directional light reads none either.
+  for (int kind = 0; kind < 2; ++kind) {
+    SceneSpec none;
+    none.with_square = none.with_sphere = none.with_point = false;
+    Scene scene = build_scene(none);
+    if (kind == 0) {
+      scene.spot_lights.push_back(
+          {Vec3(0.f, 0.f, 4.f), Vec3(0.f, 0.f, -1.f), Vec3(5.f), 40.f, 30.f});
+    } else {
+      scene.directional_lights.push_back({Vec3(0.f, 0.f, -1.f), Vec3(2.f)});
+    }
+    SceneData data(scene);
+    const LightSet set(data, LightChoice::kPower);
+    ASSERT_EQ(set.size(), 1u);
+    EXPECT_FALSE(set.reads_numbers()) << (kind == 0 ? "spot" : "directional");
+    const Vec3 at{0.2f, -0.1f, 0.f};
+    LightSample first, other;
+    ASSERT_TRUE(set.sample(at, Vec3(0.f), SelectionNumber::from_float(0.f), 0.f, 0.f, first));
+    ASSERT_TRUE(set.sample(at, Vec3(0.f), SelectionNumber::from_float(0.7f), 0.3f, 0.9f, other));
+    EXPECT_EQ(first.wi, other.wi);
+    EXPECT_EQ(first.radiance, other.radiance);
+    EXPECT_EQ(first.pdf, other.pdf);
+  }
+  // Chosen through a tree, even one point light counts as read (the tree reads the choice).
+  SceneData tree_data(build_scene(point_only));
+  const LightSet tree_set(tree_data, LightChoice::kTree);
+  ASSERT_TRUE(tree_set.selection().uses_tree());
+  EXPECT_TRUE(tree_set.reads_numbers());
   // A second point light needs the choice; a sphere alone, the point on it.
   Scene two_points = build_scene(point_only);
   two_points.point_lights.push_back({Vec3(0.f, 3.f, 1.f), Vec3(1.f)});

@@ -1,8 +1,8 @@
 #pragma once
 // Scattering at a path vertex: a variant with one alternative per BSDF kind, each in its own
 // header, dispatched without a virtual call (an inlined chain of index tests for a few kinds,
-// std::visit's table for many). Built per vertex from the hit's material. Adding a kind: its
-// header here and one line in `Bsdf`.
+// std::visit for many). Built per vertex from the hit's material. Adding a kind: its header here
+// and one line in `Bsdf`.
 #include <cassert>
 #include <type_traits>
 #include <variant>
@@ -122,8 +122,9 @@ class BsdfOf {
     }
   }
 
-  // The kind's method: a few kinds through an inlined chain of index tests (variant_chain.h),
-  // many through std::visit's table, which keeps every call site from holding all their code.
+  // The kind's method: a few kinds through an inlined chain of index tests (variant_chain.h);
+  // the nine of `Bsdf` through std::visit as before (inlining all nine at every call site was
+  // not tried).
   template <class F>
   [[gnu::always_inline]] auto dispatch(F&& f) const {
     if constexpr (sizeof...(Kinds) <= 4) {

@@ -10,6 +10,8 @@ namespace rayfarm {
 
 class DeltaDirectionalLight {
  public:
+  /// sample() reads none of its numbers (LightSet::reads_numbers()).
+  static constexpr bool kReadsNumbers = false;
   /// The light of directional light `index`; nullopt when it emits no power. Its power is what
   /// crosses the disc of radius `scene_radius` facing it: the most the scene can receive.
   static std::optional<DeltaDirectionalLight> make(const Scene& scene, uint32_t index,

@@ -3,6 +3,7 @@
 // directional lights, the environment), and the choice of one light per shading point
 // (light_selection.h: by power, or through a light tree).
 #include <cstdint>
+#include <type_traits>
 #include <variant>
 #include <vector>
 
@@ -69,15 +70,20 @@ class LightSet {
           return light.sample(ref, p_select, u1, u2, out);
         });
   }
-  /// Whether sample() reads its numbers (the choice and the point on the light): not where the
-  /// one light is a point, spot or directional light chosen without a tree, which sample()
-  /// returns whatever the numbers.
+  /// Whether sample() reads its numbers (the light's choice and the point on it). It does not
+  /// when the scene has one light, chosen without a tree, of a kind whose sample() ignores them
+  /// (the kind says so with `kReadsNumbers = false`: point, spot and directional lights): the
+  /// sample is then the same whatever the numbers.
   bool reads_numbers() const {
     if (lights_.size() != 1 || selection_.uses_tree()) return true;
-    const Light& light = lights_.front();
-    return !std::holds_alternative<DeltaPointLight>(light) &&
-           !std::holds_alternative<DeltaSpotLight>(light) &&
-           !std::holds_alternative<DeltaDirectionalLight>(light);
+    return visit_chain(lights_.front(), [](const auto& light) {
+      using L = std::decay_t<decltype(light)>;
+      if constexpr (requires { L::kReadsNumbers; }) {
+        return L::kReadsNumbers;
+      } else {
+        return true;
+      }
+    });
   }
   /// Whether sample() can choose light `light` somewhere (false for -1: an emitter it cannot
   /// sample, and for a light whose share of the power rounds to nothing).
@@ -94,7 +100,7 @@ class LightSet {
     if (light < 0) return 0.f;
     const float p_select = selection_.probability(ref, ref_n, light);
     return visit_chain(lights_[light],
-                          [&](const auto& l) { return l.pdf(p_select, ref, p, n); });
+                       [&](const auto& l) { return l.pdf(p_select, ref, p, n); });
   }
 
  private:

@@ -11,6 +11,8 @@ namespace rayfarm {
 
 class DeltaPointLight {
  public:
+  /// sample() reads none of its numbers (LightSet::reads_numbers()).
+  static constexpr bool kReadsNumbers = false;
   /// The light of point light `index`; nullopt when it emits no power.
   static std::optional<DeltaPointLight> make(const Scene& scene, uint32_t index) {
     const PointLight& pl = scene.point_lights[index];

@@ -14,6 +14,8 @@ namespace rayfarm {
 
 class DeltaSpotLight {
  public:
+  /// sample() reads none of its numbers (LightSet::reads_numbers()).
+  static constexpr bool kReadsNumbers = false;
   /// The light of spot light `index`; nullopt when it emits no power.
   static std::optional<DeltaSpotLight> make(const Scene& scene, uint32_t index) {
     const SpotLight& s = scene.spot_lights[index];

@@ -11,6 +11,8 @@
 //    kSobolVertices: the light (point u, v on Sobol' dimensions 0, 1; choice on 2) and the
 //    scattering (direction u, v on 0, 1; BSDF lobe on 2; roulette on 3). Deeper vertices, where
 //    stratification no longer shows, read the hashed stream as the independent sampler does.
+//    A group that nothing reads (the light's, with one point light) is not computed; each
+//    group's numbers depend on its own key alone, so that changes no other.
 // Neither depends on the tile, the thread, the pass or the machine, so the farm's image is the
 // local one bit for bit.
 #include <array>
