@@ -361,27 +361,33 @@ Bvh::Bvh(const std::vector<Mesh>& meshes, const std::vector<SphereInput>& sphere
 Bvh::~Bvh() = default;
 
 std::optional<RayHit> Bvh::intersect(const Ray& ray) const {
+  RayHit hit;
+  if (!intersect(ray, hit)) return std::nullopt;
+  return hit;
+}
+
+bool Bvh::intersect(const Ray& ray, RayHit& hit) const {
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
   RTCRayHit rh;
   float t_scale = 1.f;
-  if (!to_embree(ray, rh.ray, t_scale)) return std::nullopt;  // nothing can be found from there
+  if (!to_embree(ray, rh.ray, t_scale)) return false;  // nothing can be found from there
   rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
   rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
   rtcIntersect1(impl_->scene.get(), &context, &rh);
-  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::nullopt;
-  RayHit hit;
+  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
   hit.t = rh.ray.tfar / t_scale;
   if (rh.hit.instID[0] != RTC_INVALID_GEOMETRY_ID) {
     hit.inst = rh.hit.instID[0] - impl_->instance_base;
     hit.geom = rh.hit.geomID;  // the mesh within the group
   } else {
+    hit.inst = kNoInstance;
     hit.geom = rh.hit.geomID == impl_->sphere_id ? kSphereGeometry : rh.hit.geomID;
   }
   hit.prim = rh.hit.primID;
   hit.u = rh.hit.u;
   hit.v = rh.hit.v;
-  return hit;
+  return true;
 }
 
 bool Bvh::occluded(const Ray& ray) const {

@@ -86,6 +86,9 @@ class Bvh {
 
   /// Closest hit in (tnear, tfar), if any.
   std::optional<RayHit> intersect(const Ray& ray) const;
+  /// intersect() for the path loop: true and the hit in `hit` when there is one (`hit` is
+  /// otherwise left as it was); no optional to pass back through memory.
+  bool intersect(const Ray& ray, RayHit& hit) const;
   /// True when anything lies in (tnear, tfar) along the ray.
   bool occluded(const Ray& ray) const;
 

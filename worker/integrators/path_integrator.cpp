@@ -170,8 +170,8 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, PathSampler& sampler, PathStats& s
   for (uint32_t depth = 0;; ++depth) {
     // Find the next vertex; escaped rays see the background.
     ++rays;
-    const std::optional<RayHit> rh = data_.bvh().intersect(ray);
-    if (!rh) {
+    RayHit rh;
+    if (!data_.bvh().intersect(ray, rh)) {
       radiance += beta * background_;
       if (const EnvironmentLight* env = lights_.environment()) {
         const Vec3 le = env->eval(ray.dir);
@@ -181,7 +181,7 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, PathSampler& sampler, PathStats& s
       break;
     }
     constexpr bool kPlain = kMode == PathMode::kPlain;
-    SurfaceHit hit = kPlain ? data_.resolve_plain(ray, *rh) : data_.resolve(ray, *rh);
+    SurfaceHit hit = kPlain ? data_.resolve_plain(ray, rh) : data_.resolve(ray, rh);
     const Material& material = data_.material(hit.material);
     const Vec3 wo = -ray.dir;  // camera and BSDF directions are unit vectors
 
@@ -203,7 +203,7 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, PathSampler& sampler, PathStats& s
     if constexpr (kMode == PathMode::kSurface) {
       // A one-sided surface seen from behind scatters nothing.
       if ((data_.surface_needs(hit.material) & kOneSided) && dot(wo, hit.n) < 0.f) break;
-      frame = shade_surface(data_, *rh, hit);
+      frame = shade_surface(data_, rh, hit);
     }
     const bool flat = kPlain || is_flat(hit);  // after a normal map may have bent ns
     const Vec3 wo_local = frame.to_local(wo);

@@ -32,8 +32,10 @@ class DeltaPointLight {
     return b;
   }
 
-  /// The light as seen from `ref`; pdf is the selection probability p_select.
-  bool sample(const Vec3& ref, float p_select, float /*u1*/, float /*u2*/, LightSample& out) const {
+  /// The light as seen from `ref`; pdf is the selection probability p_select. Small: inlined
+  /// into the path loop, which GCC otherwise calls it from.
+  [[gnu::always_inline]] bool sample(const Vec3& ref, float p_select, float /*u1*/, float /*u2*/,
+                                     LightSample& out) const {
     const Vec3 d = position_ - ref;
     const float dist2 = dot(d, d);
     if (!(dist2 > 0.f)) return false;
