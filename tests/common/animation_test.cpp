@@ -196,8 +196,12 @@ TEST(Animation, TheBundledAnimationLoadsAtEveryFrameWithoutWarnings) {
     EXPECT_TRUE(scene.warnings.empty()) << "frame " << frame << ": " << scene.warnings.front();
     const float light = scene.point_lights.at(0).intensity.x;
     // The light fades in to frame 12 and out to frame 36, smoothly, never below zero.
-    if (frame <= 12) EXPECT_GE(light, previous_light) << frame;
-    if (frame > 12 && frame <= 36) EXPECT_LE(light, previous_light) << frame;
+    if (frame <= 12) {
+      EXPECT_GE(light, previous_light) << frame;
+    }
+    if (frame > 12 && frame <= 36) {
+      EXPECT_LE(light, previous_light) << frame;
+    }
     EXPECT_GE(light, 0.f) << frame;
     previous_light = light;
   }

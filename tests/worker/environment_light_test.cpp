@@ -321,7 +321,9 @@ TEST(EnvironmentLightTest, BilinearMapsInterpolateBetweenTexelCentresAndSampleWh
     ASSERT_EQ(ls.radiance, env.eval(ls.wi)) << i;
     const float u1 = rng.next_float(), u2 = rng.next_float();
     const Vec3 d = env.direction(u1, u2);
-    if (!is_black(env.eval(d)) && std::sin(u2 * kPiD) > 1e-3) ASSERT_GT(env.pdf_direction(d), 0.f) << i;
+    if (!is_black(env.eval(d)) && std::sin(u2 * kPiD) > 1e-3) {
+      ASSERT_GT(env.pdf_direction(d), 0.f) << i;
+    }
   }
 }
 

@@ -104,7 +104,9 @@ TEST(InstanceRender, MirroredInstanceNormalsPointOutward) {
     EXPECT_NEAR(s.p.z, -1.f, 1e-6f);
     EXPECT_NEAR(s.n.z, -1.f, 1e-6f);
     EXPECT_LT(s.ns.z, -0.99f);
-    if (!smooth) EXPECT_TRUE(s.ns == s.n);
+    if (!smooth) {
+      EXPECT_TRUE(s.ns == s.n);
+    }
   }
 }
 

@@ -123,12 +123,16 @@ TEST(LightTree, ProbabilitiesSumToOneAndAreTheChoicesOwn) {
         EXPECT_GT(probability, 0.f);
       }
       const double q = std::clamp(1.0 - sum, 0.0, 1.0);
-      if (sum == 0.0) EXPECT_EQ(failed, kChoices) << "no light can reach this point";
+      if (sum == 0.0) {
+        EXPECT_EQ(failed, kChoices) << "no light can reach this point";
+      }
       EXPECT_LE(std::fabs(failed - q * kChoices), 5.0 * std::sqrt(kChoices * q * (1.0 - q)) + 1.0)
           << count << " lights, point " << k << ": probabilities sum to " << sum;
     }
     // With one or two lights there is no node below the root to fail at.
-    if (count <= 2) EXPECT_EQ(complete + zero, 200) << count << " lights";
+    if (count <= 2) {
+      EXPECT_EQ(complete + zero, 200) << count << " lights";
+    }
     EXPECT_EQ(tree.probability(Vec3(0.f), Vec3(0.f), -1), 0.f);
     EXPECT_EQ(tree.probability(Vec3(0.f), Vec3(0.f), static_cast<int32_t>(count)), 0.f);
   }
