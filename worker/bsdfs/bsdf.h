@@ -100,6 +100,9 @@ class BsdfOf {
       __builtin_unreachable();
     }
   }
+  // Few enough kinds to test one by one, inlined (construction and every method).
+  static constexpr bool kFewKinds = sizeof...(Kinds) <= 4;
+
   // A BSDF of few kinds tests the material's kind against each of them: std::visit over all the
   // material kinds is a call through a table that the compiler does not inline, a cost paid at
   // every path vertex of scenes that use none of the other kinds.
@@ -115,7 +118,7 @@ class BsdfOf {
     }
   }
   static std::variant<Kinds...> make(const Material& m, const TextureLookup& tex) {
-    if constexpr (sizeof...(Kinds) <= 4) {
+    if constexpr (kFewKinds) {
       return make_first<Kinds...>(m, tex);
     } else {
       return std::visit([&tex](const auto& params) { return make_kind(params, tex); }, m.kind);
@@ -127,7 +130,7 @@ class BsdfOf {
   // not tried).
   template <class F>
   [[gnu::always_inline]] auto dispatch(F&& f) const {
-    if constexpr (sizeof...(Kinds) <= 4) {
+    if constexpr (kFewKinds) {
       return visit_chain(kind_, f);
     } else {
       return std::visit(f, kind_);
