@@ -45,6 +45,9 @@ Film render_local(const Renderer& renderer, const LocalRenderOptions& options) {
   tbb::task_arena arena(options.threads > 0 ? static_cast<int>(options.threads)
                                             : tbb::task_arena::automatic);
   std::mutex film_mutex;
+  // Results merged, kept for the next units to render into (TileResult::reset): guarded by
+  // film_mutex. At most one per unit in flight.
+  std::vector<TileResult> spare;
   // Units go out pass by pass; the units of one pass run in parallel (each tile also splits its
   // rows). Merging is exact, so the order in which they finish does not matter.
   std::vector<uint64_t> ready;
@@ -67,9 +70,18 @@ Film render_local(const Renderer& renderer, const LocalRenderOptions& options) {
           return;
         }
         const UnitGrid::Unit unit = grid.unit(wave[i]);
-        TileResult result = renderer.render(unit.rect, unit.samples);
+        TileResult result;
+        {
+          std::lock_guard lock(film_mutex);
+          if (!spare.empty()) {
+            result = std::move(spare.back());
+            spare.pop_back();
+          }
+        }
+        renderer.render(unit.rect, unit.samples, result);
         std::lock_guard lock(film_mutex);
         film.add(result);
+        spare.push_back(std::move(result));
         merged.add(unit.id);
         planner.on_merged(unit.id, merged, film);
         progress.units_done = merged.count();

@@ -192,7 +192,14 @@ FilmSize Renderer::film() const { return impl_->data.scene().film; }
 
 TileResult Renderer::render(const TileRect& rect, const SampleRange& samples,
                             RenderStats* stats) const {
-  TileResult result(rect, samples);
+  TileResult result;
+  render(rect, samples, result, stats);
+  return result;
+}
+
+void Renderer::render(const TileRect& rect, const SampleRange& samples, TileResult& result,
+                      RenderStats* stats) const {
+  result.reset(rect, samples);
   std::mutex totals_mutex;
   uint64_t nonfinite = 0;  // guarded by totals_mutex, as is `paths`
   PathStats paths;
@@ -229,7 +236,6 @@ TileResult Renderer::render(const TileRect& rect, const SampleRange& samples,
     impl_->totals += unit;
   }
   if (stats != nullptr) *stats = unit;
-  return result;
 }
 
 namespace {

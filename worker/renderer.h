@@ -55,6 +55,10 @@ class Renderer {
   /// `stats`, when given, receives this unit's statistics (they also add to stats()).
   TileResult render(const TileRect& rect, const SampleRange& samples,
                     RenderStats* stats = nullptr) const;
+  /// render() into `result` (TileResult::reset() first), reusing its buffers: for callers that
+  /// render unit after unit.
+  void render(const TileRect& rect, const SampleRange& samples, TileResult& result,
+              RenderStats* stats = nullptr) const;
 
   /// Statistics of every render() so far.
   RenderStats stats() const;

@@ -12,6 +12,16 @@ TileResult::TileResult(TileRect r, SampleRange s)
     : rect(r), samples(s), sum(size_t{r.pixel_count()} * 3, 0),
       sum_sq(size_t{r.pixel_count()} * 3, 0) {}
 
+void TileResult::reset(TileRect r, SampleRange s) {
+  rect = r;
+  samples = s;
+  const size_t n = size_t{r.pixel_count()} * 3;
+  sum.assign(n, 0);
+  sum_sq.assign(n, 0);
+  nonfinite = 0;
+  rays = 0;
+}
+
 bool TileResult::well_formed() const {
   const size_t n = size_t{rect.pixel_count()} * 3;
   return rect.x1 > rect.x0 && rect.y1 > rect.y0 && samples.end > samples.begin &&

@@ -228,6 +228,29 @@ TEST(FilmTest, FitsRejectsResultsOutsideOrMisshapen) {
   EXPECT_FALSE(film.fits(long_sum_sq));
 }
 
+// A result rendered into again (Renderer::render into a kept result) starts as a new one would:
+// its own rect and samples, zeroed sums of its own size, no counts, whatever it held before.
+TEST(FilmTest, ResetResultIsANewOneForItsUnit) {
+  TileResult used({0, 0, 4, 3}, {0, 8});
+  for (Fixed& v : used.sum) v = to_fixed(2.5);
+  for (Fixed& v : used.sum_sq) v = to_fixed(6.25);
+  used.nonfinite = 2;
+  used.rays = 77;
+  for (const TileRect rect : {TileRect{1, 1, 3, 2}, TileRect{0, 0, 5, 5}}) {
+    used.reset(rect, {8, 12});
+    const TileResult fresh(rect, {8, 12});
+    EXPECT_EQ(used.rect, fresh.rect);
+    EXPECT_EQ(used.samples, fresh.samples);
+    EXPECT_TRUE(used.sum == fresh.sum);
+    EXPECT_TRUE(used.sum_sq == fresh.sum_sq);
+    EXPECT_EQ(used.nonfinite, 0u);
+    EXPECT_EQ(used.rays, 0u);
+    EXPECT_TRUE(used.well_formed());
+    for (Fixed& v : used.sum) v = to_fixed(1.0);  // dirty again for the next size
+    used.rays = 5;
+  }
+}
+
 TEST(FilmTest, AddCountsSamplesRaysAndDroppedSamples) {
   Film film(4, 2);
   EXPECT_EQ(film.min_spp(), 0u);

@@ -68,6 +68,29 @@ TEST(Determinism, ShuffledUnitsMergeToTheSameBits) {
   expect_identical(in_order, shuffled);
 }
 
+// Rendering into a kept result (as local renders do, unit after unit) gives the bits and counts
+// of a fresh one, whichever unit, larger or smaller, it held before.
+TEST(Determinism, RenderingIntoAKeptResultGivesAFreshOnesBits) {
+  const Scene scene = testing::small_room_scene();
+  RenderSettings settings = scene.render;
+  settings.spp = 6;
+  Renderer renderer(scene, settings);
+  TileResult kept;
+  const std::vector<std::pair<TileRect, SampleRange>> units = {
+      {{0, 0, 16, 16}, {0, 3}}, {{3, 5, 9, 7}, {3, 6}}, {{8, 0, 16, 12}, {1, 5}}};
+  for (const auto& [t, p] : units) {
+    renderer.render(t, p, kept);
+    const TileResult fresh = renderer.render(t, p);
+    EXPECT_EQ(kept.rect, fresh.rect);
+    EXPECT_EQ(kept.samples, fresh.samples);
+    EXPECT_TRUE(kept.sum == fresh.sum) << "sums differ";
+    EXPECT_TRUE(kept.sum_sq == fresh.sum_sq) << "squared sums differ";
+    EXPECT_EQ(kept.rays, fresh.rays);
+    EXPECT_GT(kept.rays, 0u);
+    EXPECT_EQ(kept.nonfinite, fresh.nonfinite);
+  }
+}
+
 TEST(Determinism, SeedChangesTheImage) {
   const Scene scene = testing::small_room_scene();
   RenderSettings a = scene.render, b = scene.render;
