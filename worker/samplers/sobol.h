@@ -172,11 +172,11 @@ inline Lanes sobol_reversed_lanes(uint32_t y) {
 }
 
 /// The four scrambled coordinates of point `index` of the sequence of `key` (a well-mixed 64-bit
-/// hash), given reverse_bits(index): the index shuffled by a nested permutation (which maps every
+/// hash), given reverse_bits(index), each with its bits still reversed: the index shuffled by a nested permutation (which maps every
 /// aligned block of 2^m indices onto one such block, so the first 2^m samples stay a net), then
 /// each Sobol' coordinate Owen-scrambled. A caller that draws several groups for one sample
 /// reverses its index once.
-inline Lanes sample_lanes(uint32_t reversed_index, uint64_t key) {
+inline Lanes sample_lanes_reversed(uint32_t reversed_index, uint64_t key) {
   // The shuffle and the scrambles both act on reversed bits; staying there between them leaves
   // one reversal per coordinate (owen_scramble(sobol_bits(owen_scramble(index)))).
   // `key` is already a hash: its low half keys the shuffle, its high half (offset per dimension
@@ -185,7 +185,32 @@ inline Lanes sample_lanes(uint32_t reversed_index, uint64_t key) {
              scramble_key = static_cast<uint32_t>(key >> 32);
   const uint32_t y = lk_permute(reversed_index, shuffle_key);
   const Lanes keys = scramble_key + Lanes{0u, 0x9e3779b9u, 0x9e3779b9u * 2u, 0x9e3779b9u * 3u};
-  return reverse_word(lk_permute_word(sobol_reversed_lanes(y), keys));
+  return lk_permute_word(sobol_reversed_lanes(y), keys);
+}
+
+/// The four coordinates: sample_lanes_reversed() with each lane's bits put back in order.
+inline Lanes sample_lanes_portable(uint32_t reversed_index, uint64_t key) {
+  return reverse_word(sample_lanes_reversed(reversed_index, key));
+}
+
+#if defined(__x86_64__) && !defined(__SSE4_1__)
+#define RAYFARM_SOBOL_SSE41 1
+/// sample_lanes_portable() compiled for SSE4.1 (sobol.cpp), run where the CPU has it: the
+/// baseline's SSE2 has no multiply of four 32-bit lanes, and the one GCC builds from two
+/// pmuludq and shuffles puts about 50% more latency on a group, which the path loop waits for;
+/// and SSSE3's byte shuffle reverses the bits in a third of the steps. Integer operations
+/// only: the bits are the same.
+Lanes sample_lanes_sse41(uint32_t reversed_index, uint64_t key);
+/// Whether this CPU runs sample_lanes_sse41() (found once, at start-up).
+extern const bool kHasSse41;
+#endif
+
+/// The four coordinates of sample_lanes_portable(), by the fastest code this CPU runs.
+inline Lanes sample_lanes(uint32_t reversed_index, uint64_t key) {
+#ifdef RAYFARM_SOBOL_SSE41
+  if (kHasSse41) return sample_lanes_sse41(reversed_index, key);
+#endif
+  return sample_lanes_portable(reversed_index, key);
 }
 
 /// The first kDims coordinates of sample_lanes() as 32 bits each (bit 31 = 1/2).
