@@ -376,7 +376,8 @@ bool Bvh::intersect(const Ray& ray, RayHit& hit) const {
   rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
   rtcIntersect1(impl_->scene.get(), &context, &rh);
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
-  hit.t = rh.ray.tfar / t_scale;
+  // t_scale is 1 for nearly every ray, and x / 1 is x: no division on the way to the hit point.
+  hit.t = t_scale == 1.f ? rh.ray.tfar : rh.ray.tfar / t_scale;
   if (rh.hit.instID[0] != RTC_INVALID_GEOMETRY_ID) {
     hit.inst = rh.hit.instID[0] - impl_->instance_base;
     hit.geom = rh.hit.geomID;  // the mesh within the group
