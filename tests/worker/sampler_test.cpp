@@ -48,7 +48,11 @@ TEST(Sobol, LanesComputeTheScalarDefinition) {
   // sample_bits() works on four coordinates at once; each must be the definition written with
   // the scalar pieces: the index shuffled by an Owen scramble under the key's low half, then
   // Sobol' coordinate d of it Owen-scrambled under the high half plus d golden-ratio steps.
-  // sample_bits() runs the SSE4.1 code where the CPU has it; the portable code is checked too.
+  // sample_bits() runs the SSE4.1 code where the CPU has it; both that code and the portable
+  // one are checked directly too.
+#ifdef RAYFARM_SOBOL_SSE41
+  EXPECT_EQ(sobol::kHasSse41, __builtin_cpu_supports("sse4.1") != 0);
+#endif
   uint64_t key = 0x0123456789abcdefull;
   uint32_t index = 0;
   for (int i = 0; i < 20000; ++i) {
@@ -61,11 +65,20 @@ TEST(Sobol, LanesComputeTheScalarDefinition) {
     const std::array<float, 4> floats = sobol::sample<4>(index, key);
     const std::array<uint32_t, 3> three = sobol::sample_bits<3>(index, key);
     const sobol::Lanes portable = sobol::sample_lanes_portable(sobol::reverse_bits(index), key);
+#ifdef RAYFARM_SOBOL_SSE41
+    // The SSE4.1 code itself, not only through the CPU check, where this CPU runs it.
+    const sobol::Lanes sse41 = sobol::kHasSse41
+                                   ? sobol::sample_lanes_sse41(sobol::reverse_bits(index), key)
+                                   : portable;
+#endif
     for (int d = 0; d < 4; ++d) {
       const uint32_t want = sobol::owen_scramble(sobol::sobol_bits(shuffled, d),
                                                  scramble_key + 0x9e3779b9u * uint32_t(d));
       ASSERT_EQ(bits[d], want) << "index " << index << ", key " << key << ", dimension " << d;
       ASSERT_EQ(portable[d], want) << "portable code, index " << index << ", dimension " << d;
+#ifdef RAYFARM_SOBOL_SSE41
+      ASSERT_EQ(sse41[d], want) << "SSE4.1 code, index " << index << ", dimension " << d;
+#endif
       ASSERT_EQ(floats[d], sobol::to_unit_float(want)) << "index " << index << ", dimension " << d;
       if (d < 3) {
         ASSERT_EQ(three[d], want);

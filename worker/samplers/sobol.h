@@ -132,10 +132,10 @@ constexpr uint32_t sobol_reversed(uint32_t y, int dim) {
 constexpr float to_unit_float(uint32_t bits) { return static_cast<float>(bits >> 8) * 0x1p-24f; }
 
 // The four coordinates of a point are computed side by side, one per lane of a 128-bit vector
-// (GCC's and Clang's vector extensions: SSE2 on x86-64, NEON on arm64). Each lane does exactly
-// the scalar operations (reverse_word() and lk_permute_word() serve both), so the bits are those
-// of reverse_bits(), lk_permute() and sobol_reversed() applied coordinate by coordinate
-// (tests/worker/sampler_test.cpp checks it).
+// (GCC's and Clang's vector extensions: SSE2 on x86-64, or SSE4.1 where the CPU has it, see
+// sample_lanes(); NEON on arm64). Each lane does exactly the scalar operations (reverse_word()
+// and lk_permute_word() serve both), so the bits are those of reverse_bits(), lk_permute() and
+// sobol_reversed() applied coordinate by coordinate (tests/worker/sampler_test.cpp checks it).
 using Lanes = uint32_t __attribute__((vector_size(16)));
 using SignedLanes = int32_t __attribute__((vector_size(16)));
 using FloatLanes = float __attribute__((vector_size(16)));
@@ -172,10 +172,10 @@ inline Lanes sobol_reversed_lanes(uint32_t y) {
 }
 
 /// The four scrambled coordinates of point `index` of the sequence of `key` (a well-mixed 64-bit
-/// hash), given reverse_bits(index), each with its bits still reversed: the index shuffled by a nested permutation (which maps every
-/// aligned block of 2^m indices onto one such block, so the first 2^m samples stay a net), then
-/// each Sobol' coordinate Owen-scrambled. A caller that draws several groups for one sample
-/// reverses its index once.
+/// hash), given reverse_bits(index), each with its bits still reversed: the index shuffled by a
+/// nested permutation (which maps every aligned block of 2^m indices onto one such block, so the
+/// first 2^m samples stay a net), then each Sobol' coordinate Owen-scrambled. A caller that
+/// draws several groups for one sample reverses its index once.
 inline Lanes sample_lanes_reversed(uint32_t reversed_index, uint64_t key) {
   // The shuffle and the scrambles both act on reversed bits; staying there between them leaves
   // one reversal per coordinate (owen_scramble(sobol_bits(owen_scramble(index)))).
@@ -193,13 +193,14 @@ inline Lanes sample_lanes_portable(uint32_t reversed_index, uint64_t key) {
   return reverse_word(sample_lanes_reversed(reversed_index, key));
 }
 
-#if defined(__x86_64__) && !defined(__SSE4_1__)
+#if defined(__x86_64__)
 #define RAYFARM_SOBOL_SSE41 1
-/// sample_lanes_portable() compiled for SSE4.1 (sobol.cpp), run where the CPU has it: the
-/// baseline's SSE2 has no multiply of four 32-bit lanes, and the one GCC builds from two
-/// pmuludq and shuffles puts about 50% more latency on a group, which the path loop waits for;
-/// and SSSE3's byte shuffle reverses the bits in a third of the steps. Integer operations
-/// only: the bits are the same.
+/// sample_lanes_portable() for CPUs with SSE4.1 (sobol.cpp): sample_lanes_reversed() compiled
+/// for SSE4.1, whose pmulld multiplies four 32-bit lanes (the x86-64 baseline's SSE2 has no such
+/// multiply, and GCC builds one from two pmuludq and shuffles: more instructions, and on the
+/// AMD EPYC of docs/benchmarks.md about 50% more latency on a group, which the path loop waits
+/// for), then each lane's bits reversed by SSSE3 byte shuffles in a third of reverse_word()'s
+/// steps. Integer operations only: the bits are those of sample_lanes_portable().
 Lanes sample_lanes_sse41(uint32_t reversed_index, uint64_t key);
 /// Whether this CPU runs sample_lanes_sse41() (found once, at start-up).
 extern const bool kHasSse41;
