@@ -40,7 +40,7 @@ struct TileResult {
   TileResult() = default;
   /// Makes this the empty result of (r, s): zeroed sums and counts, in the buffers it already
   /// has where they are large enough. A unit's sums are 96 bytes a pixel; allocated afresh for
-  /// every unit they come back from the kernel as new pages, faulted in one by one.
+  /// every unit, they would come back from the kernel as new pages, faulted in one by one.
   void reset(TileRect r, SampleRange s);
   bool well_formed() const;
 };
