@@ -13,6 +13,7 @@
 #include "common/protocol/codec.h"
 #include "common/protocol/convert.h"
 #include "common/protocol/heartbeat.h"
+#include "tests/support/tile_result_compare.h"
 
 namespace rayfarm::protocol {
 namespace {
@@ -159,12 +160,7 @@ TEST(Codec, FixedPointSumsSurviveTheWireBitForBit) {
   EXPECT_EQ(wire_result->sum().size(), packed_size(r.sum));
   const TileResult back = result_from_wire(*wire_result);
   EXPECT_TRUE(back.well_formed());
-  EXPECT_EQ(back.rect, r.rect);
-  EXPECT_EQ(back.samples, r.samples);
-  EXPECT_TRUE(back.sum == r.sum);
-  EXPECT_TRUE(back.sum_sq == r.sum_sq);
-  EXPECT_EQ(back.nonfinite, 3u);
-  EXPECT_EQ(back.rays, 99u);
+  testing::expect_same_result(back, r);
 }
 
 TEST(Codec, FixedPointValuesAreZigzagVarints) {

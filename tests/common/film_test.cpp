@@ -13,6 +13,7 @@
 
 #include "common/image/film.h"
 #include "common/image/fixed.h"
+#include "tests/support/tile_result_compare.h"
 
 namespace rayfarm {
 namespace {
@@ -238,11 +239,7 @@ TEST(FilmTest, ResetResultIsANewOneForItsUnit) {
   used.rays = 77;
   for (const TileRect rect : {TileRect{1, 1, 3, 2}, TileRect{0, 0, 5, 5}}) {
     used.reset(rect, {8, 12});
-    const TileResult fresh(rect, {8, 12});
-    EXPECT_EQ(used.rect, fresh.rect);
-    EXPECT_EQ(used.samples, fresh.samples);
-    EXPECT_TRUE(used.sum == fresh.sum);
-    EXPECT_TRUE(used.sum_sq == fresh.sum_sq);
+    testing::expect_same_result(used, TileResult(rect, {8, 12}));
     EXPECT_EQ(used.nonfinite, 0u);
     EXPECT_EQ(used.rays, 0u);
     EXPECT_TRUE(used.well_formed());
