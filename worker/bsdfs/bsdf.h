@@ -103,9 +103,9 @@ class BsdfOf {
   // Few enough kinds to test one by one, inlined (construction and every method).
   static constexpr bool kFewKinds = sizeof...(Kinds) <= 4;
 
-  // A BSDF of few kinds tests the material's kind against each of them: std::visit over all the
-  // material kinds is a call through a table that the compiler does not inline, a cost paid at
-  // every path vertex of scenes that use none of the other kinds.
+  // A BSDF of few kinds tests the material's kind against each of them: GCC compiles std::visit
+  // over all the material kinds into an out-of-line function (a switch) that it may leave a
+  // call, a cost paid at every path vertex of scenes that use none of the other kinds.
   template <class K, class... Rest>
   static std::variant<Kinds...> make_first(const Material& m, const TextureLookup& tex) {
     if (const auto* params = std::get_if<typename K::Params>(&m.kind))
