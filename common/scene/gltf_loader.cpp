@@ -37,9 +37,12 @@ fs::path inside(const FileAccess& access, const std::string& path) {
   return rel;
 }
 
+/// A path outside the scene's folder "exists" (whether it does is not looked up), so that the
+/// reader goes on to read_whole() and the error names the real cause instead of "not found".
 bool file_exists(const std::string& path, void* user) {
+  if (inside(*static_cast<FileAccess*>(user), path).empty()) return true;
   std::error_code ec;
-  return !inside(*static_cast<FileAccess*>(user), path).empty() && fs::is_regular_file(path, ec);
+  return fs::is_regular_file(path, ec);
 }
 
 std::string expand_path(const std::string& path, void*) { return path; }  // no ~ nor $VARS

@@ -479,7 +479,18 @@ TEST(Gltf, BufferShorterThanDeclaredAndMissingFiles) {
   dir.write("short.bin", b.bin.substr(0, b.bin.size() / 2));
   EXPECT_THROW(load_scene(dir.write("a.gltf", b.gltf("short.bin"))), SceneError);
   EXPECT_THROW(load_scene(dir.write("b.gltf", b.gltf("missing.bin"))), SceneError);
-  EXPECT_THROW(load_scene(dir.write("c.gltf", b.gltf("../outside.bin"))), SceneError);
+  // A file outside the scene's folder is refused for that reason, whether it exists or not.
+  dir.write("outside.bin", b.bin);
+  for (const char* uri : {"../outside.bin", "../no-such.bin", "sub/../../outside.bin"}) {
+    try {
+      load_scene(dir.write("scene/c.gltf", b.gltf(uri)));
+      ADD_FAILURE() << uri << " outside the folder loaded";
+    } catch (const SceneError& e) {
+      EXPECT_NE(std::string(e.what()).find("outside the scene's folder"), std::string::npos)
+          << e.what();
+      EXPECT_EQ(std::string(e.what()).find("not found"), std::string::npos) << e.what();
+    }
+  }
   GltfBuilder with_image = sample_scene();
   with_image.push("images", {{"uri", "absent.png"}});
   with_image.push("textures", {{"source", 0}});
