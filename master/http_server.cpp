@@ -13,6 +13,7 @@
 #include "common/limits.h"
 #include "common/net/keys.h"
 #include "common/util/log.h"
+#include "master/http_guard.h"
 #include "master/http_util.h"
 #include "master/metrics.h"
 #include "master/web_assets.h"
@@ -69,7 +70,7 @@ HttpServer::HttpServer(HttpOptions options, HttpFeed& feed, const HttpTokens& to
         " is reachable from other machines, and a master without keys (--insecure) has no "
         "tokens to guard its actions: bind it to 127.0.0.1, or give the master its keys");
   }
-  server_ = std::make_unique<httplib::Server>();
+  server_ = std::make_unique<GuardedHttpServer>();  // heads measured before they are parsed
   const size_t threads = static_cast<size_t>(std::max(1, options_.threads));
   server_->new_task_queue = [threads] { return new BoundedPool(threads); };
   // SO_REUSEADDR only: the library's default adds SO_REUSEPORT, with which a second master would
@@ -221,13 +222,10 @@ void HttpServer::routes() {
   };
   auto user_of = [this, name_of, unauthorized](const httplib::Request& req,
                                               httplib::Response& res) -> std::optional<HttpUser> {
-    const auto token = bearer(req);
-    if (!token) {
-      return unauthorized(res, "malformed Authorization header: send 'Authorization: Bearer "
-                               "TOKEN' with a token from `rayfarm token`");
-    }
-    if (token->empty()) return HttpUser{};
-    const auto name = tokens_.verify(*token, name_of);
+    const BearerToken token = bearer(req);
+    if (!token.error.empty()) return unauthorized(res, token.error.c_str());
+    if (token.token.empty()) return HttpUser{};
+    const auto name = tokens_.verify(token.token, name_of);
     if (!name) {
       return unauthorized(res,
                           "this token is not valid here: not issued by this master (or its secret "

@@ -5,7 +5,8 @@
 // publishes, and calls the reactor answers between two polls. Reads need no token unless the
 // master keeps jobs private; actions need a bearer token (http_tokens.h) whose key may manage the
 // job, exactly as on the client socket.
-// Bounded: requests of at most 64 KiB, a fixed pool of threads with a bounded queue of connections
+// Bounded: a request's line and headers of at most 64 KiB and 100 header lines, measured before
+// they are parsed (http_guard.h, answered 431 beyond), bodies of at most 64 KiB, a fixed pool of threads with a bounded queue of connections
 // (beyond it the accepting thread serves one itself, so that the kernel's backlog, not the
 // master's memory, takes the rest), short keep-alives, at most HttpFeed::kMaxCalls calls waiting.
 // On a loopback endpoint a request must name a loopback host (no DNS rebinding).

@@ -95,14 +95,27 @@ void send_error(httplib::Response& res, int status, const std::string& error) {
   send_json(res, json{{"error", error}}, status);
 }
 
-std::optional<std::string> bearer(const httplib::Request& req) {
-  if (!req.has_header("Authorization")) return std::string();
-  const std::string value = req.get_header_value("Authorization");
-  const std::string scheme = "Bearer ";
-  if (value.size() <= scheme.size() || value.compare(0, scheme.size(), scheme) != 0) {
-    return std::nullopt;
+BearerToken bearer(const httplib::Request& req) {
+  const size_t count = req.get_header_value_count("Authorization");
+  if (count == 0) return {};
+  if (count > 1) {
+    // Two credentials: which one a proxy or the master would read is anybody's guess.
+    return {"", "the request has " + std::to_string(count) +
+                    " Authorization headers: send exactly one, 'Authorization: Bearer TOKEN'"};
   }
-  return value.substr(scheme.size());
+  const std::string value = req.get_header_value("Authorization");
+  const std::string_view scheme = "bearer";
+  const auto lower = [](char c) {
+    return static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  };
+  size_t at = 0;
+  while (at < scheme.size() && at < value.size() && lower(value[at]) == scheme[at]) ++at;
+  const size_t token_at = value.find_first_not_of(' ', at);
+  if (at != scheme.size() || token_at == at || token_at == std::string::npos) {
+    return {"", "malformed Authorization header: send 'Authorization: Bearer TOKEN' with a token "
+                "from `rayfarm token`"};
+  }
+  return {value.substr(token_at), ""};
 }
 
 bool plausible_job_id(const std::string& id) {

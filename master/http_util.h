@@ -53,9 +53,13 @@ nlohmann::json message_json(const google::protobuf::Message& m);
 void send_json(httplib::Response& res, const nlohmann::json& body, int status = 200);
 /// Answers {"error": error} with `status`.
 void send_error(httplib::Response& res, int status, const std::string& error);
-/// The token of "Authorization: Bearer TOKEN", "" when there is no such header, nullopt when
-/// the header is there but not of that form.
-std::optional<std::string> bearer(const httplib::Request& req);
+/// The token of a request's "Authorization: Bearer TOKEN" (the scheme in any case, as RFC 9110
+/// says, then one or more spaces), or why there is none to use.
+struct BearerToken {
+  std::string token;  ///< "" when the request has no Authorization header
+  std::string error;  ///< why the header cannot be used: malformed, or given twice
+};
+BearerToken bearer(const httplib::Request& req);
 /// Job ids are the master's own ("j0007", a sequence's frame "j0007.12"): anything else is
 /// refused before it is looked up or joined to a path.
 bool plausible_job_id(const std::string& id);

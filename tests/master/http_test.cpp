@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include <cstring>
+#include <fstream>
 
 #include <nlohmann/json.hpp>
 #include <thread>
@@ -18,6 +19,7 @@
 #include "common/protocol/codec.h"
 #include "master/broker.h"
 #include "master/http_feed.h"
+#include "master/http_guard.h"
 #include "master/http_server.h"
 #include "master/http_tokens.h"
 #include "master/metrics.h"
@@ -142,6 +144,83 @@ TEST(HttpFeedTest, BoundsTheCallsThatWaitForTheReactor) {
   EXPECT_FALSE(feed.snapshot_due(now));
   EXPECT_EQ(feed.snapshot(milliseconds{0}), nullptr);
   EXPECT_TRUE(feed.snapshot_due(HttpFeed::Clock::now()));
+}
+
+TEST(HttpGuardTest, MeasuresARequestHeadAsTheLibraryReadsIt) {
+  using V = HeadScan::Verdict;
+  const std::string get = "GET / HTTP/1.1\r\nHost: x\r\n\r\n";
+  EXPECT_EQ(scan_request_head(get).verdict, V::kComplete);
+  EXPECT_EQ(scan_request_head(get).bytes, get.size());
+  // What follows the head (a body, the next request) is not part of it.
+  EXPECT_EQ(scan_request_head(get + "GET /x HTTP/1.1\r\n").bytes, get.size());
+  for (size_t cut = 0; cut < get.size(); ++cut) {
+    EXPECT_EQ(scan_request_head(get.substr(0, cut)).verdict, V::kIncomplete) << cut;
+  }
+  // Lines ended by a bare LF are header lines the library skips: they do not end the head, but
+  // count; an empty CRLF line after one does end it.
+  EXPECT_EQ(scan_request_head("GET / HTTP/1.1\r\nA: b\n\n").verdict, V::kIncomplete);
+  EXPECT_EQ(scan_request_head("GET / HTTP/1.1\r\nA: b\n\r\n").verdict, V::kComplete);
+  // The bounds: bytes before the end of the head, and header lines.
+  std::string many = "GET / HTTP/1.1\r\n";
+  for (size_t i = 0; i < kMaxHeaderLines; ++i) many += "A: b\r\n";
+  EXPECT_EQ(scan_request_head(many + "\r\n").verdict, V::kComplete);
+  EXPECT_EQ(scan_request_head(many + "A: b\r\n\r\n").verdict, V::kTooManyFields);
+  EXPECT_EQ(scan_request_head(many + "A: b\r\n").verdict, V::kTooManyFields);  // not waited for
+  const std::string big = "GET / HTTP/1.1\r\nA: " + std::string(kMaxHeadBytes, 'x');
+  EXPECT_EQ(scan_request_head(big).verdict, V::kTooLarge);
+  EXPECT_EQ(scan_request_head(big + "\r\n\r\n").verdict, V::kTooLarge);
+  EXPECT_EQ(scan_request_head(std::string(kMaxHeadBytes - 1, 'x')).verdict, V::kIncomplete);
+  const std::string just = "GET / HTTP/1.1\r\nA: " + std::string(kMaxHeadBytes - 24, 'x') +
+                           "\r\n\r\n";
+  ASSERT_LE(just.size(), kMaxHeadBytes);
+  EXPECT_EQ(scan_request_head(just).verdict, V::kComplete);
+}
+
+/// The process's peak resident memory (VmHWM) in bytes; reset_peak() starts it afresh.
+uint64_t peak_rss() {
+  std::ifstream status("/proc/self/status");
+  std::string line;
+  while (std::getline(status, line)) {
+    if (line.rfind("VmHWM:", 0) == 0) return std::stoull(line.substr(6)) * 1024;
+  }
+  return 0;
+}
+bool reset_peak() { return static_cast<bool>(std::ofstream("/proc/self/clear_refs") << "5"); }
+
+/// A connection to 127.0.0.1:`port` that sends `request` from a thread of its own (the server
+/// may answer and close before it is all sent) and returns the status line of the answer.
+std::string raw_exchange(int port, const std::string& request) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<uint16_t>(port));
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) != 0) {
+    ::close(fd);
+    return "cannot connect";
+  }
+  timeval timeout{20, 0};
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof(timeout));
+  ::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &timeout, sizeof(timeout));
+  std::thread sender([&] {
+    size_t sent = 0;
+    while (sent < request.size()) {
+      const ssize_t n = ::send(fd, request.data() + sent, request.size() - sent, MSG_NOSIGNAL);
+      if (n <= 0) break;
+      sent += static_cast<size_t>(n);
+    }
+  });
+  std::string answer;
+  char buf[4096];
+  while (answer.find("\r\n") == std::string::npos) {
+    const ssize_t n = ::recv(fd, buf, sizeof(buf), 0);
+    if (n <= 0) break;
+    answer.append(buf, static_cast<size_t>(n));
+  }
+  ::shutdown(fd, SHUT_RDWR);
+  sender.join();
+  ::close(fd);
+  return answer.substr(0, answer.find("\r\n"));
 }
 
 TEST(HttpServerTest, AMasterWithoutKeysServesHttpOnLoopbackOnly) {
@@ -365,6 +444,69 @@ TEST_F(BrokerHttpTest, ATokenCarriesExactlyItsKeysRights) {
   ASSERT_TRUE(page);
   EXPECT_TRUE(contains(page->body, "<script src=\"/dashboard.js\"")) << page->body.substr(0, 300);
   EXPECT_TRUE(contains(page->get_header_value("Content-Security-Policy"), "default-src 'self'"));
+}
+
+TEST_F(BrokerHttpTest, HeadersAreBoundedBeforeTheyAreStored) {
+  start(/*private_jobs=*/false);
+  const auto url = broker->http_url();
+  const int port = std::stoi(url.substr(url.rfind(':') + 1));
+  // A million small headers (8 MB), sent as fast as the socket takes them: answered 431 after
+  // the first 100, and the master's memory does not grow with them (parsed and kept, they took
+  // over 100 MB).
+  std::string bomb = "GET /api/jobs HTTP/1.1\r\nHost: 127.0.0.1\r\n";
+  bomb.reserve(bomb.size() + 8'000'002);
+  for (int i = 0; i < 1'000'000; ++i) bomb += "X-a: b\r\n";
+  bomb += "\r\n";
+  ASSERT_TRUE(reset_peak());
+  const uint64_t before = peak_rss();
+  EXPECT_EQ(raw_exchange(port, bomb), "HTTP/1.1 431 Request Header Fields Too Large");
+  const uint64_t grown = peak_rss() - before;
+  std::printf("peak memory grew by %.1f MB while a million headers were refused\n", grown / 1e6);
+  EXPECT_LT(grown, uint64_t{24} << 20);
+  bomb.clear();
+  bomb.shrink_to_fit();
+  // One long header line past 64 KiB, and a head that never ends: the same.
+  EXPECT_EQ(raw_exchange(port, "GET / HTTP/1.1\r\nX-a: " + std::string(70 * 1024, 'b') + "\r\n\r\n"),
+            "HTTP/1.1 431 Request Header Fields Too Large");
+  EXPECT_EQ(raw_exchange(port, "GET / HTTP/1.1\r\n" + std::string(70 * 1024, '\n')),
+            "HTTP/1.1 431 Request Header Fields Too Large");
+  // Within the bounds, a request with many headers is served, on a connection kept alive for
+  // the next one.
+  std::string fine = "GET /api/session HTTP/1.1\r\nHost: 127.0.0.1\r\n";
+  for (size_t i = 1; i < kMaxHeaderLines; ++i) fine += "X-a: b\r\n";
+  EXPECT_EQ(raw_exchange(port, fine + "\r\n"), "HTTP/1.1 200 OK");
+  auto h = http();
+  for (int i = 0; i < 3; ++i) {
+    auto res = h.Get("/api/session");
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 200);
+  }
+  auto m = h.Get("/metrics");
+  ASSERT_TRUE(m);
+  EXPECT_TRUE(contains(m->body, "rayfarm_http_responses_total{code=\"431\"} 3")) << m->body;
+}
+
+TEST_F(BrokerHttpTest, TheAuthSchemeIsReadInAnyCaseAndOnlyOnce) {
+  start(/*private_jobs=*/false);
+  const std::string owner = token("owner"), other = token("other");
+  auto h = http();
+  for (const char* scheme : {"Bearer ", "bearer ", "BEARER   "}) {
+    auto res = h.Get("/api/session", {{"Authorization", scheme + owner}});
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 200) << scheme;
+    EXPECT_EQ(json::parse(res->body)["key"], "owner") << scheme;
+  }
+  for (const char* bad : {"Bearer", "Bearerx", "Basic b3duZXI6", "Bearer "}) {
+    auto res = h.Get("/api/session", {{"Authorization", bad}});
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 401) << bad;
+  }
+  // Two credentials: neither is taken, whichever comes first.
+  auto res = h.Get("/api/session",
+                   {{"Authorization", "Bearer " + owner}, {"Authorization", "Bearer " + other}});
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 401);
+  EXPECT_TRUE(contains(res->body, "2 Authorization headers")) << res->body;
 }
 
 TEST_F(BrokerHttpTest, SlowHttpClientsDelayThePageNotTheFarm) {
