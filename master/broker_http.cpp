@@ -80,6 +80,11 @@ HttpAnswer Broker::answer_http(const HttpCall& call, bool& changed) {
                                     "(rayfarm-master --admin-clients) may change it",
                                     protocol::printable(id), protocol::printable(*owner)));
   }
+  // Within the key's budget of changes, as on the client socket (change_budget.h).
+  if (auto refusal = jobs_.take_change(user)) {
+    metrics().refusals.add("change_budget");
+    return failure(429, *refusal);
+  }
   if (call.kind == Kind::kCancel) {
     auto state = jobs_.cancel(id);
     if (!state) return failure(404, unknown);

@@ -380,6 +380,7 @@ std::vector<JobSpec> JobManager::store_frames(const JobSpec& spec, const FrameLi
   try {
     for (int64_t i = 0; i < frames.count(); ++i) {
       JobRecord record = shared;
+      record.paused = false;  // the sequence's pause, in its sequence.json, holds the frames
       JobSpec& f = record.spec;
       f.frame = frames.at(i);
       f.sequence = spec.id;
@@ -397,7 +398,15 @@ std::vector<JobSpec> JobManager::store_frames(const JobSpec& spec, const FrameLi
     for (const JobSpec& f : out) store_.sync_job_dir(f.id);
     // Only now is the sequence whole: a crash before this line leaves frames that a restart
     // removes rather than a part of the sequence its client never heard of.
-    store_.mark_sequence_stored(spec.id, out.size(), fps);
+    SequenceRecord sequence;
+    sequence.id = spec.id;
+    sequence.frames = out.size();
+    sequence.fps = fps;
+    sequence.has_state = true;
+    sequence.priority = shared.priority;
+    sequence.paused = shared.paused;
+    sequence.elapsed_seconds = 0.0;
+    store_.mark_sequence_stored(sequence);
   } catch (...) {
     std::error_code ec;
     for (const JobSpec& f : out) fs::remove_all(store_.job_dir(f.id), ec);
@@ -412,12 +421,17 @@ std::string JobManager::admit(PreparedJob prepared) {
                      prepared.paused, prepared.warnings, prepared.bundle_files,
                      prepared.bundle_bytes);
   }
-  // A sequence: a job per frame, in the scheduler's group of the sequence.
+  // A sequence: a job per frame, in the scheduler's group of the sequence, which holds its
+  // priority and pause.
   const std::string& id = prepared.spec.id;
-  std::vector<std::string>& frames = sequences_[id];
+  Sequence& q = sequences_[id];
+  q.priority = prepared.priority;
+  q.paused = prepared.paused;
+  q.queued_unix_ms = prepared.spec.submitted_unix_ms;
+  std::vector<std::string>& frames = q.frames;
   for (const JobSpec& f : prepared.frames) {
     try {
-      frames.push_back(admit_one(f, std::nullopt, prepared.priority, prepared.paused,
+      frames.push_back(admit_one(f, std::nullopt, prepared.priority, /*paused=*/false,
                                  frames.empty() ? prepared.warnings : std::vector<std::string>{},
                                  prepared.bundle_files, prepared.bundle_bytes));
     } catch (const JobRejected&) {

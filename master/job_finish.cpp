@@ -74,6 +74,10 @@ void JobManager::finish(Job& job, wire::JobState state, const std::string& error
   const bool record_saved = state == wire::JOB_DONE;
   job.record = std::move(final_record);
   job.active.reset();  // `a` is gone from here on
+  // A sequence's cancel is logged once, as the sequence's.
+  const Sequence* q = sequence_of(s);
+  const bool sequence_cancelled = q != nullptr && q->cancelled;
+  if (!s.sequence.empty()) frame_ended(s.sequence);
   // The record says how the job ended; its checkpoints are of no use any more once it is on
   // disk (until then they are what a restarted master resumes from).
   if (record_saved || save(job)) {
@@ -92,8 +96,9 @@ void JobManager::finish(Job& job, wire::JobState state, const std::string& error
                      human_rate(seconds > 0 ? samples / seconds : 0.0), error_summary,
                      (store_.job_dir(s.id) / "image.exr").string());
   } else if (state == wire::JOB_CANCELLED) {
-    log_jobs()->info("job {} cancelled after {:.2f} s at {} spp", s.id, seconds,
-                     job.record.spp_min);
+    log_jobs()->log(sequence_cancelled ? spdlog::level::debug : spdlog::level::info,
+                    "job {} cancelled after {:.2f} s at {} spp", s.id, seconds,
+                    job.record.spp_min);
   } else {
     log_jobs()->error("job {} failed after {:.2f} s: {}", s.id, seconds, error);
   }
@@ -123,6 +128,7 @@ void JobManager::storage_failed(Job& job, const std::string& what) {
       first ? milliseconds{1000} : std::min(job.storage_backoff * 2, milliseconds{30000});
   job.storage_retry = Clock::now() + job.storage_backoff;
   job.storage_error = what;
+  attention_.insert(job.record.spec.id);  // tick() tries again
   log_jobs()->error("job {}: {}{}; trying again in {:.0f} s", job.record.spec.id, what,
                     job.active && job.active->finishing
                         ? " (its work is done: it stays running, with its checkpoints, "

@@ -49,7 +49,14 @@ void JobManager::schedule(Job& job) {
   scheduler_.set_run_stride(id, a.grid().tile_count());
   scheduler_.set_priority(id, job.record.priority);
   scheduler_.set_paused(id, job.record.paused);
-  if (job.record.paused) a.pause(Clock::now());
+  Sequence* q = sequence_of(job.record.spec);
+  if (q != nullptr) {
+    // The sequence's priority and pause are its frames' (set once for the group).
+    scheduler_.set_group(job.record.spec.sequence, q->priority, q->paused || q->cancelled);
+    ++q->active;
+    if (job.record.paused) q->paused_alone.insert(id);
+  }
+  if (job.record.paused || (q != nullptr && q->paused)) a.pause(Clock::now());
   a.planner.take_released();  // handed over below, with every other released unit
   if (a.merger.merged_count() == 0 && !a.planner.gated()) {
     scheduler_.release_all(id, a.grid().size());
@@ -205,7 +212,7 @@ size_t JobManager::release_worker(const WorkerId& worker) {
 }
 
 std::optional<wire::JobState> JobManager::cancel(const std::string& id) {
-  if (const auto* frames = sequence_frames(id)) return cancel_sequence(*frames);
+  if (sequence_frames(id)) return cancel_sequence(id);
   auto it = jobs_.find(id);
   if (it == jobs_.end()) return std::nullopt;
   if (it->second.active) finish(it->second, wire::JOB_CANCELLED, "cancelled by a client");
@@ -244,13 +251,16 @@ void JobManager::remove_job(const std::string& id) {
   const std::string hash = job.record.spec.bundle_hash;
   const bool frame = !job.record.spec.sequence.empty();
   jobs_.erase(it);
-  // A frame's bundle is its sequence's, which remove_sequence() rebinds once it is gone.
+  attention_.erase(id);
+  // A frame's bundle is its sequence's, which remove_sequence() rebinds once it is gone; a
+  // sequence logs its removal once.
   if (!frame) rebind_bundle(hash, id);
-  log_jobs()->info("job {} removed with its files", id);
+  log_jobs()->log(frame ? spdlog::level::debug : spdlog::level::info, "job {} removed with its files",
+                  id);
 }
 
 wire::JobState JobManager::retry(const std::string& id) {
-  if (const auto* frames = sequence_frames(id)) return retry_sequence(id, *frames);
+  if (sequence_frames(id)) return retry_sequence(id);
   auto it = jobs_.find(id);
   if (it == jobs_.end()) throw JobRejected("unknown job '" + id + "'");
   Job& job = it->second;
@@ -264,7 +274,16 @@ wire::JobState JobManager::retry(const std::string& id) {
                     protocol::job_state_name(state),
                     state == wire::JOB_DONE ? " (submit it again to render more)" : ""));
   }
-  if (!store_.load_bundle(JobStore::bundle_holder(job.record.spec))) {
+  Sequence* q = sequence_of(job.record.spec);
+  if (q != nullptr && q->cancelled) {
+    throw JobRejected(fmt::format(
+        "job {} is frame {} of sequence {}, which is being cancelled ({} frames left to end): "
+        "retry it in a moment",
+        id, job.record.spec.frame.value_or(0), job.record.spec.sequence, q->active));
+  }
+  // A sequence's bundle is checked once for all its frames (retry_sequence).
+  if ((q == nullptr || !q->retrying) &&
+      !store_.load_bundle(JobStore::bundle_holder(job.record.spec))) {
     throw JobRejected("job " + id + " cannot be retried: its bundle is missing from the data dir");
   }
   writer_.flush();
@@ -278,59 +297,83 @@ wire::JobState JobManager::retry(const std::string& id) {
   r = JobRecord{};
   r.spec = spec;
   r.priority = priority;  // a retried job keeps its place among the others, and runs
+  if (q != nullptr) {
+    // Queued after the sequence's latest cancel, which a restart must not apply to it.
+    r.queued_unix_ms = std::max(wall_ms(), q->cancelled_unix_ms + 1);
+    q->queued_unix_ms = std::max(q->queued_unix_ms, r.queued_unix_ms);
+  }
   job.storage_error.clear();
   job.record_unsaved = false;
   activate(job);
   save(job);
-  log_jobs()->info("job {} queued again ('{}'): retried after it {}", id, spec.name,
-                   state == wire::JOB_FAILED ? "failed" : "was cancelled");
+  log_jobs()->log(q != nullptr && q->retrying ? spdlog::level::debug : spdlog::level::info,
+                  "job {} queued again ('{}'): retried after it {}", id, spec.name,
+                  state == wire::JOB_FAILED ? "failed" : "was cancelled");
   return job.record.state;
 }
 
 void JobManager::tick() {
   const auto now = Clock::now();
-  for (auto& [id, job] : jobs_) {
-    ActiveJob* a = job.active.get();
-    if (!job.storage_error.empty() && now >= job.storage_retry) {
-      if (a && a->finishing) {
-        const ActiveJob::Finishing f = *a->finishing;
-        finish(job, f.state, f.error, f.reason);
-      } else if (job.record_unsaved) {
-        if (save(job)) {
-          job.storage_error.clear();
-          if (!a) checkpoints_.forget(id, store_.job_dir(id));
-          log_jobs()->info("job {}: its record is on disk again", id);
-        }
-      } else {
-        // An image or checkpoint failure: cleared once a later write succeeds.
-        std::string failure = writer_.failure(store_.image_path(id));
-        if (failure.empty()) failure = checkpoints_.failure(id);
-        if (failure.empty() || !a) {
-          job.storage_error.clear();
-        } else {
-          storage_failed(job, failure);
-        }
+  // A cancelled sequence's next slice of frames.
+  for (auto& [id, q] : sequences_) {
+    if (q.cancelled) cancel_slice(id, q);
+  }
+  // Only the jobs that may need it: started ones, and those with a storage error (attention_).
+  for (auto it = attention_.begin(); it != attention_.end();) {
+    ++jobs_visited_;
+    auto found = jobs_.find(*it);
+    if (found == jobs_.end()) {
+      it = attention_.erase(it);
+      continue;
+    }
+    Job& job = found->second;
+    tick_job(found->first, job, now);
+    const bool needs = (job.active && job.active->started()) || !job.storage_error.empty();
+    it = needs ? std::next(it) : attention_.erase(it);
+  }
+}
+
+void JobManager::tick_job(const std::string& id, Job& job, Clock::time_point now) {
+  ActiveJob* a = job.active.get();
+  if (!job.storage_error.empty() && now >= job.storage_retry) {
+    if (a && a->finishing) {
+      const ActiveJob::Finishing f = *a->finishing;
+      finish(job, f.state, f.error, f.reason);
+    } else if (job.record_unsaved) {
+      if (save(job)) {
+        job.storage_error.clear();
+        if (!a) checkpoints_.forget(id, store_.job_dir(id));
+        log_jobs()->info("job {}: its record is on disk again", id);
       }
-      if (job.storage_error.empty()) job.storage_backoff = std::chrono::milliseconds{0};
-      continue;
+    } else {
+      // An image or checkpoint failure: cleared once a later write succeeds.
+      std::string failure = writer_.failure(store_.image_path(id));
+      if (failure.empty()) failure = checkpoints_.failure(id);
+      if (failure.empty() || !a) {
+        job.storage_error.clear();
+      } else {
+        storage_failed(job, failure);
+      }
     }
-    if (!a || a->finishing) continue;
-    if (fail_if_nobody_can_render(job, now)) continue;
-    // Failures of the writer threads show in the job's status until a later write succeeds.
-    std::string failure = writer_.failure(store_.image_path(id));
-    if (failure.empty()) failure = checkpoints_.failure(id);
-    if (!failure.empty() && job.storage_error.empty()) storage_failed(job, failure);
-    const double limit = job.record.spec.stop.time_limit_s;
-    if (a->started() && limit > 0 && a->elapsed() >= limit) {
-      log_jobs()->info("job {}: time limit of {:g} s reached", id, limit);
-      finish(job, wire::JOB_DONE, "", StopReason::kTimeLimit);
-      continue;
-    }
-    if (a->dirty && now - a->last_write >= image_interval(job)) write_image(job);
-    if (a->checkpoint_due && options_.checkpoint_interval.count() > 0 &&
-        now - a->last_checkpoint >= checkpoint_interval(job)) {
-      checkpoint(job);
-    }
+    if (job.storage_error.empty()) job.storage_backoff = std::chrono::milliseconds{0};
+    return;
+  }
+  if (!a || a->finishing) return;
+  if (fail_if_nobody_can_render(job, now)) return;
+  // Failures of the writer threads show in the job's status until a later write succeeds.
+  std::string failure = writer_.failure(store_.image_path(id));
+  if (failure.empty()) failure = checkpoints_.failure(id);
+  if (!failure.empty() && job.storage_error.empty()) storage_failed(job, failure);
+  const double limit = job.record.spec.stop.time_limit_s;
+  if (a->started() && limit > 0 && a->elapsed() >= limit) {
+    log_jobs()->info("job {}: time limit of {:g} s reached", id, limit);
+    finish(job, wire::JOB_DONE, "", StopReason::kTimeLimit);
+    return;
+  }
+  if (a->dirty && now - a->last_write >= image_interval(job)) write_image(job);
+  if (a->checkpoint_due && options_.checkpoint_interval.count() > 0 &&
+      now - a->last_checkpoint >= checkpoint_interval(job)) {
+    checkpoint(job);
   }
 }
 

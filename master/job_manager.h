@@ -15,6 +15,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <set>
 #include <stdexcept>
 #include <string>
 #include <unordered_map>
@@ -22,6 +23,7 @@
 
 #include "common/scene/parser.h"
 #include "master/active_job.h"
+#include "master/change_budget.h"
 #include "master/checkpoint.h"
 #include "master/image_writer.h"
 #include "master/job_store.h"
@@ -149,7 +151,9 @@ class JobManager {
   /// Takes back the leases of a worker that is lost or gone; returns how many were requeued.
   size_t release_worker(const WorkerId& worker);
 
-  /// Cancels a job; the state afterwards, or nullopt when the job is unknown.
+  /// Cancels a job; the state afterwards, or nullopt when the job is unknown. A sequence is
+  /// cancelled at once (none of its frames gets a unit again, and the reply is CANCELLED), and
+  /// its frames are ended by tick(), kCancelSlice at a time.
   std::optional<wire::JobState> cancel(const std::string& id);
   /// Changes how a queued or running job shares the farm: its priority (kMinPriority to
   /// kMaxPriority) and whether it is paused (no new units; those out finish and count; its clock
@@ -158,6 +162,20 @@ class JobManager {
   /// unreadable job, a priority out of range.
   const JobRecord* change(const std::string& id, std::optional<int32_t> priority,
                           std::optional<bool> paused);
+  /// Takes one state-changing request (pause, resume, priority, cancel, retry, rm) of client key
+  /// `key` out of its budget (ChangeBudget); past it, the refusal to send, naming the limit.
+  std::optional<std::string> take_change(const std::string& key,
+                                         Clock::time_point now = Clock::now()) {
+    if (change_budget_.take(key, now)) return std::nullopt;
+    return ChangeBudget::refusal();
+  }
+  /// The frames of a sequence ending in one tick() while it is cancelled, at most.
+  static constexpr size_t kCancelSlice = 256;
+  /// Of those, the frames that had started (each writes its image and record), at most.
+  static constexpr size_t kCancelStartedSlice = 8;
+  /// Jobs that sequence operations and tick() have visited one by one, since the start: the
+  /// work they cost, which stays bounded whatever a sequence's length (tests).
+  uint64_t jobs_visited() const { return jobs_visited_; }
   /// Removes a finished (done, failed, cancelled) or unreadable job and its folder. Throws
   /// JobRejected naming the cause: an unknown job, or one still queued or running.
   void remove(const std::string& id);
@@ -204,6 +222,29 @@ class JobManager {
     std::chrono::milliseconds storage_backoff{0};
   };
 
+  /// A sequence: its frames, and what is set once for all of them (docs/farm.md, "Frame
+  /// sequences"): its priority, its pause, its cancellation, its clock.
+  struct Sequence {
+    std::vector<std::string> frames;  // its frames' jobs, in frame order
+    int32_t priority = 0;
+    bool paused = false;
+    bool cancelled = false;  // a cancel is ending its frames, a slice per tick()
+    size_t cancel_next = 0;  // while cancelled: the frames before it are ended
+    int64_t cancelled_unix_ms = 0;  // its latest cancel (SequenceRecord)
+    int64_t queued_unix_ms = 0;     // the latest time a frame of it was queued
+    size_t active = 0;       // frames queued or running
+    std::set<std::string> paused_alone;  // frames paused on their own (resumed with it)
+    // The sequence's clock: wall time while it renders, pauses left out.
+    double elapsed_before = 0.0;  // seconds up to running_since
+    std::optional<Clock::time_point> running_since;
+    JobRecord reply;        // what change() returns of it
+    bool retrying = false;  // retry_sequence() is queueing its frames again
+    double elapsed(Clock::time_point now) const {
+      return elapsed_before +
+             (running_since ? std::chrono::duration<double>(now - *running_since).count() : 0.0);
+    }
+  };
+
   JobStore& store_;
   JobManagerOptions options_;
   LogBudget log_budget_;
@@ -212,23 +253,48 @@ class JobManager {
   Scheduler scheduler_;
   std::map<std::string, Job> jobs_;
   std::map<std::string, std::string> bundle_owner_;  // bundle hash -> a job that has it
-  std::map<std::string, std::vector<std::string>> sequences_;  // id -> its frames' jobs, in order
+  std::map<std::string, Sequence> sequences_;
+  // What tick() looks at: jobs active and started, and jobs with a storage error. A queued job
+  // that has not started, most of a long sequence, costs tick() nothing.
+  std::set<std::string> attention_;
+  uint64_t jobs_visited_ = 0;
+  ChangeBudget change_budget_;
   bool recovering_ = false;  // recover() is loading jobs: previews wait until it is done
   SequencePreviews previews_{options_.ffmpeg};
 
   // Sequences (job_sequences.cpp): the public requests above fan out to a sequence's frames.
   const std::vector<std::string>* sequence_frames(const std::string& id) const;
-  wire::JobState sequence_state(const std::vector<std::string>& frames) const;
-  wire::JobStatus sequence_status(const std::string& id, const std::vector<std::string>& frames,
+  /// The sequence's state from its frames' (a cancelled one's frames still active count as
+  /// cancelled).
+  wire::JobState sequence_state(const Sequence& q) const;
+  wire::JobStatus sequence_status(const std::string& id, const Sequence& q,
                                   uint32_t workers_total, bool with_frames) const;
-  wire::JobState cancel_sequence(const std::vector<std::string>& frames);
-  const JobRecord* change_sequence(const std::string& id, const std::vector<std::string>& frames,
-                                   std::optional<int32_t> priority, std::optional<bool> paused);
+  wire::JobState cancel_sequence(const std::string& id);
+  /// Ends the next slice of a cancelled sequence's frames (at most kCancelSlice frames looked
+  /// at, kCancelStartedSlice of them written).
+  void cancel_slice(const std::string& id, Sequence& q);
+  /// The sequence a frame's job belongs to; nullptr for a job of its own.
+  Sequence* sequence_of(const JobSpec& spec);
+  const Sequence* sequence_of(const JobSpec& spec) const;
+  /// The state of sequence `id` from its sequence.json (recover()); `first_frame`'s priority for
+  /// a sequence stored before it kept one. False when its clock was not kept.
+  bool recover_sequence(const std::string& id, Sequence& q, const JobRecord& first_frame);
+  /// Saves the sequence's state (sequence.json); a failure is logged (the state holds in memory).
+  void save_sequence(const std::string& id, const Sequence& q);
+  /// A frame of sequence `id` stopped being active: the sequence's clock stops with its last.
+  void frame_ended(const std::string& id);
+  /// A frame of the sequence got a unit: its clock runs.
+  void sequence_started(const JobSpec& frame, Clock::time_point now);
+  /// Stops or starts the clocks of the sequence's started frames (its pause); they are in
+  /// attention_, so this costs the frames running, not the sequence's length.
+  void pause_frames(const std::string& id, bool paused, Clock::time_point now);
+  const JobRecord* change_sequence(const std::string& id, std::optional<int32_t> priority,
+                                   std::optional<bool> paused);
   void remove_sequence(const std::string& id);
   /// change() of one job, frames included.
   const JobRecord* change_one(const std::string& id, std::optional<int32_t> priority,
                               std::optional<bool> paused);
-  wire::JobState retry_sequence(const std::string& id, const std::vector<std::string>& frames);
+  wire::JobState retry_sequence(const std::string& id);
   /// Removes a finished job and its folder (remove() has checked it may go).
   void remove_job(const std::string& id);
   /// The bundle of `hash` was served from folder `gone`, which is removed: serve it from another
@@ -242,7 +308,7 @@ class JobManager {
   /// every frame is done; at recovery (`missing_only`), only those missing.
   void update_previews(const std::string& id, bool missing_only = false);
   /// What the sequence's previews are, for its status.
-  std::string previews_note(const std::string& id, const std::vector<std::string>& frames) const;
+  std::string previews_note(const std::string& id, const Sequence& q) const;
   /// Admits one job (of its own, or a frame of a sequence); returns its id.
   std::string admit_one(const JobSpec& spec, std::optional<Image> reference, int32_t priority,
                         bool paused, const std::vector<std::string>& warnings, size_t bundle_files,
@@ -276,6 +342,8 @@ class JobManager {
   Clock::duration image_interval(const Job& job) const;
   Clock::duration checkpoint_interval(const Job& job) const;
   void on_round_done(Job& job);
+  /// What tick() does for one job.
+  void tick_job(const std::string& id, Job& job, Clock::time_point now);
   void finish(Job& job, wire::JobState state, const std::string& error,
               StopReason reason = StopReason::kRunning);
   /// Saves the job's record; on failure notes it (storage_error, retried by tick) and returns
@@ -286,6 +354,8 @@ class JobManager {
   /// The final image and record of a job whose work is over; "" when both are on disk, else why.
   std::string store_final(Job& job, const JobRecord& final_record, bool image);
 
+  /// The wall clock in Unix milliseconds.
+  static int64_t wall_ms();
   /// Seconds of rendering: the record's once the job is over.
   static double elapsed(const Job& job);
   wire::JobStatus make_status(const Job& job, uint32_t workers_total) const;

@@ -1,6 +1,7 @@
 // Recovery: checkpoints of running jobs, and what a starting master does with the jobs of its
 // data dir (resume each unfinished one from its newest usable checkpoint, or start it over).
 #include <algorithm>
+#include <set>
 
 #include "common/util/log.h"
 #include "master/job_manager.h"
@@ -10,8 +11,21 @@ namespace rayfarm::master {
 namespace fs = std::filesystem;
 using namespace detail;
 
+bool JobManager::recover_sequence(const std::string& id, Sequence& q,
+                                  const JobRecord& first_frame) {
+  const SequenceRecord r = store_.load_sequence(id);
+  // A sequence stored before its state was its own: its first frame's priority; its frames'
+  // pauses stay theirs.
+  q.priority = r.has_state ? r.priority : first_frame.priority;
+  q.paused = r.has_state && r.paused;
+  q.cancelled_unix_ms = r.cancelled_unix_ms;
+  q.elapsed_before = std::max(0.0, r.elapsed_seconds);
+  return r.elapsed_seconds >= 0;
+}
+
 size_t JobManager::recover() {
   size_t restarted = 0;
+  std::set<std::string> unknown_elapsed;  // sequences whose clock was not kept
   recovering_ = true;  // a frame finished here joins its sequence's previews once all are loaded
   for (JobRecord& record : store_.load_records()) {
     const std::string id = record.spec.id;
@@ -32,7 +46,29 @@ size_t JobManager::recover() {
       continue;
     }
     bundle_owner_.emplace(job.record.spec.bundle_hash, JobStore::bundle_holder(job.record.spec));
-    if (!sequence.empty()) sequences_[sequence].push_back(id);
+    if (!sequence.empty()) {
+      auto [q, fresh] = sequences_.try_emplace(sequence);
+      if (fresh && !recover_sequence(sequence, q->second, job.record)) {
+        unknown_elapsed.insert(sequence);
+      }
+      q->second.frames.push_back(id);
+      q->second.queued_unix_ms = std::max(
+          {q->second.queued_unix_ms, job.record.spec.submitted_unix_ms, job.record.queued_unix_ms});
+      // A sequence that did not keep its clock: its frames' times added up, at most its wall time.
+      if (unknown_elapsed.count(sequence)) q->second.elapsed_before += job.record.elapsed_seconds;
+      // A frame queued before the sequence's latest cancel was cancelled (the cancel writes the
+      // records only of the frames that had started; a stop may also have cut it short).
+      const int64_t queued = job.record.queued_unix_ms > 0 ? job.record.queued_unix_ms
+                                                           : job.record.spec.submitted_unix_ms;
+      if (is_active_state(job.record.state) && queued < q->second.cancelled_unix_ms) {
+        const bool started = job.record.state == wire::JOB_RUNNING;
+        job.record.state = wire::JOB_CANCELLED;
+        job.record.paused = false;
+        job.record.error = "cancelled by a client";
+        job.record.stop_reason = stop_reason_name(StopReason::kCancelled);
+        if (started) save(job);  // what it rendered stays; nothing else said it ended
+      }
+    }
     if (is_active_state(job.record.state)) {
       if (!store_.load_bundle(JobStore::bundle_holder(job.record.spec))) {
         job.record.state = wire::JOB_FAILED;
@@ -83,8 +119,8 @@ size_t JobManager::recover() {
     }
   }
   // A sequence's frames in frame order (their folders sort by name: "j0007.-001" after "0001").
-  for (auto& [sequence, frames] : sequences_) {
-    std::sort(frames.begin(), frames.end(), [&](const std::string& a, const std::string& b) {
+  for (auto& [sequence, q] : sequences_) {
+    std::sort(q.frames.begin(), q.frames.end(), [&](const std::string& a, const std::string& b) {
       return jobs_.at(a).record.spec.frame.value_or(0) < jobs_.at(b).record.spec.frame.value_or(0);
     });
     update_previews(sequence, /*missing_only=*/true);  // e.g. a stop while one was being made
@@ -144,6 +180,7 @@ bool JobManager::resume(Job& job) {
     a.start_time = Clock::now() - std::chrono::duration_cast<Clock::duration>(
                                       std::chrono::duration<double>(c.elapsed_seconds));
     job.record.state = wire::JOB_RUNNING;
+    attention_.insert(s.id);  // started: tick() looks after it
   }
   log_jobs()->info(
       "job {} resumed from checkpoint at {}/{} units, pass {} ({:.1f} s rendered; {}, checkpoint "
@@ -190,6 +227,10 @@ size_t JobManager::shutdown() {
     if (job.active->dirty) write_image(job);
     checkpoint(job);
     ++count;
+  }
+  // Each sequence's clock, as far as it got.
+  for (const auto& [id, q] : sequences_) {
+    if (q.active > 0) save_sequence(id, q);
   }
   checkpoints_.flush();
   writer_.flush();

@@ -1,9 +1,12 @@
 // Sequences: a sequence's frames are jobs of their own ("j0007.0012", each with its record,
 // checkpoints, image and error record), and the sequence ("j0007") is what its client submitted
-// and acts on. These fan a request for a sequence out to its frames, and sum their status.
-// docs/farm.md, "Frame sequences".
+// and acts on. Its priority, pause and cancellation are the sequence's, set once (the scheduler's
+// group, and sequence.json), so that changing them costs the same whatever its length; a cancel
+// ends its frames a slice per tick(). Its status sums its frames'. docs/farm.md, "Frame
+// sequences".
 #include <algorithm>
 
+#include "common/limits.h"
 #include "common/protocol/convert.h"
 #include "master/job_manager.h"
 #include "master/job_text.h"
@@ -27,58 +30,203 @@ std::string sequence_name(const JobSpec& frame) {
 
 }  // namespace
 
+int64_t JobManager::wall_ms() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
 const std::vector<std::string>* JobManager::sequence_frames(const std::string& id) const {
   auto it = sequences_.find(id);
   if (it == sequences_.end()) return nullptr;
   // A sequence none of whose frames is left (a removal cut short) is unknown, as it would be
   // after a restart.
-  for (const std::string& f : it->second) {
-    if (jobs_.count(f)) return &it->second;
+  for (const std::string& f : it->second.frames) {
+    if (jobs_.count(f)) return &it->second.frames;
   }
   return nullptr;
 }
 
-wire::JobState JobManager::cancel_sequence(const std::vector<std::string>& frames) {
-  for (const std::string& f : frames) {
+JobManager::Sequence* JobManager::sequence_of(const JobSpec& spec) {
+  if (spec.sequence.empty()) return nullptr;
+  auto it = sequences_.find(spec.sequence);
+  return it == sequences_.end() ? nullptr : &it->second;
+}
+
+const JobManager::Sequence* JobManager::sequence_of(const JobSpec& spec) const {
+  if (spec.sequence.empty()) return nullptr;
+  auto it = sequences_.find(spec.sequence);
+  return it == sequences_.end() ? nullptr : &it->second;
+}
+
+void JobManager::save_sequence(const std::string& id, const Sequence& q) {
+  SequenceRecord r;
+  r.id = id;
+  r.frames = q.frames.size();
+  r.fps = store_.sequence_fps(id);
+  r.has_state = true;
+  r.priority = q.priority;
+  r.paused = q.paused;
+  r.cancelled_unix_ms = q.cancelled_unix_ms;
+  r.elapsed_seconds = q.elapsed(Clock::now());
+  try {
+    store_.save_sequence(r);
+  } catch (const std::exception& e) {
+    // The state holds in memory; a restart before the next save finds the previous one.
+    log_jobs()->error("sequence {}: cannot save its state: {}", id, e.what());
+  }
+}
+
+void JobManager::sequence_started(const JobSpec& frame, Clock::time_point now) {
+  Sequence* q = sequence_of(frame);
+  if (q != nullptr && !q->running_since && !q->paused && !q->cancelled) q->running_since = now;
+}
+
+void JobManager::frame_ended(const std::string& id) {
+  auto it = sequences_.find(id);
+  if (it == sequences_.end()) return;
+  Sequence& q = it->second;
+  if (q.active > 0) --q.active;
+  if (q.active > 0) return;
+  // Its last frame: the clock stops, and what the sequence was is kept.
+  q.elapsed_before = q.elapsed(Clock::now());
+  q.running_since.reset();
+  if (!recovering_) save_sequence(id, q);
+  if (q.cancelled) log_jobs()->info("sequence {}: every frame cancelled has ended", id);
+  q.cancelled = false;  // nothing left to end
+}
+
+void JobManager::pause_frames(const std::string& id, bool paused, Clock::time_point now) {
+  // Only a started frame has a clock to stop, and every one is in attention_.
+  for (const std::string& f : attention_) {
+    ++jobs_visited_;
     auto it = jobs_.find(f);
-    if (it != jobs_.end() && it->second.active) {
-      finish(it->second, wire::JOB_CANCELLED, "cancelled by a client");
+    if (it == jobs_.end() || !it->second.active || it->second.record.spec.sequence != id) continue;
+    Job& job = it->second;
+    if (paused) {
+      job.active->pause(now);
+    } else if (!job.record.paused) {
+      job.active->resume(now);
     }
   }
-  return sequence_state(frames);
+}
+
+wire::JobState JobManager::cancel_sequence(const std::string& id) {
+  Sequence& q = sequences_.at(id);
+  if (q.active == 0) return sequence_state(q);
+  if (!q.cancelled) {
+    q.cancelled = true;
+    q.cancel_next = 0;
+    // After every frame queued so far, even within the same millisecond: a restart tells the
+    // frames this cancel ended from those a later retry queued.
+    q.cancelled_unix_ms = std::max(wall_ms(), q.queued_unix_ms + 1);
+    q.elapsed_before = q.elapsed(Clock::now());
+    q.running_since.reset();
+    scheduler_.set_group(id, q.priority, /*paused=*/true);  // no frame gets a unit again
+    save_sequence(id, q);
+    log_jobs()->info("sequence {} cancelled by a client: its {} frames queued or running end {} "
+                     "at a time",
+                     id, q.active, kCancelSlice);
+    cancel_slice(id, q);  // a short sequence ends here and now
+  }
+  return wire::JOB_CANCELLED;
+}
+
+void JobManager::cancel_slice(const std::string& id, Sequence& q) {
+  size_t visited = 0, started = 0;
+  while (q.cancel_next < q.frames.size() && visited < kCancelSlice &&
+         started < kCancelStartedSlice) {
+    ++visited;
+    ++jobs_visited_;
+    auto it = jobs_.find(q.frames[q.cancel_next++]);
+    if (it == jobs_.end() || !it->second.active || it->second.active->finishing) continue;
+    Job& job = it->second;
+    if (job.active->started()) {
+      // Its image keeps what was merged: written, with its record, as any cancelled job's.
+      ++started;
+      finish(job, wire::JOB_CANCELLED, "cancelled by a client");
+      continue;
+    }
+    // Nothing rendered, nothing to write: its record on disk still says queued, and the
+    // sequence's, saved as cancelled, says what it is (a restart reads them so).
+    scheduler_.remove_job(job.record.spec.id);
+    JobRecord& r = job.record;
+    r.state = wire::JOB_CANCELLED;
+    r.error = "cancelled by a client";
+    r.stop_reason = stop_reason_name(StopReason::kCancelled);
+    r.paused = false;
+    job.active.reset();
+    frame_ended(id);
+  }
+  if (q.cancel_next == q.frames.size()) q.cancelled = false;  // every frame looked at: done
 }
 
 const JobRecord* JobManager::change_sequence(const std::string& id,
-                                             const std::vector<std::string>& frames,
                                              std::optional<int32_t> priority,
                                              std::optional<bool> paused) {
-  const JobRecord* first = nullptr;
-  for (const std::string& f : frames) {
-    auto it = jobs_.find(f);
-    if (it == jobs_.end() || !it->second.active || it->second.active->finishing) continue;
-    const JobRecord* r = change_one(f, priority, paused);
-    if (first == nullptr) first = r;
-  }
-  if (first == nullptr) {
+  Sequence& q = sequences_.at(id);
+  if (q.cancelled || q.active == 0) {
     throw JobRejected(fmt::format(
         "sequence {} is {}: only a queued or running sequence can be paused, resumed or given a "
         "priority",
-        id, protocol::job_state_name(sequence_state(frames))));
+        id, protocol::job_state_name(sequence_state(q))));
   }
-  return first;
+  if (priority && (*priority < kMinPriority || *priority > kMaxPriority)) {
+    throw JobRejected(fmt::format("priority {} is out of range ({} to {})", *priority, kMinPriority,
+                                  kMaxPriority));
+  }
+  const auto now = Clock::now();
+  std::string what;
+  if (priority && *priority != q.priority) {
+    what = fmt::format("priority {} (was {})", *priority, q.priority);
+    q.priority = *priority;
+  }
+  if (paused && *paused != q.paused) {
+    q.paused = *paused;
+    if (q.paused) {
+      q.elapsed_before = q.elapsed(now);
+      q.running_since.reset();
+    } else {
+      // Resuming the sequence resumes the frames paused alone too.
+      for (const std::string& f : std::vector<std::string>(q.paused_alone.begin(),
+                                                           q.paused_alone.end())) {
+        ++jobs_visited_;
+        auto it = jobs_.find(f);
+        if (it != jobs_.end() && it->second.active && !it->second.active->finishing) {
+          change_one(f, std::nullopt, false);
+        }
+      }
+      q.paused_alone.clear();
+    }
+    pause_frames(id, q.paused, now);
+    what += fmt::format("{}{}", what.empty() ? "" : ", ", q.paused ? "paused" : "resumed");
+  }
+  if (!what.empty()) {
+    scheduler_.set_group(id, q.priority, q.paused);
+    save_sequence(id, q);
+    log_jobs()->info("sequence {}: {} ({} frames queued or running)", id, what, q.active);
+  }
+  q.reply = JobRecord{};
+  q.reply.spec.id = id;
+  q.reply.spec.owner = jobs_.at(q.frames.front()).record.spec.owner;
+  q.reply.state = q.running_since || q.elapsed_before > 0 ? wire::JOB_RUNNING : wire::JOB_QUEUED;
+  q.reply.priority = q.priority;
+  q.reply.paused = q.paused;
+  return &q.reply;
 }
 
 void JobManager::remove_sequence(const std::string& id) {
-  const std::vector<std::string> frames = sequences_.at(id);
-  for (const std::string& f : frames) {
-    auto it = jobs_.find(f);
-    if (it != jobs_.end() && it->second.active) {
-      throw JobRejected(
-          fmt::format("sequence {} has frames queued or running (frame {}): cancel "
-                      "it first",
-                      id, it->second.record.spec.frame.value_or(0)));
-    }
+  const Sequence& q = sequences_.at(id);
+  if (q.active > 0) {
+    throw JobRejected(
+        q.cancelled
+            ? fmt::format("sequence {} is being cancelled ({} frames left to end): remove it in a "
+                          "moment",
+                          id, q.active)
+            : fmt::format("sequence {} has {} frames queued or running: cancel it first", id,
+                          q.active));
   }
+  const std::vector<std::string> frames = q.frames;
   previews_.forget(id);  // nothing reads the frames' images any more
   std::string hash;
   for (const std::string& f : frames) {
@@ -112,29 +260,48 @@ uint64_t JobManager::retry_count(const std::string& id) const {
   return n;
 }
 
-wire::JobState JobManager::retry_sequence(const std::string& id,
-                                          const std::vector<std::string>& frames) {
-  size_t retried = 0;
-  for (const std::string& f : frames) {
-    auto it = jobs_.find(f);
-    if (it == jobs_.end() || it->second.record.unreadable) continue;
-    const wire::JobState s = it->second.record.state;
-    if (s == wire::JOB_FAILED || s == wire::JOB_CANCELLED) {
-      retry(f);
-      ++retried;
-    }
+wire::JobState JobManager::retry_sequence(const std::string& id) {
+  Sequence& q = sequences_.at(id);
+  if (q.cancelled) {
+    throw JobRejected(fmt::format(
+        "sequence {} is being cancelled ({} frames left to end): retry it in a moment", id,
+        q.active));
   }
+  if (!store_.load_bundle(id)) {
+    throw JobRejected("sequence " + id +
+                      " cannot be retried: its bundle is missing from the data dir");
+  }
+  size_t retried = 0;
+  q.retrying = true;  // checked once above; its frames log at debug level
+  try {
+    for (const std::string& f : q.frames) {
+      auto it = jobs_.find(f);
+      if (it == jobs_.end() || it->second.record.unreadable) continue;
+      const wire::JobState s = it->second.record.state;
+      if (s == wire::JOB_FAILED || s == wire::JOB_CANCELLED) {
+        retry(f);
+        ++retried;
+      }
+    }
+  } catch (...) {
+    q.retrying = false;
+    throw;
+  }
+  q.retrying = false;
   if (retried == 0) {
     throw JobRejected(fmt::format("sequence {} has no failed or cancelled frame to retry", id));
   }
-  return sequence_state(frames);
+  save_sequence(id, q);
+  log_jobs()->info("sequence {}: {} failed or cancelled frames queued again", id, retried);
+  return sequence_state(q);
 }
 
-wire::JobState JobManager::sequence_state(const std::vector<std::string>& frames) const {
+wire::JobState JobManager::sequence_state(const Sequence& q) const {
   bool active = false, running = false, done = false, failed = false, all_done = true;
-  for (const std::string& f : frames) {
+  for (const std::string& f : q.frames) {
     auto it = jobs_.find(f);
-    const wire::JobState s = it == jobs_.end() ? wire::JOB_FAILED : it->second.record.state;
+    wire::JobState s = it == jobs_.end() ? wire::JOB_FAILED : it->second.record.state;
+    if (q.cancelled && is_active_state(s)) s = wire::JOB_CANCELLED;  // being ended
     active = active || is_active_state(s);
     running = running || s == wire::JOB_RUNNING;
     done = done || s == wire::JOB_DONE;
@@ -146,17 +313,17 @@ wire::JobState JobManager::sequence_state(const std::vector<std::string>& frames
   return failed ? wire::JOB_FAILED : wire::JOB_CANCELLED;
 }
 
-wire::JobStatus JobManager::sequence_status(const std::string& id,
-                                            const std::vector<std::string>& frames,
+wire::JobStatus JobManager::sequence_status(const std::string& id, const Sequence& q,
                                             uint32_t workers_total, bool with_frames) const {
+  const std::vector<std::string>& frames = q.frames;
   wire::JobStatus out;
   out.set_job_id(id);
-  out.set_state(sequence_state(frames));
+  out.set_state(sequence_state(q));
   out.set_frames_total(static_cast<uint32_t>(frames.size()));
   out.set_workers_total(workers_total);
   uint32_t done = 0;
   bool first = true, all_paused = true, any_active = false;
-  double elapsed = 0.0, spp_mean = 0.0;
+  double spp_mean = 0.0, samples = 0.0;
   uint32_t spp_min = 0;
   for (const std::string& f : frames) {
     auto it = jobs_.find(f);
@@ -198,11 +365,10 @@ wire::JobStatus JobManager::sequence_status(const std::string& id,
     out.set_tiles_total(out.tiles_total() + st.tiles_total());
     out.set_tiles_converged(out.tiles_converged() + st.tiles_converged());
     out.set_workers_busy(out.workers_busy() + st.workers_busy());
-    out.set_samples_per_second(out.samples_per_second() + st.samples_per_second());
+    samples += st.spp_mean() * double(st.width()) * double(st.height());
     spp_min = std::min(spp_min, st.spp_done());
     out.set_passes_done(std::min(out.passes_done(), st.passes_done()));  // over every frame
     spp_mean += st.spp_mean();
-    elapsed += st.elapsed_seconds();
     if (with_frames) {
       wire::SequenceFrame* sf = out.add_frames();
       sf->set_frame(st.frame());
@@ -214,17 +380,25 @@ wire::JobStatus JobManager::sequence_status(const std::string& id,
     }
   }
   out.set_frames_done(done);
-  out.set_previews(previews_note(id, frames));
-  out.set_paused(any_active && all_paused);
+  out.set_previews(previews_note(id, q));
+  out.set_paused(is_active_state(out.state()) && (q.paused || (any_active && all_paused)));
+  out.set_priority(q.priority);
   out.set_spp_done(spp_min);
   out.set_spp_mean(frames.empty() ? 0.0 : spp_mean / double(frames.size()));
+  // The sequence's own clock: wall time since its first unit went out, pauses left out. Its
+  // frames overlap (several render at once on a large farm), so the sum of their times, or of
+  // their rates, says nothing of the sequence's: the rate is every sample merged over that
+  // wall time.
+  const double elapsed = q.elapsed(Clock::now());
   out.set_elapsed_seconds(elapsed);
+  if (elapsed > 0) out.set_samples_per_second(samples / elapsed);
   out.set_est_rel_mse(-1.0);
   out.set_ref_rel_mse(-1.0);
-  // The frames mostly render one after another: the time so far over the units done so far.
+  // The time so far over the units done so far, times the units left; none while paused.
   if (out.state() == wire::JOB_DONE) {
     out.set_eta_seconds(0.0);
-  } else if (out.units_done() > 0 && elapsed > 0 && is_active_state(out.state())) {
+  } else if (out.units_done() > 0 && elapsed > 0 && is_active_state(out.state()) &&
+             !out.paused()) {
     out.set_eta_seconds(elapsed * double(out.units_total() - out.units_done()) /
                         double(out.units_done()));
   } else {
@@ -240,7 +414,7 @@ void JobManager::update_previews(const std::string& id, bool missing_only) {
   request.sequence = id;
   request.dir = store_.job_dir(id);
   bool any_done = false, all_done = true;
-  for (const std::string& f : it->second) {
+  for (const std::string& f : it->second.frames) {
     auto job = jobs_.find(f);
     if (job == jobs_.end()) continue;
     const bool done = job->second.record.state == wire::JOB_DONE;
@@ -275,8 +449,7 @@ void JobManager::update_previews(const std::string& id, bool missing_only) {
   previews_.submit(std::move(request));
 }
 
-std::string JobManager::previews_note(const std::string& id,
-                                      const std::vector<std::string>& frames) const {
+std::string JobManager::previews_note(const std::string& id, const Sequence& q) const {
   const fs::path dir = store_.job_dir(id);
   std::error_code ec;
   std::string note = fs::exists(dir / SequencePreviews::kSheetName, ec)
@@ -289,9 +462,9 @@ std::string JobManager::previews_note(const std::string& id,
     note += "; no movie: " + failure;
   } else if (!previews_.makes_movies()) {
     note += "; no movie (turned off)";
-  } else if (sequence_state(frames) == wire::JOB_DONE) {
+  } else if (sequence_state(q) == wire::JOB_DONE) {
     note += "; movie being made";
-  } else if (!is_active_state(sequence_state(frames))) {
+  } else if (!is_active_state(sequence_state(q))) {
     note += "; no movie: not every frame is done";
   } else {
     note += "; movie when every frame is done";

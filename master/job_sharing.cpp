@@ -10,9 +10,7 @@ using namespace detail;
 
 const JobRecord* JobManager::change(const std::string& id, std::optional<int32_t> priority,
                                     std::optional<bool> paused) {
-  if (const auto* frames = sequence_frames(id)) {
-    return change_sequence(id, *frames, priority, paused);
-  }
+  if (sequence_frames(id)) return change_sequence(id, priority, paused);
   auto it = jobs_.find(id);
   if (it == jobs_.end()) return nullptr;
   // A sequence shares the farm as one job, at one priority: its frames' is the sequence's.
@@ -54,7 +52,10 @@ const JobRecord* JobManager::change_one(const std::string& id, std::optional<int
   if (paused && *paused != r.paused) {
     r.paused = *paused;
     scheduler_.set_paused(id, r.paused);
-    if (r.paused) {
+    Sequence* q = sequence_of(r.spec);
+    if (q != nullptr && r.paused) q->paused_alone.insert(id);
+    if (q != nullptr && !r.paused) q->paused_alone.erase(id);
+    if (r.paused || (q != nullptr && q->paused)) {  // a paused sequence keeps its clocks stopped
       job.active->pause(now);
     } else {
       job.active->resume(now);

@@ -68,8 +68,10 @@ wire::JobStatus JobManager::make_status(const Job& job, uint32_t workers_total) 
   st.set_tiles_converged(job.record.tiles_converged);
   st.set_storage_error(for_clients(job.storage_error));
   st.set_error(for_clients(job.record.error));
-  st.set_priority(job.record.priority);
-  st.set_paused(job.record.paused);
+  // A frame's priority is its sequence's, and a paused sequence holds every frame.
+  const Sequence* q = sequence_of(s);
+  st.set_priority(q ? q->priority : job.record.priority);
+  st.set_paused(job.record.paused || (q && q->paused && job.active));
   if (job.active) {
     const ActiveJob& a = *job.active;
     const Merger& m = a.merger;
@@ -92,7 +94,7 @@ wire::JobStatus JobManager::make_status(const Job& job, uint32_t workers_total) 
       const double rate = static_cast<double>(m.samples_merged()) / seconds;
       st.set_samples_per_second(rate);
       // A paused job's end is the user's to say: no estimate.
-      if (!job.record.paused)
+      if (!st.paused())
         st.set_eta_seconds(
             estimate_eta(s.stop, static_cast<double>(grid.samples_total() - m.samples_merged()),
                          rate, seconds, a.rows));
@@ -117,8 +119,8 @@ wire::JobStatus JobManager::make_status(const Job& job, uint32_t workers_total) 
 
 std::optional<wire::JobStatus> JobManager::status(const std::string& id,
                                                   uint32_t workers_total) const {
-  if (const auto* frames = sequence_frames(id)) {
-    return sequence_status(id, *frames, workers_total, /*with_frames=*/true);
+  if (sequence_frames(id)) {
+    return sequence_status(id, sequences_.at(id), workers_total, /*with_frames=*/true);
   }
   auto it = jobs_.find(id);
   if (it == jobs_.end()) return std::nullopt;
@@ -135,7 +137,8 @@ std::vector<wire::JobStatus> JobManager::list(uint32_t workers_total) const {
     if (frames == nullptr) {
       out.push_back(make_status(job, workers_total));
     } else if (listed.insert(sequence).second) {
-      out.push_back(sequence_status(sequence, *frames, workers_total, /*with_frames=*/false));
+      out.push_back(
+          sequence_status(sequence, sequences_.at(sequence), workers_total, /*with_frames=*/false));
     }
   }
   return out;
@@ -152,13 +155,14 @@ wire::ImageData JobManager::image(const std::string& id, bool movie, bool sheet)
     // A sequence's images are its frames'; of its own it has its previews.
     wire::ImageData out;
     out.set_job_id(id);
-    out.set_state(sequence_state(*frames));
+    const Sequence& q = sequences_.at(id);
+    out.set_state(sequence_state(q));
     const auto read = [&](const char* name) { return store_.read_file(id, name); };
     if (movie) {
       auto mp4 = read(SequencePreviews::kMovieName);
       if (!mp4) {
         throw JobRejected(
-            fmt::format("sequence {} has no movie ({})", id, previews_note(id, *frames)));
+            fmt::format("sequence {} has no movie ({})", id, previews_note(id, q)));
       }
       out.set_mp4(std::move(*mp4));
       return out;

@@ -84,6 +84,7 @@ json to_json(const JobRecord& r) {
               {"state", protocol::job_state_name(r.state)},
               {"priority", r.priority},
               {"paused", r.paused},
+              {"queued_unix_ms", r.queued_unix_ms},
               {"error", r.error},
               {"elapsed_seconds", finite_or(r.elapsed_seconds, 0.0)},
               {"stop_reason", r.stop_reason},
@@ -187,6 +188,7 @@ JobRecord from_json(const json& j) {
     // Only a queued or running job can be paused: an ended one reads as not paused.
     r.paused = p->get<bool>() && (r.state == wire::JOB_QUEUED || r.state == wire::JOB_RUNNING);
   }
+  r.queued_unix_ms = j.value("queued_unix_ms", int64_t{0});
   r.error = j.value("error", "");
   r.elapsed_seconds = number_or(j, "elapsed_seconds", 0.0);
   r.stop_reason = j.value("stop_reason", "");
@@ -275,21 +277,56 @@ void JobStore::create_job_dir(const std::string& id) {
   }
 }
 
-void JobStore::mark_sequence_stored(const std::string& id, size_t frames, double fps) {
-  write_file_atomically(job_dir(id) / "sequence.json",
-                        json{{"id", id}, {"frames", frames}, {"fps", fps}}.dump() + "\n");
-  sync_job_dir(id);
+namespace {
+
+json sequence_json(const SequenceRecord& r) {
+  return json{{"id", r.id},
+              {"frames", r.frames},
+              {"fps", finite_or(r.fps, 24.0)},
+              {"priority", r.priority},
+              {"paused", r.paused},
+              {"cancelled_unix_ms", r.cancelled_unix_ms},
+              {"elapsed_seconds", finite_or(r.elapsed_seconds, -1.0)}};
 }
 
-double JobStore::sequence_fps(const std::string& id) const {
+}  // namespace
+
+void JobStore::mark_sequence_stored(const SequenceRecord& record) {
+  save_sequence(record);
+  sync_job_dir(record.id);
+}
+
+void JobStore::save_sequence(const SequenceRecord& record) {
+  write_file_atomically(job_dir(record.id) / "sequence.json",
+                        sequence_json(record).dump() + "\n");
+}
+
+SequenceRecord JobStore::load_sequence(const std::string& id) const {
+  SequenceRecord r;
+  r.id = id;
   try {
     std::ifstream in(job_dir(id) / "sequence.json");
     const json j = json::parse(in);
-    const double fps = j.value("fps", 24.0);
-    if (std::isfinite(fps) && fps > 0 && fps <= 1000) return fps;
-  } catch (const std::exception&) {
+    r.frames = j.value("frames", size_t{0});
+    const double fps = number_or(j, "fps", 24.0);
+    if (fps > 0 && fps <= 1000) r.fps = fps;
+    if (j.contains("priority")) {
+      r.has_state = true;
+      r.priority = std::clamp(j.at("priority").get<int32_t>(), kMinPriority, kMaxPriority);
+      r.paused = j.value("paused", false);
+    }
+    r.cancelled_unix_ms = j.value("cancelled_unix_ms", int64_t{0});
+    r.elapsed_seconds = number_or(j, "elapsed_seconds", -1.0);
+  } catch (const std::exception& e) {
+    get_logger("master")->error("cannot read the state of sequence {} ({}): its frames' "
+                                "records are used",
+                                id, e.what());
   }
-  return 24.0;
+  return r;
+}
+
+double JobStore::sequence_fps(const std::string& id) const {
+  return load_sequence(id).fps;
 }
 
 bool JobStore::sequence_stored(const std::string& id) const {

@@ -13,7 +13,9 @@
 //                                generations (checkpoint.h); removed when the job ends
 //   <data>/jobs/<seq>/bundle.pb  a sequence's bundle, which its frames' jobs render (their
 //                                folders are <data>/jobs/<seq>.<frame>/, without a bundle.pb)
-//   <data>/jobs/<seq>/sequence.json  written once every frame's job.json is on disk
+//   <data>/jobs/<seq>/sequence.json  written once every frame's job.json is on disk; then holds
+//                                the sequence's own state (SequenceRecord), rewritten as it
+//                                changes
 //   <data>/tmp/                  scratch space (scene validation), emptied at start
 #include <cstdint>
 #include <filesystem>
@@ -73,9 +75,30 @@ struct JobRecord {
   /// How the job shares the farm (Scheduler): changeable while it is queued or running.
   int32_t priority = 0;
   bool paused = false;
+  /// When the job was last queued by a retry (Unix ms); 0: never, it was queued when submitted.
+  int64_t queued_unix_ms = 0;
   /// The job's job.json could not be read: state is JOB_STATE_UNSPECIFIED, `error` says why, and
   /// only spec.id is known. Such a record is listed, never saved over.
   bool unreadable = false;
+};
+
+/// A sequence's own state (sequence.json): what is set once for all its frames.
+struct SequenceRecord {
+  std::string id;
+  size_t frames = 0;
+  double fps = 24.0;  ///< the frames a second its movie plays at
+  /// The sequence's priority and pause, its frames' (a frame may still be paused alone, in its
+  /// own record). `has_state` is false for a sequence stored before they were kept here: its
+  /// frames' records hold them.
+  bool has_state = false;
+  int32_t priority = 0;
+  bool paused = false;
+  /// When the sequence was last cancelled (Unix ms; 0: never): a frame whose record still says
+  /// queued or running and was queued before then is cancelled (a cancel ends the frames a slice
+  /// at a time, and writes the records only of those that had started).
+  int64_t cancelled_unix_ms = 0;
+  /// Seconds of rendering, wall time, pauses left out; negative: unknown (not kept).
+  double elapsed_seconds = -1.0;
 };
 
 class JobStore {
@@ -99,8 +122,12 @@ class JobStore {
   /// Records that every frame of sequence `id` is stored (jobs/<id>/sequence.json, synced): a
   /// sequence without it was cut short by a crash while being accepted. Throws
   /// std::runtime_error.
-  /// `fps`: the frames a second its movie plays at.
-  void mark_sequence_stored(const std::string& id, size_t frames, double fps);
+  void mark_sequence_stored(const SequenceRecord& record);
+  /// Rewrites sequence.json (the file alone: the folder is synced already). Throws
+  /// std::runtime_error on an I/O error.
+  void save_sequence(const SequenceRecord& record);
+  /// Reads sequence.json; what it lacks or cannot be read keeps SequenceRecord's defaults.
+  SequenceRecord load_sequence(const std::string& id) const;
   bool sequence_stored(const std::string& id) const;
   /// The frames a second of sequence `id`'s movie (24 when its sequence.json does not say).
   double sequence_fps(const std::string& id) const;

@@ -17,8 +17,18 @@ void Scheduler::add_job(const std::string& job, const std::string& group, int64_
   Job j;
   j.group = group;
   j.rank = rank;
+  j.added = ++added_;
+  if (group.empty()) {
+    order_.emplace(j.added, Entry{job, false});
+  } else {
+    auto [g, fresh] = groups_.try_emplace(group);
+    if (fresh) {
+      g->second.added = j.added;
+      order_.emplace(j.added, Entry{group, true});
+    }
+    g->second.members.emplace(rank, job);
+  }
   jobs_.emplace(job, std::move(j));
-  order_.push_back(job);
 }
 
 void Scheduler::set_run_stride(const std::string& job, uint64_t stride) {
@@ -34,6 +44,41 @@ void Scheduler::set_priority(const std::string& job, int priority) {
 void Scheduler::set_paused(const std::string& job, bool paused) {
   auto it = jobs_.find(job);
   if (it != jobs_.end()) it->second.paused = paused;
+}
+
+void Scheduler::set_group(const std::string& group, int priority, bool paused) {
+  auto it = groups_.find(group);
+  if (it == groups_.end()) return;
+  it->second.priority = priority;
+  it->second.paused = paused;
+}
+
+Scheduler::Group* Scheduler::group_of(const Job& j) {
+  if (j.group.empty()) return nullptr;
+  auto it = groups_.find(j.group);
+  return it == groups_.end() ? nullptr : &it->second;
+}
+
+const Scheduler::Group* Scheduler::group_of(const Job& j) const {
+  if (j.group.empty()) return nullptr;
+  auto it = groups_.find(j.group);
+  return it == groups_.end() ? nullptr : &it->second;
+}
+
+bool Scheduler::held(const Job& j) const {
+  if (j.paused) return true;
+  const Group* g = group_of(j);
+  return g != nullptr && g->paused;
+}
+
+int Scheduler::priority_of(const Job& j) const {
+  const Group* g = group_of(j);
+  return g != nullptr ? g->priority : j.priority;
+}
+
+void Scheduler::open_lease(Job& j, uint64_t serial, uint32_t units) {
+  j.open_leases[serial] = units;
+  if (Group* g = group_of(j)) ++g->leases;
 }
 
 void Scheduler::release(const std::string& job, const std::vector<uint64_t>& units) {
@@ -94,11 +139,21 @@ uint32_t Scheduler::run_length(const Job& j, const WorkerId& worker, const RunPo
 void Scheduler::remove_job(const std::string& job) {
   auto it = jobs_.find(job);
   if (it == jobs_.end()) return;
-  for (const auto& [unit, holders] : it->second.leased) {
+  Job& j = it->second;
+  for (const auto& [unit, holders] : j.leased) {
     for (const auto& h : holders) drop_lease(h.worker, UnitRef{job, unit});
   }
+  if (Group* g = group_of(j)) {
+    g->leases -= std::min(g->leases, j.open_leases.size());
+    g->members.erase({j.rank, job});
+    if (g->members.empty()) {
+      order_.erase(g->added);
+      groups_.erase(j.group);
+    }
+  } else {
+    order_.erase(j.added);
+  }
   jobs_.erase(it);
-  order_.erase(std::remove(order_.begin(), order_.end(), job), order_.end());
 }
 
 bool Scheduler::has_pending(const Job& j) {
@@ -118,39 +173,41 @@ std::optional<UnitRef> Scheduler::lease(const WorkerId& worker, Clock::time_poin
   return UnitRef{run->job, run->units.front()};
 }
 
+const std::string* Scheduler::offer(const Group& group, const std::string& who) const {
+  // In rank order, stopping at the first job that can be served: the jobs passed over are those
+  // whose units are all out, those paused alone and those `who` is blocked from.
+  for (const auto& [rank, name] : group.members) {
+    const Job& j = jobs_.at(name);
+    if (!j.paused && !j.blocked.count(who) && has_pending(j)) return &name;
+  }
+  return nullptr;
+}
+
 std::optional<Lease> Scheduler::lease_run(const WorkerId& worker, const RunPolicy& runs,
                                           Clock::time_point now, const std::string& key) {
   const std::string& who = key.empty() ? worker : key;
   // A group (a sequence's frames) competes as one job: its leases and its latest service are its
-  // jobs' together, and it offers its lowest-ranked job that this worker may take.
-  std::map<std::string, Standing> groups;
-  for (const auto& [name, j] : jobs_) {
-    if (j.group.empty()) continue;
-    Standing& g = groups[j.group];
-    g.leases += j.open_leases.size();
-    g.served = std::max(g.served, j.served);
-  }
-  std::map<std::string, const std::string*> offered;  // group -> its job on offer
-  for (const auto& name : order_) {
-    const Job& j = jobs_.at(name);
-    if (j.group.empty() || j.paused || j.blocked.count(who) || !has_pending(j)) continue;
-    const std::string*& pick = offered[j.group];
-    if (pick == nullptr || j.rank < jobs_.at(*pick).rank) pick = &name;
-  }
-  // The first best in the order of addition: ties go to the older job.
+  // jobs' together, and it offers its lowest-ranked job that this worker may take. The first
+  // best in the order of addition wins: ties go to the older job.
   const std::string* best = nullptr;
   Standing best_standing;
-  for (const auto& name : order_) {
-    const Job& j = jobs_.at(name);
-    if (j.paused || j.blocked.count(who) || !has_pending(j)) continue;
-    Standing standing{j.priority, j.open_leases.size(), j.served};
-    if (!j.group.empty()) {
-      if (offered.at(j.group) != &name) continue;
-      standing = groups.at(j.group);
-      standing.priority = j.priority;
+  for (const auto& [added, entry] : order_) {
+    const std::string* name = nullptr;
+    Standing standing;
+    if (entry.group) {
+      const Group& g = groups_.at(entry.name);
+      if (g.paused) continue;
+      name = offer(g, who);
+      if (name == nullptr) continue;
+      standing = Standing{g.priority, g.leases, g.served};
+    } else {
+      const Job& j = jobs_.at(entry.name);
+      if (j.paused || j.blocked.count(who) || !has_pending(j)) continue;
+      name = &entry.name;
+      standing = Standing{j.priority, j.open_leases.size(), j.served};
     }
     if (best == nullptr || served_before(standing, best_standing)) {
-      best = &name;
+      best = name;
       best_standing = standing;
     }
   }
@@ -170,8 +227,9 @@ std::optional<Lease> Scheduler::lease_run(const WorkerId& worker, const RunPolic
     best_job.leased[u] = {Job::Holder{worker, now, serial, count}};
     by_worker_[worker].insert(UnitRef{*best, u});
   }
-  best_job.open_leases[serial] = count;
+  open_lease(best_job, serial, count);
   best_job.served = serial;
+  if (Group* g = group_of(best_job)) g->served = serial;
   return out;
 }
 
@@ -196,16 +254,22 @@ std::optional<Scheduler::StragglerLease> Scheduler::lease_straggler(const Worker
                                                                     Clock::time_point now,
                                                                     const std::string& key) {
   const std::string& who = key.empty() ? worker : key;
-  // Jobs by priority, the older first among equals (stable).
+  // The jobs that hold leases (only they can have a straggler), by priority, the older first
+  // among equals: as many as there are leases out, whatever the number of jobs.
   std::vector<const std::string*> names;
-  for (const auto& name : order_) names.push_back(&name);
-  std::stable_sort(names.begin(), names.end(), [this](const std::string* a, const std::string* b) {
-    return jobs_.at(*a).priority > jobs_.at(*b).priority;
+  for (const std::string* name : leased_jobs()) {
+    const Job& j = jobs_.at(*name);
+    if (!held(j) && !j.blocked.count(who)) names.push_back(name);
+  }
+  std::sort(names.begin(), names.end(), [this](const std::string* a, const std::string* b) {
+    const Job& ja = jobs_.at(*a);
+    const Job& jb = jobs_.at(*b);
+    const int pa = priority_of(ja), pb = priority_of(jb);
+    return pa != pb ? pa > pb : ja.added < jb.added;
   });
   for (const std::string* name_ptr : names) {
     const std::string& name = *name_ptr;
     Job& j = jobs_.at(name);
-    if (j.paused || j.blocked.count(who)) continue;
     const auto threshold = straggler_threshold(j, policy);
     if (!threshold) continue;
     // The slowest single lease, per unit, past the threshold that `worker` does not hold.
@@ -236,15 +300,27 @@ std::optional<Scheduler::StragglerLease> Scheduler::lease_straggler(const Worker
       j.leased.at(unit).push_back(Job::Holder{worker, now, serial, count});
       by_worker_[worker].insert(UnitRef{name, unit});
     }
-    j.open_leases[serial] = count;
+    open_lease(j, serial, count);
     return out;
   }
   return std::nullopt;
 }
 
+std::vector<const std::string*> Scheduler::leased_jobs() const {
+  std::set<const std::string*> out;
+  for (const auto& [worker, units] : by_worker_) {
+    for (const UnitRef& u : units) {
+      auto it = jobs_.find(u.job);
+      if (it != jobs_.end()) out.insert(&it->first);
+    }
+  }
+  return {out.begin(), out.end()};
+}
+
 bool Scheduler::has_straggler(const StragglerPolicy& policy, Clock::time_point now) const {
-  for (const auto& [name, j] : jobs_) {
-    if (j.paused) continue;
+  for (const std::string* name : leased_jobs()) {
+    const Job& j = jobs_.at(*name);
+    if (held(j)) continue;
     const auto threshold = straggler_threshold(j, policy);
     if (!threshold) continue;
     for (const auto& [unit, holders] : j.leased) {
@@ -269,7 +345,10 @@ void Scheduler::drop_lease(const WorkerId& worker, const UnitRef& unit) {
 void Scheduler::unhold(Job& j, const Job::Holder& h, const UnitRef& unit) {
   drop_lease(h.worker, unit);
   auto open = j.open_leases.find(h.lease);
-  if (open != j.open_leases.end() && --open->second == 0) j.open_leases.erase(open);
+  if (open != j.open_leases.end() && --open->second == 0) {
+    j.open_leases.erase(open);
+    if (Group* g = group_of(j); g != nullptr && g->leases > 0) --g->leases;
+  }
 }
 
 bool Scheduler::complete(const UnitRef& unit, const std::optional<WorkerId>& by,
@@ -392,8 +471,19 @@ bool Scheduler::holds(const UnitRef& unit, const WorkerId& worker) const {
 }
 
 bool Scheduler::has_pending() const {
-  for (const auto& [name, j] : jobs_) {
-    if (!j.paused && has_pending(j)) return true;
+  // A held group is passed over whole; a group's jobs only until one has a unit pending.
+  for (const auto& [added, entry] : order_) {
+    if (entry.group) {
+      const Group& g = groups_.at(entry.name);
+      if (g.paused) continue;
+      for (const auto& [rank, name] : g.members) {
+        const Job& j = jobs_.at(name);
+        if (!j.paused && has_pending(j)) return true;
+      }
+    } else {
+      const Job& j = jobs_.at(entry.name);
+      if (!j.paused && has_pending(j)) return true;
+    }
   }
   return false;
 }

@@ -11,7 +11,10 @@
 // equal priority share the workers evenly and a job submitted behind a long one gets the next
 // worker that frees up. A job of higher priority takes every worker it can use first. The jobs of
 // a group (the frames of a sequence) count as one job in that choice, and the group serves its
-// lowest-ranked job with a unit pending first: frames finish in order. Within a
+// lowest-ranked job with a unit pending first: frames finish in order. A group's priority and
+// pause are the group's, set once for all its jobs (set_group): changing them costs the same
+// whatever the group's size, and a lease looks at a group's jobs in rank order only until it
+// finds one to serve. Within a
 // job the lowest-numbered pending unit goes first (pass-major, common/schedule/unit_grid.h). A
 // worker's leases go back to the queue when it is lost, ahead of units never handed out. Pausing a
 // job stops new leases of it (second leases too); the leases it holds run to their end.
@@ -101,6 +104,10 @@ class Scheduler {
   void set_priority(const std::string& job, int priority);
   /// A paused job gets no new leases (nor second leases of its stragglers) until resumed.
   void set_paused(const std::string& job, bool paused);
+  /// The priority of every job of `group` (their own set_priority is not used), and whether the
+  /// whole group is held (a job of it is then paused whatever its own flag says). O(log groups);
+  /// ignored while the group has no job. A group's jobs added later take it.
+  void set_group(const std::string& group, int priority, bool paused);
   /// Makes `units` of the job pending. Each unit is released once (the caller's planner decides).
   void release(const std::string& job, const std::vector<uint64_t>& units);
   /// Makes units [0, unit_count) of the job pending: a job that needs every unit, held in O(1).
@@ -183,6 +190,16 @@ class Scheduler {
     uint64_t served = 0;  // lease_serial_ at its latest lease; 0: never leased
     std::string group;    // "" or the group it shares the farm with
     int64_t rank = 0;     // its order in the group
+    uint64_t added = 0;   // its place in the order of addition
+  };
+  /// A group of jobs that share the farm as one (a sequence's frames).
+  struct Group {
+    int priority = 0;
+    bool paused = false;
+    size_t leases = 0;    // open leases of its jobs
+    uint64_t served = 0;  // the latest of its jobs' `served`
+    uint64_t added = 0;   // its place in the order of addition: its first job's
+    std::set<std::pair<int64_t, std::string>> members;  // (rank, job)
   };
   /// How a job (or a group of jobs) stands for the next lease.
   struct Standing {
@@ -191,7 +208,15 @@ class Scheduler {
     uint64_t served = 0;
   };
   std::map<std::string, Job> jobs_;
-  std::vector<std::string> order_;                   // jobs in the order they were added
+  std::map<std::string, Group> groups_;
+  // Jobs of their own and groups, in the order they were added (a group where its first job
+  // was): what a lease looks at.
+  struct Entry {
+    std::string name;
+    bool group = false;
+  };
+  std::map<uint64_t, Entry> order_;
+  uint64_t added_ = 0;  // counts additions: Job::added, Group::added
   std::map<WorkerId, std::set<UnitRef>> by_worker_;  // leases per worker
   uint64_t lease_serial_ = 0;                        // counts leases: Job::served, Holder::lease
 
@@ -208,6 +233,20 @@ class Scheduler {
   /// How many units `worker`'s next lease of `j` covers.
   static uint32_t run_length(const Job& j, const WorkerId& worker, const RunPolicy& runs);
   static bool has_pending(const Job& j);
+  /// The job's group; nullptr for a job of its own.
+  Group* group_of(const Job& j);
+  const Group* group_of(const Job& j) const;
+  /// The jobs that hold a lease now, by name (bounded by the leases out, not by the jobs).
+  std::vector<const std::string*> leased_jobs() const;
+  /// Whether the job gets no new leases (its own pause or its group's), and its priority (its
+  /// group's for a job of a group).
+  bool held(const Job& j) const;
+  int priority_of(const Job& j) const;
+  /// Records a new lease of `j` (serial, units) and counts it for its group.
+  void open_lease(Job& j, uint64_t serial, uint32_t units);
+  /// The job of `group` to serve `who` next: its lowest-ranked one not held or blocked with a unit
+  /// pending; nullptr when none.
+  const std::string* offer(const Group& group, const std::string& who) const;
   /// Whether `a` is served before `b` (both with units pending): priority, then fewer leases now,
   /// then served longer ago.
   static bool served_before(const Standing& a, const Standing& b);

@@ -3,6 +3,11 @@
 // refused by name at submission (or by the queue's limit).
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <fstream>
+#include <sstream>
+#include <thread>
+
 #include "common/bundle/bundle.h"
 #include "common/protocol/convert.h"
 #include "master/job_manager.h"
@@ -32,6 +37,30 @@ wire::SubmitJob animation_job(int64_t first, int64_t last, int64_t step) {
   o->set_height(16);
   *request.mutable_frames() = protocol::frames_to_wire({first, last, step});
   return request;
+}
+
+/// animation_job() with the animation stretched to `frames` frames, all of them asked for.
+wire::SubmitJob long_animation_job(int64_t frames) {
+  wire::SubmitJob request = animation_job(1, 1, 1);
+  std::string& scene = *request.mutable_bundle()->mutable_files(0)->mutable_data();
+  const std::string range = "\"frames\": [1, 48]";
+  const size_t at = scene.find(range);
+  if (at == std::string::npos) throw std::runtime_error("the animated box's frame range moved");
+  scene.replace(at, range.size(), "\"frames\": [1, " + std::to_string(frames) + "]");
+  // The bundle's hash covers its files: packed again by the same code as a client's.
+  Bundle bundle = protocol::bundle_from_wire(request.bundle());
+  bundle = make_bundle(std::move(bundle.files));
+  request.clear_bundle();
+  protocol::bundle_to_wire(bundle, request.mutable_bundle());
+  *request.mutable_frames() = protocol::frames_to_wire({1, frames, 1});
+  return request;
+}
+
+std::string read_text(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
 }
 
 TEST(JobSequences, FramesGoOutInOrderAndTheSequenceSurvivesARestart) {
@@ -210,6 +239,156 @@ TEST(JobSequences, WhatCannotBeASequenceIsRefusedByName) {
   EXPECT_EQ(unit->scene_path(), "shots/f_001.json");
   EXPECT_FALSE(unit->has_frame());
   EXPECT_EQ(jobs.status(seq, 1)->frames_total(), 3u);
+}
+
+// A sequence's pause, priority and cancel are the sequence's, set once: each call visits a
+// bounded number of jobs whatever the sequence's length, writes no frame's record, and another
+// job goes on being served. (These visited every frame, writing each one's record and a log
+// line.)
+TEST(JobSequences, ALongSequencesChangesCostBoundedWorkPerCall) {
+  // Long enough that a cancel takes many slices and a restart comes in the middle of it; the
+  // bounds below do not depend on the length (100,000 frames pass them too, in minutes: most of
+  // that is storing and reading back each frame's folder).
+  constexpr int64_t kFrames = 5000;
+  TempDir dir;
+  std::string seq, other;
+  const auto far_record = [&](const JobStore& store) {
+    return read_text(store.job_dir(JobStore::frame_id(seq, kFrames / 2)) / "job.json");
+  };
+  {
+    JobStore store(dir.path() / "data");
+    JobManager jobs(store);
+    seq = jobs.submit(long_animation_job(kFrames), "alice");
+    other = jobs.submit(test_jobs::furnace_job(64, 16, 2), "bob");
+    ASSERT_EQ(jobs.status(seq, 1)->frames_total(), static_cast<uint32_t>(kFrames));
+    // Frame 1 starts: the sequence is the older job, and frames go in order.
+    const auto first = jobs.next_unit("w1");
+    ASSERT_TRUE(first);
+    EXPECT_EQ(first->job_id(), seq + ".0001");
+    const std::string far_before = far_record(store);
+    // A bounded amount of work per call: the frames running (one here), not the sequence.
+    constexpr uint64_t kBound = 16;
+    const auto visits = [&](auto&& call) {
+      const uint64_t before = jobs.jobs_visited();
+      call();
+      return jobs.jobs_visited() - before;
+    };
+    EXPECT_LE(visits([&] { ASSERT_NE(jobs.change(seq, std::nullopt, true), nullptr); }), kBound);
+    EXPECT_TRUE(jobs.status(seq, 1)->paused());
+    EXPECT_TRUE(jobs.status(JobStore::frame_id(seq, kFrames), 1)->paused());
+    // Paused, the sequence gets no unit; the other job gets every one.
+    for (int i = 0; i < 4; ++i) {
+      const auto unit = jobs.next_unit("w" + std::to_string(i + 2));
+      ASSERT_TRUE(unit);
+      EXPECT_EQ(unit->job_id(), other);
+    }
+    EXPECT_LE(visits([&] { jobs.tick(); }), kBound);
+    EXPECT_LE(visits([&] { ASSERT_NE(jobs.change(seq, 7, false), nullptr); }), kBound);
+    EXPECT_FALSE(jobs.status(seq, 1)->paused());
+    EXPECT_EQ(jobs.status(JobStore::frame_id(seq, kFrames), 1)->priority(), 7);
+    // Raised above the other job, it is served first again.
+    const auto raised = jobs.next_unit("w9");
+    ASSERT_TRUE(raised);
+    EXPECT_EQ(raised->job_id(), seq + ".0002");
+    // No frame's record was written for any of it: the sequence's own says.
+    EXPECT_EQ(far_record(store), far_before);
+    EXPECT_NE(read_text(store.job_dir(seq) / "sequence.json").find("\"priority\":7"),
+              std::string::npos);
+
+    // Cancel: the answer is at once, no frame gets a unit again, and tick() ends the frames a
+    // bounded slice at a time while the other job is served.
+    EXPECT_LE(visits([&] { ASSERT_EQ(jobs.cancel(seq), wire::JOB_CANCELLED); }),
+              JobManager::kCancelSlice);
+    EXPECT_EQ(jobs.status(seq, 1)->state(), wire::JOB_CANCELLED);
+    EXPECT_EQ(far_record(store), far_before);
+    EXPECT_THROW(jobs.remove(seq), JobRejected);  // frames still to end
+    EXPECT_THROW(jobs.change(seq, std::nullopt, true), JobRejected);
+    const auto next = jobs.next_unit("w10");
+    ASSERT_TRUE(next);
+    EXPECT_EQ(next->job_id(), other);
+    for (int i = 0; i < 3; ++i) {
+      EXPECT_LE(visits([&] { jobs.tick(); }), JobManager::kCancelSlice + kBound);
+    }
+    // A stop part-way: the restart reads the frames left as cancelled.
+    jobs.shutdown();
+  }
+  JobStore store(dir.path() / "data");
+  JobManager restarted(store);
+  EXPECT_EQ(restarted.recover(), 1u);  // the other job alone
+  const auto st = restarted.status(seq, 1);
+  ASSERT_TRUE(st);
+  EXPECT_EQ(st->state(), wire::JOB_CANCELLED);
+  EXPECT_EQ(restarted.status(JobStore::frame_id(seq, kFrames), 1)->state(), wire::JOB_CANCELLED);
+  EXPECT_EQ(restarted.status(other, 1)->state(), wire::JOB_RUNNING);
+  for (int i = 0; i < 3; ++i) {
+    const auto unit = restarted.next_unit("w" + std::to_string(i));
+    ASSERT_TRUE(unit);
+    EXPECT_EQ(unit->job_id(), other);
+  }
+  restarted.remove(seq);
+  EXPECT_FALSE(std::filesystem::exists(store.job_dir(seq)));
+}
+
+// Frames rendered one after another: the sequence's rate is its samples over its own time, not
+// the sum of its frames' rates (which counted the farm's rate once per frame).
+TEST(JobSequences, ASequencesRateIsItsSamplesOverItsTime) {
+  TempDir dir;
+  JobStore store(dir.path() / "data");
+  JobManager jobs(store);
+  const std::string seq = jobs.submit(animation_job(1, 3, 1));
+  for (int frame = 1; frame <= 3; ++frame) {
+    const auto unit = jobs.next_unit("w1");
+    ASSERT_TRUE(unit);
+    ASSERT_EQ(unit->frame(), frame);
+    // Some time on the frame, so that its own rate is finite; nothing here depends on how much.
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    // One worker, one unit a frame: the frames render one after another.
+    ASSERT_EQ(jobs.on_result("w1", test_jobs::result_for(*unit)), MergeOutcome::kMerged);
+  }
+  const auto st = jobs.status(seq, 1);
+  ASSERT_TRUE(st);
+  ASSERT_EQ(st->state(), wire::JOB_DONE);
+  double samples = 0, frames_seconds = 0;
+  for (const auto& f : st->frames()) {
+    const auto frame = jobs.status(f.job_id(), 1);
+    samples += frame->spp_mean() * frame->width() * frame->height();
+    frames_seconds += frame->elapsed_seconds();
+  }
+  EXPECT_EQ(samples, 3.0 * 16 * 16 * 2);
+  ASSERT_GT(st->samples_per_second(), 0.0);
+  // The frames ran one after another within the sequence's time: its rate is at most their
+  // samples over their times added up, and it is its samples over its elapsed time.
+  EXPECT_LE(st->samples_per_second() * frames_seconds, samples * (1 + 1e-9));
+  EXPECT_NEAR(st->samples_per_second() * st->elapsed_seconds(), samples, samples * 1e-9);
+}
+
+TEST(JobSequences, EachKeyHasABudgetOfChanges) {
+  ChangeBudget budget;
+  const auto t0 = ChangeBudget::Clock::now();
+  for (int i = 0; i < static_cast<int>(ChangeBudget::kBurst); ++i) {
+    ASSERT_TRUE(budget.take("mallory", t0)) << i;
+  }
+  EXPECT_FALSE(budget.take("mallory", t0));
+  EXPECT_TRUE(budget.take("alice", t0)) << "another key's budget is its own";
+  // A second later, a second's worth more.
+  const auto t1 = t0 + std::chrono::seconds(1);
+  for (int i = 0; i < static_cast<int>(ChangeBudget::kPerSecond); ++i) {
+    ASSERT_TRUE(budget.take("mallory", t1)) << i;
+  }
+  EXPECT_FALSE(budget.take("mallory", t1));
+  // The job manager's, with the refusal a client is told.
+  TempDir dir;
+  JobStore store(dir.path() / "data");
+  JobManager jobs(store);
+  for (int i = 0; i < static_cast<int>(ChangeBudget::kBurst); ++i) {
+    ASSERT_FALSE(jobs.take_change("mallory", t0)) << i;
+  }
+  const auto refusal = jobs.take_change("mallory", t0);
+  ASSERT_TRUE(refusal);
+  EXPECT_NE(refusal->find("too many changes from this key: at most 10 a second"),
+            std::string::npos)
+      << *refusal;
+  EXPECT_FALSE(jobs.take_change("alice", t0));
 }
 
 TEST(JobSequences, TheQueueLimitCountsEveryFrame) {
