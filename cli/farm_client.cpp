@@ -136,8 +136,17 @@ std::string fetch_image(FarmClient& client, const std::string& job, const fs::pa
       wrote += " and " + png.string();
     }
   }
-  return fmt::format("wrote {} (job {} {}, {} spp)", wrote, image.job_id(),
-                     protocol::job_state_name(image.state()), image.spp_done());
+  // The image's samples per pixel; the job's beside them when the image lags it (a master
+  // before job_spp_done sent the job's figure alone).
+  std::string lag;
+  if (image.job_spp_done() != 0 && image.job_spp_done() != image.spp_done()) {
+    lag = fmt::format("; the job is at {} spp", image.job_spp_done());
+  }
+  if (!image.image_note().empty()) {
+    lag += (lag.empty() ? "; " : ": ") + protocol::printable(image.image_note());
+  }
+  return fmt::format("wrote {} (job {} {}, {} spp{})", wrote, image.job_id(),
+                     protocol::job_state_name(image.state()), image.spp_done(), lag);
 }
 
 std::vector<std::string> fetch_frames(FarmClient& client, const std::string& job,

@@ -33,9 +33,6 @@ constexpr net::QueueBounds kClientQueues{/*send=*/8, /*receive=*/4};
 /// bundle limit in all per window.
 constexpr auto kBundleWindow = std::chrono::seconds{60};
 
-/// Repeated complaints about the same key on the same socket are logged at most this often.
-constexpr auto kRefusalLogInterval = std::chrono::seconds{10};
-
 }  // namespace
 
 Broker::Broker(MasterOptions options)
@@ -131,6 +128,8 @@ void Broker::run(const std::atomic<bool>& stop) {
     admit_submissions();
     on_timers();
     serve_http();
+    memory_return_.tick();
+    message_bounds_.prune(workers_);
   }
   // Calls the HTTP side still waits on, and those to come, are answered at once.
   http_feed_.close();
@@ -195,7 +194,9 @@ void Broker::reply(const net::PeerId& peer, const net::Frames& frames) {
 void Broker::register_worker(const net::PeerId& peer, const wire::Hello& hello,
                              const std::string& key_name) {
   if (hello.role() != wire::ROLE_WORKER) {
-    log()->warn("worker socket: {} said hello as a client; refused", net::peer_label(peer));
+    peer_log(PeerLog::kHello, "worker", peer, key_name, spdlog::level::warn,
+             fmt::format("worker socket: {} said hello as a client; refused",
+                         net::peer_label(peer)));
     send_worker(
         peer, error_frames(wire::Error::WRONG_ENDPOINT,
                            "this is the worker endpoint; clients connect to the client endpoint"));
@@ -213,11 +214,12 @@ void Broker::register_worker(const net::PeerId& peer, const wire::Hello& hello,
   w.build = protocol::printable(hello.build());
   heard_from(w);
   w.wants = 0;
-  log()->info("{} joined{}: {} threads, {}; {} worker{} connected", worker_label(peer),
-              key_name.empty() ? "" : " with key '" + protocol::printable(key_name) + "'",
-              w.threads,
-              hello.build().empty() ? "unknown build" : protocol::printable(hello.build()),
-              workers_.size(), workers_.size() == 1 ? "" : "s");
+  peer_log(PeerLog::kHello, "worker", peer, key_name, spdlog::level::info,
+           fmt::format("{} joined{}: {} threads, {}; {} worker{} connected", worker_label(peer),
+                       key_name.empty() ? "" : " with key '" + protocol::printable(key_name) + "'",
+                       w.threads,
+                       hello.build().empty() ? "unknown build" : protocol::printable(hello.build()),
+                       workers_.size(), workers_.size() == 1 ? "" : "s"));
   wire::Welcome welcome;
   welcome.set_build(protocol::kBuildVersion);
   welcome.set_heartbeat_interval_ms(static_cast<uint32_t>(options_.heartbeat.interval.count()));
@@ -229,13 +231,16 @@ void Broker::remove_worker(const net::PeerId& peer, const std::string& why, Depa
   auto it = workers_.find(peer);
   if (it == workers_.end()) return;
   const std::string label = worker_label(peer);
+  const std::string key = it->second.key_name;
   const size_t requeued = jobs_.release_worker(peer);
   metrics().units_requeued.add(static_cast<double>(requeued));
   (departure == Departure::kLost ? metrics().workers_lost : metrics().workers_left).add();
   workers_.erase(it);
   const auto level = departure == Departure::kLost ? spdlog::level::warn : spdlog::level::info;
-  log()->log(level, "{} {}; {} unit{} requeued; {} worker{} connected", label, why, requeued,
-             requeued == 1 ? "" : "s", workers_.size(), workers_.size() == 1 ? "" : "s");
+  peer_log(PeerLog::kDeparture, "worker", peer, key, level,
+           fmt::format("{} {}; {} unit{} requeued; {} worker{} connected", label, why, requeued,
+                       requeued == 1 ? "" : "s", workers_.size(),
+                       workers_.size() == 1 ? "" : "s"));
   if (requeued) dispatch();
 }
 
@@ -249,6 +254,7 @@ void Broker::dispatch() {
       if (w.wants == 0) continue;
       auto unit = jobs_.next_unit(peer, w.key_name);
       if (!unit) continue;  // e.g. blocked from the jobs that have units
+      message_bounds_.leased(peer, *unit);
       if (!workers_socket_.send(peer, encode(std::move(*unit)))) {
         unreachable.push_back(peer);
         w.wants = 0;
@@ -268,17 +274,27 @@ void Broker::handle_worker(const net::Delivery& delivery) {
     size_t bytes = 0;
     for (const auto& f : delivery.frames) bytes += f.size();
     metrics().worker_bytes_received.add(static_cast<double>(bytes));
+    // Dropped before it is decoded (and held a second time) when no unit of this connection
+    // could make a message that large.
+    if (const uint64_t bound = message_bounds_.bound(peer); bytes > bound) {
+      metrics().refusals.add("worker_message_size");
+      complain(PeerLog::kMalformed, "worker", delivery,
+               fmt::format("dropped a message of {} bytes from {}: the units leased to it make "
+                           "messages of at most {} bytes",
+                           bytes, worker_label(peer), bound));
+      return;
+    }
   }
   protocol::Decoded msg;
   try {
     msg = protocol::decode(delivery.frames);
   } catch (const protocol::DecodeError& e) {
-    complain("worker", delivery.user,
+    complain(PeerLog::kMalformed, "worker", delivery,
              fmt::format("ignored a bad message from {}: {}", worker_label(peer), e.what()));
     return;
   }
   if (!msg.version_ok()) {
-    complain("worker", delivery.user,
+    complain(PeerLog::kProtocolVersion, "worker", delivery,
              fmt::format("refused {} ({}): it speaks protocol version {}, this master {}",
                          worker_label(peer), msg.type, msg.version, protocol::kProtocolVersion));
     send_worker(peer, refusal_frames(msg.version, "worker"));
@@ -310,9 +326,10 @@ void Broker::handle_worker(const net::Delivery& delivery) {
         case MergeOutcome::kDuplicate: m.units_duplicate.add(); break;
         case MergeOutcome::kRejected: m.units_rejected.add(); break;
         case MergeOutcome::kUnleased: m.units_unleased.add(); break;
+        case MergeOutcome::kDiscarded: m.units_discarded_job_finished.add(); break;
       }
       if (outcome == MergeOutcome::kUnleased) {
-        complain("worker", delivery.user,
+        complain(PeerLog::kResultDropped, "worker", delivery,
                  fmt::format("dropped a result for job {} unit {} from {}: no such job, or the "
                              "unit was never leased to it",
                              protocol::printable(result->job_id()), result->unit_id(),
@@ -342,8 +359,9 @@ void Broker::handle_worker(const net::Delivery& delivery) {
     }
     if (it == workers_.end()) {
       if (msg.as<wire::Goodbye>()) return;
-      log()->debug("worker socket: {} from unknown {}; asking it to say hello", msg.type,
-                   net::peer_label(peer));
+      peer_log(PeerLog::kNotRegistered, "worker", peer, delivery.user, spdlog::level::debug,
+               fmt::format("worker socket: {} from unknown {}; asking it to say hello", msg.type,
+                           net::peer_label(peer)));
       send_worker(peer,
                   error_frames(wire::Error::UNKNOWN_WORKER, "unknown worker: send Hello first"));
       return;
@@ -358,7 +376,7 @@ void Broker::handle_worker(const net::Delivery& delivery) {
       if (jobs_.on_unit_failed(peer, *failed, delivery.user)) {
         metrics().units_requeued.add();
       } else {
-        complain("worker", delivery.user,
+        complain(PeerLog::kUnitFailed, "worker", delivery,
                  fmt::format("ignored a failure report for job {} unit {} from {}: the unit is "
                              "not leased to it, or its job is over",
                              protocol::printable(failed->job_id()), failed->unit_id(),
@@ -372,7 +390,7 @@ void Broker::handle_worker(const net::Delivery& delivery) {
           peer, "left" + (bye->reason().empty() ? std::string()
                                                 : " (" + protocol::printable(bye->reason()) + ")"));
     } else {
-      complain("worker", delivery.user,
+      complain(PeerLog::kUnexpected, "worker", delivery,
                fmt::format("unexpected {} from {}; ignored", msg.type, worker_label(peer)));
       send_worker(peer, error_frames(wire::Error::BAD_REQUEST,
                                      "unexpected message " + msg.type + " on the worker endpoint"));
@@ -383,11 +401,21 @@ void Broker::handle_worker(const net::Delivery& delivery) {
   }
 }
 
-void Broker::complain(const std::string& socket, const std::string& key, const std::string& text) {
-  if (complaints_.size() > 4096) complaints_.clear();
-  const LogThrottle::Verdict verdict =
-      complaints_.try_emplace(socket + '\0' + key, kRefusalLogInterval).first->second.occur();
-  if (verdict.log) log()->warn("{} socket: {}{}", socket, text, LogThrottle::suffix(verdict));
+void Broker::peer_log(PeerLog kind, const std::string& socket, const net::PeerId& peer,
+                      const std::string& key, spdlog::level::level_enum level,
+                      const std::string& text) {
+  // Keys are counted per socket (the two allow-lists may name keys alike); without keys, each
+  // connection is its own.
+  const std::string who =
+      socket + (key.empty() ? " connection " + net::peer_label(peer) : " key " + key);
+  const LogBudget::Verdict verdict = peer_logs_.take(kind, who);
+  log()->log(verdict.log ? level : spdlog::level::trace, "{}{}", text, verdict.suffix());
+}
+
+void Broker::complain(PeerLog kind, const std::string& socket, const net::Delivery& delivery,
+                      const std::string& text) {
+  peer_log(kind, socket, delivery.peer, delivery.user, spdlog::level::warn,
+           socket + " socket: " + text);
 }
 
 void Broker::send_bundle(const net::PeerId& peer, Worker& w, const std::string& hash) {
@@ -401,6 +429,9 @@ void Broker::send_bundle(const net::PeerId& peer, Worker& w, const std::string& 
   }
   auto bundle = jobs_.bundle(hash);
   if (!bundle) {
+    peer_log(PeerLog::kBundleRequest, "worker", peer, w.key_name, spdlog::level::info,
+             fmt::format("bundle {} not sent to {}: the master has no such bundle",
+                         protocol::printable(hash.substr(0, 12)), worker_label(peer)));
     reply_msg.set_error("the master has no bundle " + protocol::printable(hash, 80));
     send_worker(peer, encode(std::move(reply_msg)));
     return;
@@ -417,7 +448,9 @@ void Broker::send_bundle(const net::PeerId& peer, Worker& w, const std::string& 
         "this connection was sent more bundle bytes in the last minute than the master allows";
   }
   if (refusal) {
-    log()->warn("bundle {} not sent to {}: {}", hash.substr(0, 12), worker_label(peer), refusal);
+    peer_log(PeerLog::kBundleRequest, "worker", peer, w.key_name, spdlog::level::warn,
+             fmt::format("bundle {} not sent to {}: {}", hash.substr(0, 12), worker_label(peer),
+                         refusal));
     reply_msg.set_error(std::string("the master will not send bundle ") + hash.substr(0, 12) +
                         " now: " + refusal + "; ask again later");
     const auto retry = std::chrono::duration_cast<std::chrono::milliseconds>(w.bundle_window +

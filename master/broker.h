@@ -19,7 +19,7 @@
 #include <string>
 
 #include "common/net/socket.h"
-#include "common/util/log_throttle.h"
+#include "common/util/log.h"
 #include "master/access_gate.h"
 #include "master/http_feed.h"
 #include "master/http_server.h"
@@ -28,9 +28,11 @@
 #include "master/job_rights.h"
 #include "master/job_store.h"
 #include "master/log_budget.h"
+#include "master/memory_return.h"
 #include "master/master_options.h"
 #include "master/metrics.h"
 #include "master/submission_queue.h"
+#include "master/worker_message_bounds.h"
 
 namespace rayfarm::master {
 
@@ -85,10 +87,11 @@ class Broker {
     Clock::time_point working_since, last_result;
   };
 
-  /// Complaints about a peer's messages (garbage, unexpected types), per socket and key: logged at
-  /// most once per interval, with the count of those left out.
-  std::map<std::string, LogThrottle> complaints_;
-  LogBudget refusal_log_;  // lines about refused submissions, per key
+  /// The lines peers' messages cause, within a budget per kind and key (log_budget.h).
+  LogBudget peer_logs_;
+
+  WorkerMessageBounds message_bounds_;  // the largest message each worker connection may send
+  MemoryReturn memory_return_;          // free memory given back after bursts
 
   MasterOptions options_;
   JobRights rights_;  // from options_.security
@@ -119,9 +122,21 @@ class Broker {
   void send_bundle(const net::PeerId& peer, Worker& w, const std::string& hash);
   /// Replies to the submissions whose checks have finished, admitting the accepted ones.
   void admit_submissions();
-  /// Logs a complaint about a peer's message, rate-limited per socket and key (Complaints).
-  void complain(const std::string& socket, const std::string& key, const std::string& text);
-  wire::WorkerList worker_list() const;
+  /// Logs a line about a message from `peer` (its key: `key`, "" without CURVE) on `socket`
+  /// ("worker" or "client"), within the budget of `kind` for that key (for that connection
+  /// without keys); past the budget at trace level only.
+  void peer_log(PeerLog kind, const std::string& socket, const net::PeerId& peer,
+                const std::string& key, spdlog::level::level_enum level, const std::string& text);
+  /// A warning about a peer's message (garbage, unexpected types, refusals), within its budget,
+  /// prefixed with the socket's name.
+  void complain(PeerLog kind, const std::string& socket, const net::Delivery& delivery,
+                const std::string& text);
+  /// The connected workers; for client key `user` (when given) with the units of the jobs it may
+  /// not see left out.
+  wire::WorkerList worker_list(const std::string* user = nullptr) const;
+  /// Gives a fetched job image the samples per pixel of the image itself (its EXR's header says),
+  /// the job's own beside them, and why they differ when they do.
+  void describe_image(wire::ImageData& image, uint32_t worker_count) const;
   void register_worker(const net::PeerId& peer, const wire::Hello& hello,
                        const std::string& key_name);
   /// How a worker went: lost (silent for its liveness window: logged as a warning) or any other

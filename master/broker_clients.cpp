@@ -2,6 +2,7 @@
 // workers), one reply each; who may see or change a job; submissions admitted once checked.
 #include <optional>
 #include <string>
+#include <string_view>
 
 #include "common/limits.h"
 #include "common/protocol/codec.h"
@@ -18,10 +19,51 @@ namespace {
 
 std::shared_ptr<spdlog::logger> log() { return get_logger("master"); }
 
-/// A job another key may not see: said as if it were unknown, so that it does not leak.
-std::string not_visible(const std::string& id) {
-  return "unknown job '" + protocol::printable(id) +
-         "' (this master keeps jobs private to the key that submitted them)";
+/// The one answer to a request for a job that does not exist and, under --private-jobs, to one
+/// for another key's job: the same bytes for both, so that the other key's job does not leak.
+std::string no_such_job(const std::string& id, bool private_jobs) {
+  return "unknown job '" + protocol::printable(id) + "'" +
+         (private_jobs ? " (this master keeps jobs private to the key that submitted them)" : "");
+}
+
+/// The samples per pixel of the image in `exr`, from the `rayfarm:spp` attribute of its header
+/// (common/image/film_output.cpp writes it); nullopt when the header has none or is not a
+/// well-formed EXR header.
+std::optional<uint32_t> exr_spp(std::string_view exr) {
+  auto read_i32 = [&](size_t at) {
+    uint32_t v = 0;
+    for (int b = 3; b >= 0; --b) v = (v << 8) | static_cast<unsigned char>(exr[at + b]);
+    return static_cast<int32_t>(v);
+  };
+  if (exr.size() < 8 || read_i32(0) != 20000630) return std::nullopt;  // the EXR magic number
+  size_t at = 8;
+  auto read_name = [&](std::string_view& out) {
+    const size_t end = exr.find('\0', at);
+    if (end == std::string_view::npos || end - at > 255) return false;
+    out = exr.substr(at, end - at);
+    at = end + 1;
+    return true;
+  };
+  for (;;) {
+    std::string_view name, type;
+    if (!read_name(name) || name.empty()) return std::nullopt;  // the header ended without it
+    if (!read_name(type) || at + 4 > exr.size()) return std::nullopt;
+    const int32_t size = read_i32(at);
+    at += 4;
+    if (size < 0 || at + static_cast<size_t>(size) > exr.size()) return std::nullopt;
+    if (name == "rayfarm:spp" && type == "string") {
+      const std::string_view value = exr.substr(at, static_cast<size_t>(size));
+      uint64_t spp = 0;
+      if (value.empty() || value.size() > 10) return std::nullopt;
+      for (const char c : value) {
+        if (c < '0' || c > '9') return std::nullopt;
+        spp = spp * 10 + static_cast<uint64_t>(c - '0');
+      }
+      if (spp > UINT32_MAX) return std::nullopt;
+      return static_cast<uint32_t>(spp);
+    }
+    at += static_cast<size_t>(size);
+  }
 }
 
 std::string not_owner(const std::string& id, const std::string& owner, const char* action) {
@@ -48,8 +90,8 @@ void Broker::admit_submissions() {
       }
     } else {
       metrics().refusals.add("submission");
-      log()->log(refusal_log_.take(done.user) ? spdlog::level::warn : spdlog::level::debug,
-                 "job refused ({}) from {}: {}", done.scene, done.label, done.error);
+      peer_log(PeerLog::kSubmissionRefused, "client", done.peer, done.user, spdlog::level::warn,
+               fmt::format("job refused ({}) from {}: {}", done.scene, done.label, done.error));
       out.set_code(done.internal ? wire::Error::INTERNAL : wire::Error::REFUSED);
       out.set_error(jobs_.for_clients(done.error));
     }
@@ -86,14 +128,14 @@ void Broker::handle_client(const net::Delivery& delivery) {
   try {
     msg = protocol::decode(delivery.frames);
   } catch (const protocol::DecodeError& e) {
-    complain("client", delivery.user,
+    complain(PeerLog::kMalformed, "client", delivery,
              fmt::format("ignored a bad message from {}: {}", label, e.what()));
     reply(peer, error_frames(wire::Error::BAD_REQUEST,
                              std::string("cannot decode the request: ") + e.what()));
     return;
   }
   if (!msg.version_ok()) {
-    complain("client", delivery.user,
+    complain(PeerLog::kProtocolVersion, "client", delivery,
              fmt::format("refused {} ({}): it speaks protocol version {}, this master {}", label,
                          msg.type, msg.version, protocol::kProtocolVersion));
     metrics().refusals.add("protocol_version");
@@ -101,17 +143,31 @@ void Broker::handle_client(const net::Delivery& delivery) {
     return;
   }
   const uint32_t worker_count = static_cast<uint32_t>(workers_.size());
-  // Only the job's owner or an admin may change it; a key that may not even see it is told the
-  // job is unknown. True when the request was refused (and answered).
-  auto refuse_unless_manager = [&](const std::string& id, const char* action) {
+  // Every request about a job first: a job that does not exist and, under --private-jobs, one
+  // this key may not see get the same answer (no_such_job), whatever the request. True when the
+  // request was refused (and answered).
+  auto refuse_unless_visible = [&](const std::string& id) {
     const std::string* owner = jobs_.owner_of(id);
-    if (!owner) return false;  // unknown: the handler says so
-    if (!may_see(*owner, delivery.user)) {
-      reply(peer, error_frames(wire::Error::NOT_FOUND, not_visible(id), id));
-      return true;
-    }
-    if (may_manage(*owner, delivery.user)) return false;
-    complain("client", delivery.user,
+    if (owner && may_see(*owner, delivery.user)) return false;
+    reply(peer, error_frames(wire::Error::NOT_FOUND, no_such_job(id, rights_.private_jobs), id));
+    return true;
+  };
+  // A change costs the master work (a record on disk, a log line): each key has a budget of
+  // them (change_budget.h), counted in the refusals' metric past it.
+  auto refuse_over_budget = [&](const std::string& id) {
+    const std::optional<std::string> refusal = jobs_.take_change(delivery.user);
+    if (!refusal) return false;
+    metrics().refusals.add("change_budget");
+    reply(peer, error_frames(wire::Error::BUSY, *refusal, id));
+    return true;
+  };
+  // Only the job's owner or an admin may change it, within its key's budget. True when the
+  // request was refused (and answered).
+  auto refuse_unless_manager = [&](const std::string& id, const char* action) {
+    if (refuse_unless_visible(id)) return true;
+    const std::string* owner = jobs_.owner_of(id);
+    if (may_manage(*owner, delivery.user)) return refuse_over_budget(id);
+    complain(PeerLog::kForbidden, "client", delivery,
              fmt::format("{} may not {} job {} of key '{}'; refused", label, action,
                          protocol::printable(id), protocol::printable(*owner)));
     reply(peer, error_frames(wire::Error::FORBIDDEN, not_owner(id, *owner, action), id));
@@ -155,23 +211,20 @@ void Broker::handle_client(const net::Delivery& delivery) {
       }
       if (refusal) {
         metrics().refusals.add(code == wire::Error::BUSY ? "submission_busy" : "submission");
-        log()->log(refusal_log_.take(delivery.user) ? spdlog::level::warn : spdlog::level::debug,
-                   "job refused from {}: {}", label, *refusal);
+        peer_log(PeerLog::kSubmissionRefused, "client", peer, delivery.user, spdlog::level::warn,
+                 fmt::format("job refused from {}: {}", label, *refusal));
         wire::SubmitReply out;
         out.set_code(code);
         out.set_error(*refusal);
         reply(peer, encode(std::move(out)));
       }
     } else if (const auto* request = msg.as<wire::StatusRequest>()) {
-      const std::string* owner = jobs_.owner_of(request->job_id());
-      if (owner && !may_see(*owner, delivery.user)) {
-        reply(peer, error_frames(wire::Error::NOT_FOUND, not_visible(request->job_id()),
-                                 request->job_id()));
-      } else if (auto st = jobs_.status(request->job_id(), worker_count)) {
+      if (refuse_unless_visible(request->job_id())) return;
+      if (auto st = jobs_.status(request->job_id(), worker_count)) {
         reply(peer, encode(std::move(*st)));
       } else {
         reply(peer, error_frames(wire::Error::NOT_FOUND,
-                                 "unknown job '" + protocol::printable(request->job_id()) + "'",
+                                 no_such_job(request->job_id(), rights_.private_jobs),
                                  request->job_id()));
       }
     } else if (msg.as<wire::ListJobs>()) {
@@ -191,14 +244,15 @@ void Broker::handle_client(const net::Delivery& delivery) {
         reply(peer, encode(std::move(out)));
       } else {
         reply(peer, error_frames(wire::Error::NOT_FOUND,
-                                 "unknown job '" + protocol::printable(cancel->job_id()) + "'",
+                                 no_such_job(cancel->job_id(), rights_.private_jobs),
                                  cancel->job_id()));
       }
     } else if (const auto* change = msg.as<wire::ChangeJob>()) {
       if (refuse_unless_manager(change->job_id(), "change")) return;
       if (change->has_priority() && jobs_.owner_of(change->job_id()) != nullptr) {
         if (auto refusal = priority_refusal(change->priority(), delivery.user)) {
-          complain("client", delivery.user, fmt::format("{}: {}; refused", label, *refusal));
+          complain(PeerLog::kForbidden, "client", delivery,
+                   fmt::format("{}: {}; refused", label, *refusal));
           reply(peer, error_frames(wire::Error::FORBIDDEN, *refusal, change->job_id()));
           return;
         }
@@ -210,7 +264,7 @@ void Broker::handle_client(const net::Delivery& delivery) {
             change->has_paused() ? std::optional<bool>(change->paused()) : std::nullopt);
         if (r == nullptr) {
           reply(peer, error_frames(wire::Error::NOT_FOUND,
-                                   "unknown job '" + protocol::printable(change->job_id()) + "'",
+                                   no_such_job(change->job_id(), rights_.private_jobs),
                                    change->job_id()));
           return;
         }
@@ -245,7 +299,7 @@ void Broker::handle_client(const net::Delivery& delivery) {
         reply(peer, encode(std::move(out)));
       }
     } else if (msg.as<wire::ListWorkers>()) {
-      reply(peer, encode(worker_list()));
+      reply(peer, encode(worker_list(&delivery.user)));
     } else if (const auto* remove = msg.as<wire::RemoveJob>()) {
       if (refuse_unless_manager(remove->job_id(), "remove")) return;
       try {
@@ -278,20 +332,18 @@ void Broker::handle_client(const net::Delivery& delivery) {
                                  jobs_.for_clients(e.what()), retry->job_id()));
       }
     } else if (const auto* fetch = msg.as<wire::FetchImage>()) {
-      const std::string* owner = jobs_.owner_of(fetch->job_id());
-      if (owner && !may_see(*owner, delivery.user)) {
-        reply(peer,
-              error_frames(wire::Error::NOT_FOUND, not_visible(fetch->job_id()), fetch->job_id()));
-        return;
-      }
+      if (refuse_unless_visible(fetch->job_id())) return;
       try {
-        reply(peer, encode(jobs_.image(fetch->job_id(), fetch->movie(), fetch->contact_sheet())));
+        wire::ImageData image =
+            jobs_.image(fetch->job_id(), fetch->movie(), fetch->contact_sheet());
+        if (!image.exr().empty()) describe_image(image, worker_count);
+        reply(peer, encode(std::move(image)));
       } catch (const JobRejected& e) {
         reply(peer,
               error_frames(wire::Error::NOT_FOUND, jobs_.for_clients(e.what()), fetch->job_id()));
       }
     } else {
-      complain("client", delivery.user,
+      complain(PeerLog::kUnexpected, "client", delivery,
                fmt::format("unexpected {} from {}; ignored", msg.type, label));
       reply(peer, error_frames(wire::Error::BAD_REQUEST,
                                "unexpected message " + msg.type + " on the client endpoint"));
@@ -305,7 +357,32 @@ void Broker::handle_client(const net::Delivery& delivery) {
   }
 }
 
-wire::WorkerList Broker::worker_list() const {
+void Broker::describe_image(wire::ImageData& image, uint32_t worker_count) const {
+  // The image is the newest one on disk, which lags the job's merged film: by up to an image
+  // interval while it runs, and for as long as storage fails. Its figures are its own, from its
+  // header; the job's go beside them, with the reason when they differ.
+  const uint32_t job_spp = image.spp_done();
+  image.set_job_spp_done(job_spp);
+  const std::optional<uint32_t> spp = exr_spp(image.exr());
+  if (!spp) {
+    image.set_image_note(fmt::format(
+        "the image does not say how many samples per pixel it holds (no rayfarm:spp in its "
+        "header); the job is at {} spp",
+        job_spp));
+    return;
+  }
+  image.set_spp_done(*spp);
+  if (*spp == job_spp) return;
+  const auto st = jobs_.status(image.job_id(), worker_count);
+  if (st && !st->storage_error().empty()) {
+    image.set_image_note("the master cannot write the job's newer image now: " +
+                         st->storage_error());
+  } else {
+    image.set_image_note("the job's newer image is written at its next image interval");
+  }
+}
+
+wire::WorkerList Broker::worker_list(const std::string* user) const {
   wire::WorkerList list;
   const auto now = Clock::now();
   for (const auto& [peer, w] : workers_) {
@@ -314,7 +391,15 @@ wire::WorkerList Broker::worker_list() const {
     info->set_name(w.name);
     info->set_key_name(protocol::printable(w.key_name));
     info->set_threads(w.threads);
-    for (const std::string& unit : jobs_.units_of(peer)) info->add_units(unit);
+    for (const std::string& unit : jobs_.units_of(peer)) {
+      // A unit names its job ("JOB/UNIT"): for a client, only those of the jobs it may see,
+      // as the HTTP endpoint shows them.
+      if (user) {
+        const std::string* owner = jobs_.owner_of(unit.substr(0, unit.find('/')));
+        if (!owner || !may_see(*owner, *user)) continue;
+      }
+      info->add_units(unit);
+    }
     info->set_units_done(w.units_merged);
     const double working = std::chrono::duration<double>(w.last_result - w.working_since).count();
     info->set_samples_per_second(w.units_merged > 0 && working > 0 ? w.samples_merged / working

@@ -44,9 +44,11 @@ std::optional<wire::WorkUnit> JobManager::next_unit(const WorkerId& worker,
     a.start_time = Clock::now();
     a.last_write = *a.start_time;
     job.record.state = wire::JOB_RUNNING;
+    attention_.insert(s.id);  // tick() looks after it from now on
     save(job);
     log_jobs()->info("job {} started", s.id);
   }
+  sequence_started(s, now);
   const UnitGrid::Unit u = a.grid().unit(lease->units.front());
   const auto count = static_cast<uint32_t>(lease->units.size());
   const SampleRange samples = a.grid().run_samples(u.id, count);
@@ -81,28 +83,32 @@ MergeOutcome JobManager::on_result(const WorkerId& worker, const wire::UnitResul
   }
   Job& job = it->second;
   const UnitRef ref{id, result.unit_id()};
-  // Lines about dropped results are a peer's to cause: a burst per key, then one a second.
-  // (Taken only when a result is dropped: merged results spend nothing.)
-  auto level = [&] {
-    return log_budget_.take(key.empty() ? worker : key) ? spdlog::level::info
-                                                        : spdlog::level::debug;
+  // Lines about dropped or rejected results are a peer's to cause: each within its budget per
+  // key (log_budget.h), taken only when a result is dropped (merged results spend nothing).
+  auto note = [&](PeerLog kind, spdlog::level::level_enum at, const std::string& text) {
+    const LogBudget::Verdict verdict =
+        log_budget_.take(kind, key.empty() ? "connection " + worker : "key " + key);
+    log_merger()->log(verdict.log ? at : spdlog::level::trace, "{}{}", text, verdict.suffix());
   };
   if (!job.active) {
     if (job.record.state == wire::JOB_DONE) {
-      log_merger()->log(level(),
-                        "job {} unit {}: duplicate result from {} dropped (the job is done)", id,
-                        result.unit_id(), name_of(worker));
+      note(PeerLog::kResultDropped, spdlog::level::info,
+           fmt::format("job {} unit {}: duplicate result from {} dropped (the job is done)", id,
+                       result.unit_id(), name_of(worker)));
       return MergeOutcome::kDuplicate;
     }
-    log_merger()->log(level(), "job {} unit {}: result from {} dropped (the job is {})", id,
-                      result.unit_id(), name_of(worker),
-                      protocol::job_state_name(job.record.state));
-    return MergeOutcome::kRejected;
+    // A cancelled or failed job's units still out come back late: routine, not a wrong result.
+    note(PeerLog::kResultDropped, spdlog::level::info,
+         fmt::format("job {} unit {}: result from {} dropped (the job is {})", id,
+                     result.unit_id(), name_of(worker),
+                     protocol::job_state_name(job.record.state)));
+    return MergeOutcome::kDiscarded;
   }
   ActiveJob& a = *job.active;
   if (a.finishing) {
-    log_merger()->log(level(), "job {} unit {}: result from {} dropped (the job's work is done)",
-                      id, result.unit_id(), name_of(worker));
+    note(PeerLog::kResultDropped, spdlog::level::info,
+         fmt::format("job {} unit {}: result from {} dropped (the job's work is done)", id,
+                     result.unit_id(), name_of(worker)));
     return MergeOutcome::kDuplicate;
   }
   // The worker's lease the result answers (the units it covers, when the worker holds it now).
@@ -111,8 +117,9 @@ MergeOutcome JobManager::on_result(const WorkerId& worker, const wire::UnitResul
     for (const uint64_t unit : lease) scheduler_.requeue(UnitRef{id, unit}, worker);
   };
   auto reject = [&](const std::string& why) {
-    log_merger()->warn("job {} unit {}: result from {} rejected: {}", id, result.unit_id(),
-                       name_of(worker), why);
+    note(PeerLog::kResultRejected, spdlog::level::warn,
+         fmt::format("job {} unit {}: result from {} rejected: {}", id, result.unit_id(),
+                     name_of(worker), why));
     requeue_lease();
     note_failure(job, worker, key, result.unit_id(), "result rejected: " + why);
     return MergeOutcome::kRejected;
@@ -126,11 +133,12 @@ MergeOutcome JobManager::on_result(const WorkerId& worker, const wire::UnitResul
   const auto merged_before =
       std::count_if(units.begin(), units.end(), [&](uint64_t u) { return a.merger.merged(u); });
   if (merged_before > 0) {
-    log_merger()->log(level(), "job {} unit {}: duplicate result from {} dropped (merged before{})",
-                      id, result.unit_id(), name_of(worker),
-                      merged_before == static_cast<long>(run)
-                          ? ""
-                          : fmt::format(": {} of its {} units", merged_before, run));
+    note(PeerLog::kResultDropped, spdlog::level::info,
+         fmt::format("job {} unit {}: duplicate result from {} dropped (merged before{})", id,
+                     result.unit_id(), name_of(worker),
+                     merged_before == static_cast<long>(run)
+                         ? ""
+                         : fmt::format(": {} of its {} units", merged_before, run)));
     // The sums cannot be split: the lease's units not merged yet go back to the queue.
     requeue_lease();
     return MergeOutcome::kDuplicate;

@@ -15,6 +15,7 @@
 #include "common/util/log.h"
 #include "common/util/log_options.h"
 #include "master/broker.h"
+#include "master/memory_return.h"
 
 namespace {
 
@@ -24,6 +25,7 @@ void on_signal(int) { g_stop.store(true); }
 }  // namespace
 
 int main(int argc, char** argv) {
+  rayfarm::master::tune_allocator();  // before any thread: docs/reliability.md, "Memory"
   CLI::App app{"rayfarm-master: hands out units of work to workers and merges their results"};
   rayfarm::master::MasterOptions options;
   std::string data_dir = options.data_dir.string();

@@ -20,6 +20,8 @@ enum class MergeOutcome {
   kDuplicate,  ///< the unit was merged before; the result is dropped
   kRejected,   ///< the result does not match its unit, or its sums are impossible; nothing is added
   kUnleased,   ///< the sender was never leased the unit; dropped, counted against nobody
+  kDiscarded,  ///< its job was cancelled or failed: a late result, routine, dropped (the job
+               ///< manager's; the merger never returns it)
 };
 
 class Merger {

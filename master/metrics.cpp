@@ -112,6 +112,9 @@ void PrometheusText::metrics(const Metrics& m) {
   counter("rayfarm_units_unleased_total",
           "Unit results for units never leased to their sender, dropped.",
           m.units_unleased.value());
+  family("rayfarm_units_discarded_total", "counter",
+         "Unit results dropped as routine: late for a job that was cancelled or failed.", "reason",
+         {{"job_finished", m.units_discarded_job_finished.value()}});
   counter("rayfarm_units_requeued_total",
           "Leased units taken back and queued again (worker lost or gone, unit failed).",
           m.units_requeued.value());

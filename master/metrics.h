@@ -70,6 +70,9 @@ struct Metrics {
   Counter units_duplicate;  // results dropped: merged before (a straggler's twin)
   Counter units_rejected;   // results refused as malformed or implausible
   Counter units_unleased;   // results for units never leased to their sender
+  // Results dropped as routine: late for a job that was cancelled or failed meanwhile (the
+  // reason "job_finished" of rayfarm_units_discarded_total).
+  Counter units_discarded_job_finished;
   Counter units_requeued;   // leases taken back (worker lost or gone, unit failed)
   Counter units_failed;     // UnitFailed reports
   Counter samples_merged;   // pixel samples merged

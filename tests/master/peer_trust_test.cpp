@@ -11,6 +11,9 @@
 #include <atomic>
 #include <cerrno>
 #include <cstring>
+#include <fstream>
+#include <functional>
+#include <set>
 #include <sstream>
 #include <thread>
 
@@ -23,6 +26,8 @@
 #include "common/util/log.h"
 #include "master/broker.h"
 #include "master/job_manager.h"
+#include "master/log_budget.h"
+#include "master/metrics.h"
 #include "tests/master/broker_peer.h"
 #include "tests/master/job_requests.h"
 #include "tests/support/temp_dir.h"
@@ -112,6 +117,70 @@ TEST_F(PeerTrustTest, ImpossibleSumsAreRejectedAndCountAgainstTheSender) {
   EXPECT_EQ(jobs.status(id, 1)->state(), wire::JOB_RUNNING);
   EXPECT_FALSE(jobs.next_unit("w2", "k1")) << "another connection of a blocked key";
   EXPECT_TRUE(jobs.next_unit("w3", "k2"));
+}
+
+TEST_F(PeerTrustTest, ALateResultOfACancelledJobIsDiscardedNotRejected) {
+  // Cancelling a job with units out is routine: their results come back and are dropped, and
+  // count as neither a wrong result nor a failure of their sender.
+  const std::string id = jobs.submit(furnace_job(4, 16, 4));  // 4 units
+  std::vector<wire::WorkUnit> out;
+  for (int i = 0; i < 4; ++i) {
+    auto unit = jobs.next_unit("w" + std::to_string(i), "k1");
+    ASSERT_TRUE(unit);
+    out.push_back(*unit);
+  }
+  ASSERT_EQ(jobs.cancel(id), wire::JOB_CANCELLED);
+  for (size_t i = 0; i < out.size(); ++i) {
+    EXPECT_EQ(jobs.on_result("w" + std::to_string(i), result_for(out[i]), "k1"),
+              MergeOutcome::kDiscarded);
+  }
+  // A retry starts over: key k1 was not blocked by the four.
+  ASSERT_EQ(jobs.retry(id), wire::JOB_QUEUED);
+  EXPECT_TRUE(jobs.next_unit("w9", "k1"));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Log budgets
+
+TEST(LogBudgetTest, EveryKindHasOneBudgetAndAFloodOfItIsCutToItsBurst) {
+  using Clock = LogBudget::Clock;
+  // The table lists every kind once.
+  std::set<PeerLog> kinds;
+  for (const LogBudgetSpec& s : kLogBudgets) {
+    EXPECT_TRUE(kinds.insert(s.kind).second) << s.name << " is listed twice";
+    EXPECT_GE(s.burst, 1.0) << s.name;
+    EXPECT_GT(s.interval_s, 0.0) << s.name;
+  }
+  EXPECT_EQ(kinds.size(), static_cast<size_t>(PeerLog::kForbidden) + 1) << "a kind has no budget";
+
+  for (const LogBudgetSpec& s : kLogBudgets) {
+    LogBudget budget;
+    const Clock::time_point t0{};
+    const uint64_t flood = 5000;
+    uint64_t logged = 0;
+    for (uint64_t i = 0; i < flood; ++i) logged += budget.take(s.kind, "key mallory", t0).log;
+    EXPECT_EQ(logged, static_cast<uint64_t>(s.burst)) << s.name;
+    // Another key, and another kind of the same key, have budgets of their own.
+    EXPECT_TRUE(budget.take(s.kind, "key alice", t0).log) << s.name;
+    // Once one line's worth of time has passed, the next line says how many were held back.
+    const auto later = t0 + std::chrono::duration_cast<Clock::duration>(
+                                std::chrono::duration<double>(s.interval_s * 1.01));
+    const LogBudget::Verdict reopened = budget.take(s.kind, "key mallory", later);
+    ASSERT_TRUE(reopened.log) << s.name;
+    EXPECT_EQ(reopened.suppressed, flood - logged) << s.name;
+    EXPECT_NE(reopened.suffix().find(fmt::format("({} similar lines suppressed in the last {:.1f} s)",
+                                                 flood - logged, s.interval_s * 1.01)),
+              std::string::npos)
+        << s.name << ": " << reopened.suffix();
+    EXPECT_FALSE(budget.take(s.kind, "key mallory", later).log) << s.name << ": one line's worth";
+    // The count starts over after the line that reported it.
+    const LogBudget::Verdict next = budget.take(
+        s.kind, "key mallory",
+        later + std::chrono::duration_cast<Clock::duration>(
+                    std::chrono::duration<double>(s.interval_s * 1.01)));
+    EXPECT_TRUE(next.log) << s.name;
+    EXPECT_EQ(next.suppressed, 1u) << s.name;
+  }
 }
 
 TEST(ImplausibleTest, NamesThePixelAndAcceptsTheExtremesSamplesCanReach) {
@@ -588,6 +657,332 @@ TEST_F(BrokerTrustTest, GarbageIsLoggedOncePerIntervalNotOncePerMessage) {
   EXPECT_LE(lines, 2u) << log;
 }
 
+/// Captures the lines the named loggers write at info level and above while it lives.
+class LogCapture {
+ public:
+  explicit LogCapture(std::vector<std::string> names) : names_(std::move(names)) {
+    sink_ = std::make_shared<spdlog::sinks::ostream_sink_mt>(out_);
+    for (const std::string& name : names_) {
+      auto logger = get_logger(name);
+      levels_.push_back(logger->level());
+      logger->set_level(spdlog::level::info);
+      logger->sinks().push_back(sink_);
+    }
+  }
+  ~LogCapture() {
+    for (size_t i = 0; i < names_.size(); ++i) {
+      auto logger = get_logger(names_[i]);
+      logger->sinks().pop_back();
+      logger->set_level(levels_[i]);
+    }
+  }
+  /// Lines holding `text`.
+  size_t lines(const std::string& text) const {
+    std::istringstream in(out_.str());
+    size_t n = 0;
+    for (std::string line; std::getline(in, line);) n += line.find(text) != std::string::npos;
+    return n;
+  }
+  std::string text() const { return out_.str(); }
+
+ private:
+  std::vector<std::string> names_;
+  std::vector<spdlog::level::level_enum> levels_;
+  std::ostringstream out_;
+  std::shared_ptr<spdlog::sinks::ostream_sink_mt> sink_;
+};
+
+/// The most lines of `kind` one key may cause in `seconds`: its burst and what refills meanwhile.
+size_t budget_for(PeerLog kind, std::chrono::steady_clock::duration seconds) {
+  const LogBudgetSpec& s = LogBudget::spec(kind);
+  return static_cast<size_t>(s.burst) +
+         static_cast<size_t>(std::chrono::duration<double>(seconds).count() / s.interval_s) + 1;
+}
+
+TEST_F(BrokerTrustTest, AFloodOfEachKindOfPeerMessageIsLoggedWithinItsBudget) {
+  LogCapture log({"master", "merger"});
+  using SteadyClock = std::chrono::steady_clock;
+  MasterOptions o = options();
+  o.heartbeat.liveness = 100000;  // the test's worker sends no heartbeats
+  Running master(std::move(o));
+  auto alice = connect(master.broker.client_endpoint(), clients["alice"]);
+  auto bob = connect(master.broker.client_endpoint(), clients["bob"]);
+  const std::string id = submit_as(alice);
+  auto worker = connect(master.broker.worker_endpoint(), worker_keys);
+  ASSERT_TRUE(ask(worker, hello(wire::ROLE_WORKER)).as<wire::Welcome>());
+  auto work = ask(worker, wire::WorkRequest{});
+  ASSERT_TRUE(work.as<wire::WorkUnit>()) << work.type;
+  const wire::WorkUnit unit = *work.as<wire::WorkUnit>();
+
+  // Sends `count` copies of `frames` on `d` (a worker's connection or a client's), dropping what
+  // comes back meanwhile, then waits until the master has handled all of them: it answers a
+  // request of its own sent after them (a bundle or a job no one has, named uniquely).
+  int syncs = 0;
+  auto flood = [&syncs](net::Dealer& d, const net::Frames& frames, int count, bool is_worker) {
+    const auto deadline = SteadyClock::now() + std::chrono::seconds{60};
+    for (int sent = 0; sent < count && SteadyClock::now() < deadline;) {
+      if (d.send(frames)) {
+        ++sent;
+      } else {
+        d.receive(milliseconds{1});
+      }
+      while (d.receive(milliseconds{0})) {
+      }
+    }
+    const std::string marker = "sync-" + std::to_string(++syncs);
+    net::Frames sync;
+    if (is_worker) {
+      wire::BundleRequest r;
+      r.set_hash(marker);
+      sync = protocol::encode(r);
+    } else {
+      wire::StatusRequest r;
+      r.set_job_id(marker);
+      sync = protocol::encode(r);
+    }
+    // Replies past the peer's queue bound are dropped: ask until one gets through.
+    bool answered = false;
+    while (!answered && SteadyClock::now() < deadline) {
+      d.send(sync);
+      while (auto m = next(d, milliseconds{200})) {
+        if (const auto* b = m->as<wire::BundleReply>()) answered |= b->hash() == marker;
+        if (const auto* e = m->as<wire::Error>()) answered |= e->job_id() == marker;
+      }
+    }
+    EXPECT_TRUE(answered);
+  };
+
+  // 5000 requests for the bundle it was just sent: each refused, a few logged.
+  wire::BundleRequest bundle;
+  bundle.set_hash(unit.bundle_hash());
+  ASSERT_EQ(ask(worker, bundle).as<wire::BundleReply>()->error(), "");
+  auto start = SteadyClock::now();
+  flood(worker, protocol::encode(bundle), 5000, true);
+  EXPECT_GE(log.lines("less than a minute ago"), 1u);
+  EXPECT_LE(log.lines("less than a minute ago"),
+            budget_for(PeerLog::kBundleRequest, SteadyClock::now() - start))
+      << log.text();
+
+  // Hellos again and again on one connection: each one a join.
+  start = SteadyClock::now();
+  flood(worker, protocol::encode(hello(wire::ROLE_WORKER)), 500, true);
+  EXPECT_GE(log.lines(" joined with key 'w1'"), 1u);
+  EXPECT_LE(log.lines(" joined with key 'w1'"),
+            budget_for(PeerLog::kHello, SteadyClock::now() - start) + 1)  // + the first hello
+      << log.text();
+
+  // Results for the unit of a job cancelled meanwhile: routine, each dropped, a few logged; not
+  // one counts as rejected.
+  wire::CancelJob cancel;
+  cancel.set_job_id(id);
+  ASSERT_TRUE(ask(alice, cancel).as<wire::CancelReply>());
+  const double rejected = metrics().units_rejected.value();
+  const double discarded = metrics().units_discarded_job_finished.value();
+  start = SteadyClock::now();
+  flood(worker, protocol::encode(result_for(unit)), 500, true);
+  EXPECT_EQ(metrics().units_rejected.value(), rejected);
+  EXPECT_EQ(metrics().units_discarded_job_finished.value(), discarded + 500);
+  EXPECT_GE(log.lines("dropped (the job is cancelled)"), 1u);
+  EXPECT_LE(log.lines("dropped (the job is cancelled)"),
+            budget_for(PeerLog::kResultDropped, SteadyClock::now() - start))
+      << log.text();
+  PrometheusText text;
+  text.metrics(metrics());
+  EXPECT_NE(text.text().find("rayfarm_units_discarded_total{reason=\"job_finished\"} "),
+            std::string::npos);
+
+  // A client's requests to change another key's job, and its submissions over a limit.
+  const std::string other = submit_as(alice);
+  wire::ChangeJob pause;
+  pause.set_job_id(other);
+  pause.set_paused(true);
+  start = SteadyClock::now();
+  flood(bob, protocol::encode(pause), 300, false);
+  EXPECT_GE(log.lines("may not change job"), 1u);
+  EXPECT_LE(log.lines("may not change job"),
+            budget_for(PeerLog::kForbidden, SteadyClock::now() - start))
+      << log.text();
+  wire::SubmitJob too_many = furnace_job(8, 16, 4);
+  too_many.mutable_overrides()->set_spp(1u << 30);
+  start = SteadyClock::now();
+  flood(bob, protocol::encode(too_many), 300, false);
+  EXPECT_GE(log.lines("job refused"), 1u);
+  EXPECT_LE(log.lines("job refused"),
+            budget_for(PeerLog::kSubmissionRefused, SteadyClock::now() - start))
+      << log.text();
+}
+
+TEST_F(BrokerTrustTest, AHiddenJobAnswersEveryRequestExactlyAsAMissingOne) {
+  MasterOptions o = options();
+  o.security.private_jobs = true;
+  Running master(std::move(o));
+  auto alice = connect(master.broker.client_endpoint(), clients["alice"]);
+  auto bob = connect(master.broker.client_endpoint(), clients["bob"]);
+  auto boss = connect(master.broker.client_endpoint(), clients["boss"]);
+  const std::string id = submit_as(alice);
+  const std::string missing = "j9999";
+  ASSERT_EQ(id.size(), missing.size());
+  // The requests a client can make about a job, each for a job id.
+  const std::vector<std::pair<const char*, std::function<net::Frames(const std::string&)>>>
+      requests{
+          {"status",
+           [](const std::string& job) {
+             wire::StatusRequest r;
+             r.set_job_id(job);
+             return protocol::encode(r);
+           }},
+          {"cancel",
+           [](const std::string& job) {
+             wire::CancelJob r;
+             r.set_job_id(job);
+             return protocol::encode(r);
+           }},
+          {"pause",
+           [](const std::string& job) {
+             wire::ChangeJob r;
+             r.set_job_id(job);
+             r.set_paused(true);
+             return protocol::encode(r);
+           }},
+          {"resume",
+           [](const std::string& job) {
+             wire::ChangeJob r;
+             r.set_job_id(job);
+             r.set_paused(false);
+             return protocol::encode(r);
+           }},
+          {"priority",
+           [](const std::string& job) {
+             wire::ChangeJob r;
+             r.set_job_id(job);
+             r.set_priority(-5);
+             return protocol::encode(r);
+           }},
+          {"rm",
+           [](const std::string& job) {
+             wire::RemoveJob r;
+             r.set_job_id(job);
+             return protocol::encode(r);
+           }},
+          {"retry",
+           [](const std::string& job) {
+             wire::RetryJob r;
+             r.set_job_id(job);
+             return protocol::encode(r);
+           }},
+          {"fetch",
+           [](const std::string& job) {
+             wire::FetchImage r;
+             r.set_job_id(job);
+             return protocol::encode(r);
+           }},
+      };
+  auto answer = [&](net::Dealer& d, const net::Frames& request) {
+    EXPECT_TRUE(d.send(request));
+    auto reply = next(d);
+    EXPECT_TRUE(reply);
+    return reply ? std::move(*reply) : protocol::Decoded{};
+  };
+  for (const auto& [what, make] : requests) {
+    const protocol::Decoded hidden = answer(bob, make(id));
+    const protocol::Decoded absent = answer(bob, make(missing));
+    ASSERT_TRUE(hidden.as<wire::Error>()) << what << ": " << hidden.type;
+    ASSERT_TRUE(absent.as<wire::Error>()) << what << ": " << absent.type;
+    // The same bytes once the id asked for is swapped for the other.
+    wire::Error swapped = *hidden.as<wire::Error>();
+    std::string message = swapped.message();
+    message.replace(message.find(id), id.size(), missing);
+    swapped.set_message(message);
+    swapped.set_job_id(missing);
+    EXPECT_EQ(swapped.SerializeAsString(), absent.as<wire::Error>()->SerializeAsString())
+        << what << ": '" << hidden.as<wire::Error>()->message() << "' and '"
+        << absent.as<wire::Error>()->message() << "'";
+  }
+
+  // A worker renders one of Alice's units: Bob sees the worker, not which job it works for.
+  auto worker = connect(master.broker.worker_endpoint(), worker_keys);
+  ASSERT_TRUE(ask(worker, hello(wire::ROLE_WORKER)).as<wire::Welcome>());
+  ASSERT_TRUE(ask(worker, wire::WorkRequest{}).as<wire::WorkUnit>());
+  auto units_seen = [&](net::Dealer& d) {
+    const auto list = ask(d, wire::ListWorkers{});
+    EXPECT_TRUE(list.as<wire::WorkerList>()) << list.type;
+    std::vector<std::string> units;
+    if (!list.as<wire::WorkerList>()) return units;
+    EXPECT_EQ(list.as<wire::WorkerList>()->workers_size(), 1);
+    for (const auto& w : list.as<wire::WorkerList>()->workers())
+      for (const auto& u : w.units()) units.push_back(u);
+    return units;
+  };
+  const auto bobs = units_seen(bob);
+  EXPECT_TRUE(bobs.empty()) << bobs.front();
+  ASSERT_EQ(units_seen(alice).size(), 1u);
+  EXPECT_EQ(units_seen(alice)[0].rfind(id + "/", 0), 0u) << units_seen(alice)[0];
+  EXPECT_EQ(units_seen(boss).size(), 1u) << "an admin sees every job";
+}
+
+TEST_F(BrokerTrustTest, AFetchSaysWhichImageItSendsWhileTheFinalOneCannotBeWritten) {
+  MasterOptions o = options();
+  o.image_interval = std::chrono::hours{1};  // images at the first round and at the end only
+  o.heartbeat.liveness = 100000;            // the test's worker sends no heartbeats
+  Running master(std::move(o));
+  auto alice = connect(master.broker.client_endpoint(), clients["alice"]);
+  const std::string id = submit_as(alice);  // 8 spp: 4 tiles x 2 passes of 4
+  auto worker = connect(master.broker.worker_endpoint(), worker_keys);
+  ASSERT_TRUE(ask(worker, hello(wire::ROLE_WORKER)).as<wire::Welcome>());
+  // Renders up to `units` leases (a lease may cover a run of a tile's passes), until the master
+  // has none to give.
+  auto render = [&](int units) {
+    for (int i = 0; i < units; ++i) {
+      ASSERT_TRUE(worker.send(protocol::encode(wire::WorkRequest{})));
+      auto work = next(worker, milliseconds{2000});
+      if (!work) return;
+      ASSERT_TRUE(work->as<wire::WorkUnit>()) << work->type;
+      worker.send(protocol::encode(result_for(*work->as<wire::WorkUnit>())));
+    }
+  };
+  wire::StatusRequest status;
+  status.set_job_id(id);
+  // Waits (at most 20 s) until `done` holds for the job's status.
+  auto wait_for = [&](auto done) {
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds{20};
+    while (std::chrono::steady_clock::now() < deadline) {
+      auto st = ask(alice, status);
+      if (st.as<wire::JobStatus>() && done(*st.as<wire::JobStatus>())) return true;
+      std::this_thread::sleep_for(milliseconds{20});
+    }
+    return false;
+  };
+  render(4);  // the first pass: its image is written
+  ASSERT_TRUE(wait_for([](const wire::JobStatus& st) { return st.spp_done() == 4; }));
+  const fs::path image = dir.path() / "data" / "jobs" / id / "image.exr";
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds{20};
+  while (!fs::exists(image) && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(milliseconds{20});
+  }
+  ASSERT_TRUE(fs::exists(image));
+  DiskFault full(dir.path() / "data");
+  render(8);  // the job's work is over; its final image cannot be written
+  ASSERT_TRUE(wait_for([](const wire::JobStatus& st) { return !st.storage_error().empty(); }));
+  wire::FetchImage fetch;
+  fetch.set_job_id(id);
+  const auto reply = ask(alice, fetch);
+  const auto* data = reply.as<wire::ImageData>();
+  ASSERT_TRUE(data) << reply.type;
+  EXPECT_EQ(data->state(), wire::JOB_RUNNING);
+  // The image sent is the first pass's, and says so; the job's figure is beside it, and why.
+  EXPECT_EQ(data->spp_done(), 4u);
+  EXPECT_EQ(data->job_spp_done(), 8u);
+  EXPECT_NE(data->image_note().find("cannot write"), std::string::npos) << data->image_note();
+  EXPECT_NE(data->image_note().find("No space left on device"), std::string::npos)
+      << data->image_note();
+  const fs::path copy = dir.path() / "fetched.exr";
+  {
+    std::ofstream out(copy, std::ios::binary);
+    out << data->exr();
+  }
+  EXPECT_EQ(read_exr(copy).attributes.at("rayfarm:spp"), "4");
+}
+
 TEST(QueueBoundsTest, ARouterQueuesNoMoreThanItsBoundForAPeerThatDoesNotRead) {
   // Replies of 4 MiB to a peer that never reads (its own queue holds one message, so TCP pushes
   // back): past the bound, sends fail instead of queueing in the master's memory.
@@ -614,6 +1009,47 @@ TEST(QueueBoundsTest, ARouterQueuesNoMoreThanItsBoundForAPeerThatDoesNotRead) {
   EXPECT_GE(bounded, 1);
   EXPECT_LE(bounded, 8) << "the send queue was not bounded";
   EXPECT_GE(count_accepted(net::QueueBounds{}), 30) << "ZeroMQ's default queue takes them";
+}
+
+TEST_F(BrokerTrustTest, AWorkerMessageIsBoundedByWhatItsUnitsCanHold) {
+  Running master(options());
+  auto alice = connect(master.broker.client_endpoint(), clients["alice"]);
+  const std::string id = submit_as(alice);
+  auto worker = connect(master.broker.worker_endpoint(), worker_keys);
+  ASSERT_TRUE(ask(worker, hello(wire::ROLE_WORKER)).as<wire::Welcome>());
+  auto work = ask(worker, wire::WorkRequest{});
+  ASSERT_TRUE(work.as<wire::WorkUnit>()) << work.type;
+  const wire::WorkUnit unit = *work.as<wire::WorkUnit>();
+  const auto dropped = [] {
+    const auto v = metrics().refusals.values();
+    const auto it = v.find("worker_message_size");
+    return it == v.end() ? 0.0 : it->second;
+  };
+  // The unit's result (a 16 x 16 tile) takes tens of kilobytes; the connection may send up to
+  // WorkerMessageBounds::kSmallMessageBytes. A result padded past it, from the holder itself or
+  // from a connection that holds nothing, is dropped before it is decoded.
+  wire::UnitResult padded = result_for(unit);
+  padded.mutable_sum()->append(WorkerMessageBounds::kSmallMessageBytes, '\x01');
+  auto idle = connect(master.broker.worker_endpoint(), worker_keys);
+  ASSERT_TRUE(ask(idle, hello(wire::ROLE_WORKER)).as<wire::Welcome>());
+  idle.send(protocol::encode(padded));
+  worker.send(protocol::encode(padded));
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds{5};
+  while (dropped() < 2 && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(milliseconds{10});
+  }
+  EXPECT_EQ(dropped(), 2.0);
+  wire::StatusRequest status;
+  status.set_job_id(id);
+  EXPECT_EQ(ask(alice, status).as<wire::JobStatus>()->units_done(), 0u);
+  // Within the bound, the holder's result is read and merged as ever.
+  worker.send(protocol::encode(result_for(unit)));
+  uint64_t done = 0;
+  while (done == 0 && std::chrono::steady_clock::now() < deadline + std::chrono::seconds{5}) {
+    done = ask(alice, status).as<wire::JobStatus>()->units_done();
+  }
+  EXPECT_EQ(done, 1u);
+  EXPECT_EQ(dropped(), 2.0);
 }
 
 }  // namespace
