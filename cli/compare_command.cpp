@@ -1,5 +1,7 @@
 // `rayfarm compare TEST.exr REFERENCE.exr`: error metrics of an image against a reference.
-// Exit code: 0 when bit-identical, 1 when the images differ, 2 when an image cannot be compared.
+// Exit code, as cmp's: 0 when bit-identical, 1 when the images differ or an image cannot be read
+// (an error, named on stderr, with nothing on stdout: docs/cli.md, "Exit codes"); 2 is a usage
+// error, as for every command.
 #include <cmath>
 #include <exception>
 #include <iostream>
@@ -18,7 +20,7 @@ namespace {
 
 constexpr int kIdentical = 0;
 constexpr int kDifferent = 1;
-constexpr int kError = 2;
+constexpr int kError = 1;
 
 struct CompareOptions {
   std::string test;
@@ -80,7 +82,7 @@ void add_compare_command(CLI::App& app, int& exit_code) {
   CLI::App* command = app.add_subcommand(
       "compare",
       "Compare an image to a reference: RMSE, relative MSE, MAE, max difference. "
-      "Exit code 0 when bit-identical, 1 when different, 2 on an error.");
+      "Exit code 0 when bit-identical, 1 when different or on an error (named on stderr).");
   command->add_option("test", options->test, "image to check (EXR)")->required();
   command->add_option("reference", options->reference, "reference image (EXR)")->required();
   command->add_flag("--json", options->json, "print the metrics as one JSON object");

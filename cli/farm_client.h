@@ -129,6 +129,8 @@ template <class Body>
 int guarded(const char* command, Body&& body) {
   try {
     return body();
+  } catch (const CLI::ParseError&) {
+    throw;  // a usage error found after parsing (main.cpp: exit 2, with the usage line)
   } catch (const Unreachable& e) {
     std::cerr << "rayfarm " << command << ": error: " << e.what() << "\n";
     return kExitUnreachable;

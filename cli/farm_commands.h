@@ -1,9 +1,21 @@
 #pragma once
 // The farm's client commands, one function each, registered together by add_farm_commands()
 // (commands.h). Each adds one subcommand to `app` whose callback sets `exit_code`.
+#include <cmath>
+
 #include <CLI/CLI.hpp>
 
+#include "proto/rayfarm.pb.h"
+
 namespace rayfarm::cli {
+
+/// A job's status as people are shown it: an error figure that is not finite (a job cancelled
+/// before a pixel had two samples) is unknown, shown as no figure rather than "inf".
+inline wire::JobStatus for_people(wire::JobStatus st) {
+  if (!std::isfinite(st.est_rel_mse())) st.set_est_rel_mse(-1);
+  if (!std::isfinite(st.ref_rel_mse())) st.set_ref_rel_mse(-1);
+  return st;
+}
 
 // submit_watch_commands.cpp
 void add_submit(CLI::App& app, int& exit_code);

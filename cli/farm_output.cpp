@@ -224,8 +224,12 @@ void print_status(const wire::JobStatus& st) {
                              st.tiles_total());
   }
   if (!st.stop_reason().empty()) std::cout << fmt::format("stopped    {}\n", st.stop_reason());
-  std::cout << fmt::format("time       {} elapsed, ETA {}, {}\n",
-                           format_duration(st.elapsed_seconds()), format_duration(st.eta_seconds()),
+  // An ETA only while there is something to wait for: a job over, or paused, has none.
+  const bool waiting = st.state() == wire::JOB_RUNNING || st.state() == wire::JOB_QUEUED;
+  std::cout << fmt::format("time       {} elapsed{}, {}\n", format_duration(st.elapsed_seconds()),
+                           waiting && !st.paused()
+                               ? ", ETA " + format_duration(st.eta_seconds())
+                               : std::string(finished(st.state()) ? "" : ", no ETA (paused)"),
                            human_rate(st.samples_per_second()));
   std::cout << fmt::format("workers    {} busy on this job, {} connected\n", st.workers_busy(),
                            st.workers_total());

@@ -22,27 +22,15 @@ struct FilmArgs {
 
   bool given() const { return !res.empty() || width != 0 || height != 0; }
 
-  /// The film to render given the scene's; nullopt when no option was given. Throws
-  /// std::invalid_argument naming the option on a bad value.
+  /// The film to render given the scene's; nullopt when no option was given. The options' values
+  /// were checked when parsed (add_film_options); throws std::invalid_argument when the scene's
+  /// film is empty or --width/--height alone makes a side too long.
   std::optional<FilmSize> resolve(const FilmSize& scene) const {
     if (!given()) return std::nullopt;
     if (!res.empty()) {
-      if (width || height) throw std::invalid_argument("give --res or --width/--height, not both");
-      const size_t x = res.find_first_of("xX");
-      size_t end_w = 0, end_h = 0;
-      unsigned long w = 0, h = 0;
-      try {
-        if (x == std::string::npos) throw std::invalid_argument("no x");
-        w = std::stoul(res.substr(0, x), &end_w);
-        h = std::stoul(res.substr(x + 1), &end_h);
-      } catch (const std::exception&) {
-        end_w = 0;
-      }
-      if (end_w == 0 || end_w != x || end_h != res.size() - x - 1 || res[0] == '-' ||
-          res[x + 1] == '-') {
-        throw std::invalid_argument("--res " + res + ": expected WIDTHxHEIGHT, e.g. 1280x720");
-      }
-      return checked(w, h, "--res " + res);
+      const auto wh = parse_res(res);
+      if (!wh) throw std::invalid_argument(res_problem(res));
+      return *wh;
     }
     if (width && height) return checked(width, height, "--width/--height");
     if (scene.width == 0 || scene.height == 0) throw std::invalid_argument("the scene's film is empty");
@@ -52,6 +40,30 @@ struct FilmArgs {
     }
     return checked(std::max(1.0, std::round(double(height) * scene.width / scene.height)), height,
                    "--height");
+  }
+
+  /// "WIDTHxHEIGHT" (or X), each side a number in [1, kMaxFilmSide]; nullopt otherwise.
+  static std::optional<FilmSize> parse_res(const std::string& text) {
+    const size_t x = text.find_first_of("xX");
+    if (x == std::string::npos || x == 0 || x + 1 == text.size()) return std::nullopt;
+    const auto side = [](const std::string& t) -> std::optional<uint32_t> {
+      if (t.empty() || t.size() > 6) return std::nullopt;
+      uint32_t v = 0;
+      for (const char c : t) {
+        if (c < '0' || c > '9') return std::nullopt;
+        v = v * 10 + static_cast<uint32_t>(c - '0');
+      }
+      if (v < 1 || v > kMaxFilmSide) return std::nullopt;
+      return v;
+    };
+    const auto w = side(text.substr(0, x)), h = side(text.substr(x + 1));
+    if (!w || !h) return std::nullopt;
+    return FilmSize{*w, *h};
+  }
+  /// Why parse_res refuses `text`.
+  static std::string res_problem(const std::string& text) {
+    return "expected WIDTHxHEIGHT, e.g. 1280x720, each side in [1, " +
+           std::to_string(kMaxFilmSide) + "] pixels, got '" + text + "'";
   }
 
  private:
@@ -64,12 +76,22 @@ struct FilmArgs {
   }
 };
 
+/// --res, --width and --height; a malformed or out-of-range value, or --res with --width or
+/// --height, is a usage error (exit 2) when the command line is parsed.
 inline void add_film_options(CLI::App* cmd, FilmArgs& args) {
-  cmd->add_option("--res", args.res, "Film size WIDTHxHEIGHT, over the scene's (e.g. 1280x720)");
+  CLI::Option* res =
+      cmd->add_option("--res", args.res, "Film size WIDTHxHEIGHT, over the scene's (e.g. 1280x720)")
+          ->check([](const std::string& v) {
+            return FilmArgs::parse_res(v) ? std::string() : FilmArgs::res_problem(v);
+          });
   cmd->add_option("--width", args.width,
-                  "Film width in pixels (alone: the height follows the scene's aspect)");
+                  "Film width in pixels (alone: the height follows the scene's aspect)")
+      ->check(CLI::Range(1u, kMaxFilmSide))
+      ->excludes(res);
   cmd->add_option("--height", args.height,
-                  "Film height in pixels (alone: the width follows the scene's aspect)");
+                  "Film height in pixels (alone: the width follows the scene's aspect)")
+      ->check(CLI::Range(1u, kMaxFilmSide))
+      ->excludes(res);
 }
 
 }  // namespace rayfarm::cli

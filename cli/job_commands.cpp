@@ -38,7 +38,7 @@ void add_status(CLI::App& app, int& exit_code) {
       } else if (*json) {
         print_json(status_json(query_status(client, *job)));
       } else {
-        print_status(query_status(client, *job));
+        print_status(for_people(query_status(client, *job)));
       }
       return 0;
     });

@@ -2,6 +2,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <iostream>
 
@@ -38,6 +39,7 @@ struct RenderArgs {
   float clamp = 0.f;
   uint32_t threads = 0;
   StopArgs stop;
+  bool error_record = false;  // --error-record
   FilmArgs film;
   std::optional<int64_t> frame;       // --frame N
   std::optional<std::string> frames;  // --frames A-B[:STEP]
@@ -64,7 +66,8 @@ class ProgressReporter {
     const double fraction = last               ? 1.0
                             : p.units_released ? double(p.units_done) / double(p.units_released)
                                                : 0.0;
-    if (row) error_ = fmt::format("relMSE~{:.3g}", row->est_rel_mse);
+    if (row && std::isfinite(row->est_rel_mse))
+      error_ = fmt::format("relMSE~{:.3g}", row->est_rel_mse);
     if (tty_) {
       const int width = 30, filled = static_cast<int>(fraction * width);
       std::fprintf(stderr, "\r[%s%s] %5.1f%%  pass %u/%u  %.1fs  %s ",
@@ -184,17 +187,28 @@ void render_one(const RenderArgs& args, std::optional<int64_t> frame,
   } else {
     write_png_preview(output, film_to_image(film, attributes));
   }
-  write_error_csv(error_csv_path(output), rows);
-  write_error_plot(
-      error_plot_path(output), rows,
-      fmt::format("{} ({}, {})", std::filesystem::path(args.source.scene).filename().string(),
-                  integrator_name(settings.integrator),
-                  tracker.has_reference() ? "estimated and measured" : "estimated"));
+  // The error record goes beside an EXR (the render's full result); beside a PNG, which is asked
+  // for as a picture alone, only when asked for: --error-record, or a target error or a
+  // reference, which are about the error.
+  const bool record = format == OutputFormat::kExr || args.error_record ||
+                      options.stop.target_error > 0 || tracker.has_reference();
+  if (record) {
+    write_error_csv(error_csv_path(output), rows);
+    write_error_plot(
+        error_plot_path(output), rows,
+        fmt::format("{} ({}, {})", std::filesystem::path(args.source.scene).filename().string(),
+                    integrator_name(settings.integrator),
+                    tracker.has_reference() ? "estimated and measured" : "estimated"));
+  }
 
   const double samples = static_cast<double>(film.pixel_samples());
   const double spp_mean = samples / (double(scene.film.width) * scene.film.height);
-  std::cout << fmt::format("wrote {}; error record {} and {}\n", wrote,
-                           error_csv_path(output).string(), error_plot_path(output).string());
+  if (record) {
+    std::cout << fmt::format("wrote {}; error record {} and {}\n", wrote,
+                             error_csv_path(output).string(), error_plot_path(output).string());
+  } else {
+    std::cout << fmt::format("wrote {}\n", wrote);
+  }
   std::cout << fmt::format(
       "time {:.3f} s, {:.3f} Msamples/s, {:.3f} Mrays/s, {:.2f} spp/s at {}x{}\n", seconds,
       samples / seconds * 1e-6, double(film.rays()) / seconds * 1e-6, spp_mean / seconds,
@@ -206,7 +220,10 @@ void render_one(const RenderArgs& args, std::optional<int64_t> frame,
           ? fmt::format(", {}/{} tiles converged", final_progress.tiles_converged,
                         final_progress.tiles_total)
           : "");
-  std::cout << fmt::format("estimated relMSE {:.4g}, RMSE {:.4g}", last.est_rel_mse, last.est_rmse);
+  std::cout << (std::isfinite(last.est_rel_mse)
+                    ? fmt::format("estimated relMSE {:.4g}, RMSE {:.4g}", last.est_rel_mse,
+                                  last.est_rmse)
+                    : std::string("estimated relMSE -"));
   if (last.ref_rel_mse) {
     std::cout << fmt::format("; against {}: relMSE {:.4g}, RMSE {:.4g}, MAE {:.4g}, max {:.4g}",
                              *args.stop.reference, *last.ref_rel_mse, *last.ref_rmse, *last.ref_mae,
@@ -275,6 +292,10 @@ void add_render_command(CLI::App& app, int& exit_code) {
   add_film_options(cmd, args->film);
   add_stop_options(cmd, args->stop,
                    "Reference EXR: the error against it is measured at every pass");
+  cmd->add_flag("--error-record", args->error_record,
+                "Write the error record beside a PNG output too: x.error.csv (time, spp, "
+                "estimated and measured relMSE per pass) and its plot x.error.png (always beside "
+                "an EXR, and with --target-error or --reference)");
   CLI::Option* frame =
       cmd->add_option("--frame", args->frame,
                       "Animated scenes, or a list of scene files (frame_####.json): the frame to "
@@ -288,6 +309,8 @@ void add_render_command(CLI::App& app, int& exit_code) {
   cmd->callback([args, &exit_code] {
     try {
       exit_code = run_render(*args);
+    } catch (const CLI::ParseError&) {
+      throw;  // a usage error found after parsing (main.cpp: exit 2, with the usage line)
     } catch (const std::exception& e) {
       std::cerr << "rayfarm render: error: " << e.what() << "\n";
       exit_code = 1;

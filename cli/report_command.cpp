@@ -1,6 +1,7 @@
 // `rayfarm report TARGET [-o PLOT.png]`: the error-against-time record of a render, as a table,
 // a summary (last error, log-log slope, why the job stopped) and a plot. TARGET is an error.csv
 // on this machine or a job id on the master (fetched like `rayfarm fetch`).
+#include <cmath>
 #include <algorithm>
 #include <filesystem>
 #include <iostream>
@@ -56,8 +57,9 @@ std::optional<double> late_slope(const std::vector<ErrorRow>& rows) {
 /// "12 rows, 52.8 s, 128 spp; last est relMSE 8.5e-04 (measured 1.3e-03); slope -1.02 ..."
 std::string summary_line(const std::vector<ErrorRow>& rows) {
   const ErrorRow& last = rows.back();
-  std::string line = fmt::format("{} rows, {:.3g} s, {:.4g} spp; last est relMSE {:.3e}",
-                                 rows.size(), last.time_s, last.spp, last.est_rel_mse);
+  std::string line = fmt::format(
+      "{} rows, {:.3g} s, {:.4g} spp; last est relMSE {}", rows.size(), last.time_s, last.spp,
+      std::isfinite(last.est_rel_mse) ? fmt::format("{:.3e}", last.est_rel_mse) : "-");
   if (last.ref_rel_mse) line += fmt::format(" (measured {:.3e})", *last.ref_rel_mse);
   const size_t late = rows.size() - rows.size() / 2;
   if (const auto slope = late_slope(rows)) {
@@ -129,8 +131,12 @@ std::string job_line(const wire::JobStatus& st) {
   if (st.tiles_total() > 0) {
     line += fmt::format("; tiles converged {}/{}", st.tiles_converged(), st.tiles_total());
   }
-  if (st.est_rel_mse() >= 0) line += fmt::format("; est relMSE {:.3e}", st.est_rel_mse());
-  if (st.ref_rel_mse() >= 0) line += fmt::format("; measured relMSE {:.3e}", st.ref_rel_mse());
+  // (not finite: unknown, e.g. a job cancelled before a pixel had two samples)
+  line += "; est relMSE " + (std::isfinite(st.est_rel_mse()) && st.est_rel_mse() >= 0
+                                 ? fmt::format("{:.3e}", st.est_rel_mse())
+                                 : std::string("-"));
+  if (st.ref_rel_mse() >= 0 && std::isfinite(st.ref_rel_mse()))
+    line += fmt::format("; measured relMSE {:.3e}", st.ref_rel_mse());
   return line;
 }
 

@@ -24,7 +24,7 @@ struct SceneArgs {
   std::string root;
   std::vector<std::string> defines;
 
-  /// -D NAME=VALUE pairs; throws std::invalid_argument on a malformed one.
+  /// -D NAME=VALUE pairs; a malformed one is a usage error (CLI::ValidationError, exit 2).
   XmlParameters parameters() const {
     XmlParameters out;
     for (const std::string& d : defines) {
@@ -33,30 +33,33 @@ struct SceneArgs {
       for (size_t i = 0; ok && i < eq; ++i)
         ok = std::isalnum(static_cast<unsigned char>(d[i])) != 0 || d[i] == '_';
       if (!ok)
-        throw std::invalid_argument("-D " + d +
-                                    ": expected NAME=VALUE, NAME of letters, digits and _");
+        throw CLI::ValidationError("-D " + d +
+                                   ": expected NAME=VALUE, NAME of letters, digits and _");
       // A value travels to the farm inside an XML attribute: nothing there may change it.
       for (size_t i = eq + 1; ok && i < d.size(); ++i)
         ok = d[i] != '$' && static_cast<unsigned char>(d[i]) >= 0x20;
       if (!ok)
-        throw std::invalid_argument("-D " + d + ": a value may not hold '$' or control characters");
+        throw CLI::ValidationError("-D " + d + ": a value may not hold '$' or control characters");
       out[d.substr(0, eq)] = d.substr(eq + 1);
     }
     return out;
   }
 
-  /// Throws std::invalid_argument when an option does not apply to the scene's format.
+  /// An option that does not apply to the scene's format is a usage error (docs/cli.md): throws
+  /// CLI::ValidationError (exit 2). So is a malformed -D.
   void check() const {
     if (!camera.empty() && !is_gltf_path(scene))
-      throw std::invalid_argument(
+      throw CLI::ValidationError(
           "--camera chooses among a glTF file's cameras; a JSON scene names "
           "its glTF camera in \"gltf\" (docs/gltf.md)");
     if (is_list() && (!camera.empty() || is_mitsuba_path(scene)))
-      throw std::invalid_argument(scene +
+      throw CLI::ValidationError(scene +
                                   ": a list of scene files, one per frame, holds JSON scenes "
                                   "(or glTF files rendered through their own cameras)");
     if ((!root.empty() || !defines.empty()) && !is_mitsuba_path(scene))
-      throw std::invalid_argument("--scene-root and -D apply to Mitsuba XML scenes (.xml)");
+      throw CLI::ValidationError("--scene-root and -D apply to Mitsuba XML scenes (.xml), not to " +
+                                 scene);
+    if (is_mitsuba_path(scene)) (void)parameters();
   }
 
   /// A list of scene files, one still scene per frame: the file name holds a frame pattern
@@ -78,7 +81,7 @@ struct SceneArgs {
     check();
     if (is_list()) {
       if (!at) {
-        throw std::invalid_argument(scene +
+        throw CLI::ValidationError(scene +
                                     " is a list of scene files, one per frame: name the frames "
                                     "(--frames A-B[:STEP] or --frame N)");
       }
@@ -112,7 +115,7 @@ struct SceneArgs {
   PackedScene pack() const {
     check();
     if (is_list()) {
-      throw std::invalid_argument(scene +
+      throw CLI::ValidationError(scene +
                                   " is a list of scene files, one per frame: name the frames "
                                   "(--frames A-B[:STEP] or --frame N)");
     }

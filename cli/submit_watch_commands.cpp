@@ -55,7 +55,7 @@ int watch_job(StatusPoller& poller, const std::string& job, bool json) {
       if (key != last_line) print_json(status_json(st));
       last_line = key;
     } else {
-      const std::string line = progress_line(st);
+      const std::string line = progress_line(for_people(st));
       if (tty) {
         std::cout << "\r\033[K" << line << std::flush;
       } else if (st.passes_done() != 0 && line != last_line &&
@@ -116,7 +116,7 @@ int run_submit(const SubmitArgs& args) {
   std::optional<OutputFormat> format;
   if (!args.output.empty()) {
     if (!args.wait)
-      throw std::invalid_argument("-o needs --wait: the image is fetched when the job is done");
+      throw CLI::ValidationError("-o needs --wait: the image is fetched when the job is done");
     format = check_output_path(args.output);  // before the job is sent
   }
   // Frames are checked here (against the scene's animation, or every file of a list of scene

@@ -102,9 +102,18 @@ TEST_F(CliTest, RenderChecksItsOutputBeforeRenderingAndItsExtensionChoosesTheFor
                              "4"},
                             false);
   ASSERT_EQ(png.code, 0) << png.err;
-  EXPECT_NE(png.out.find("wrote " + (dir() / "p.png").string() + ";"), std::string::npos)
+  EXPECT_NE(png.out.find("wrote " + (dir() / "p.png").string() + "\n"), std::string::npos)
       << png.out;
   EXPECT_FALSE(fs::exists(dir() / "p.exr"));
+  // A picture was asked for: no error record beside it unless asked for.
+  EXPECT_FALSE(fs::exists(dir() / "p.error.csv"));
+  EXPECT_FALSE(fs::exists(dir() / "p.error.png"));
+  const RunResult recorded = cli({"render", scene.string(), "-o", (dir() / "q.png").string(),
+                                  "--spp", "4", "--error-record"},
+                                 false);
+  ASSERT_EQ(recorded.code, 0) << recorded.err;
+  EXPECT_TRUE(fs::exists(dir() / "q.error.csv"));
+  EXPECT_TRUE(fs::exists(dir() / "q.error.png"));
   EXPECT_EQ(testing::read_png_rgb8(dir() / "p.png").width, 16u);
   // x.exr: the EXR and its preview.
   const RunResult exr = cli({"render", scene.string(), "-o", (dir() / "e.exr").string(), "--spp",
@@ -163,6 +172,47 @@ TEST_F(CliTest, UsageErrorsExit2WithTheUsageLineAndANearMiss) {
   }
 }
 
+// docs/cli.md's table of exit codes, walked without a farm: 1 for an error named on stderr
+// (compare's unreadable image among them, as cmp's), 2 for every malformed or misplaced option
+// (--res as --max-depth, -D on a JSON scene, --res with --width), 3 for a master that cannot be
+// reached. (4 and 5 need a farm: farm_e2e_test.cpp and the watch tests.)
+TEST_F(CliTest, EveryExitCodeIsTheOneDocsCliMdGives) {
+  const fs::path scene = small_scene("furnace", 16);
+  const std::string out = (dir() / "x.exr").string();
+  struct Case {
+    std::vector<std::string> args;
+    int code;
+    std::string says;
+  };
+  const std::vector<Case> cases{
+      {{"render", scene.string(), "-o", out, "--res", "12"}, 2, "--res"},
+      {{"render", scene.string(), "-o", out, "--res", "0x5"}, 2, "--res"},
+      {{"render", scene.string(), "-o", out, "--res", "16x16", "--width", "8"}, 2, "--width"},
+      {{"render", scene.string(), "-o", out, "--width", "0"}, 2, "--width"},
+      {{"render", scene.string(), "-o", out, "--max-depth", "abc"}, 2, "--max-depth"},
+      {{"render", scene.string(), "-o", out, "-D", "x=1"}, 2, "-D"},
+      {{"submit", scene.string(), "-o", out}, 2, "--wait"},
+      {{"compare", (dir() / "missing.exr").string(), (dir() / "other.exr").string()}, 1,
+       "missing.exr"},
+      {{"render", (dir() / "no-such-scene.json").string(), "-o", out, "--spp", "1"}, 1,
+       "no-such-scene.json"},
+  };
+  for (const Case& c : cases) {
+    const RunResult r = cli(c.args, false);
+    std::string line;
+    for (const auto& a : c.args) line += a + " ";
+    EXPECT_EQ(r.code, c.code) << line << "\n" << r.err;
+    EXPECT_NE(r.err.find(c.says), std::string::npos) << line << "\n" << r.err;
+    if (c.code == 2) EXPECT_NE(r.err.find("Usage: rayfarm"), std::string::npos) << r.err;
+    EXPECT_TRUE(r.out.empty()) << line << "\n" << r.out;
+  }
+  EXPECT_FALSE(fs::exists(out)) << "no case renders";
+  // No master listens at the fixture's endpoint: 3, within the timeout.
+  const RunResult unreachable = cli({"status", "j0001", "--timeout", "1"});
+  EXPECT_EQ(unreachable.code, 3) << unreachable.err;
+  EXPECT_NE(unreachable.err.find("cannot reach master"), std::string::npos) << unreachable.err;
+}
+
 TEST_F(CliTest, BashCompletionIsValidBashAndKnowsEveryCommandAndItsOptions) {
   const RunResult r = cli({"completion", "bash"}, false);
   ASSERT_EQ(r.code, 0) << r.err;
@@ -198,8 +248,9 @@ TEST_F(CliTest, ResOverridesTheFilmLocallyAndOnTheFarmAlike) {
   const RunResult bad = cli({"render", scene.string(), "-o", (dir() / "b.exr").string(), "--res",
                              "24by16"},
                             false);
-  EXPECT_EQ(bad.code, 1);
-  EXPECT_NE(bad.err.find("--res 24by16"), std::string::npos) << bad.err;
+  EXPECT_EQ(bad.code, 2) << "a malformed option is a usage error";
+  EXPECT_NE(bad.err.find("--res: expected WIDTHxHEIGHT"), std::string::npos) << bad.err;
+  EXPECT_NE(bad.err.find("'24by16'"), std::string::npos) << bad.err;
   const std::vector<std::string> settings{"--spp", "8", "--seed", "3", "--res", "24x16"};
   const fs::path local = local_render(scene, settings);
   EXPECT_EQ(read_exr(local).width, 24u);
@@ -501,6 +552,9 @@ TEST_F(CliTest, CancelledJobsSayCancelledAndCanBeRetriedOrRemoved) {
   EXPECT_EQ(shown.code, 0);
   EXPECT_EQ(count_of(shown.out, "\nerror"), 0u) << shown.out;
   EXPECT_EQ(shown.out.find("failed"), std::string::npos) << shown.out;
+  // Over: no estimate of when it ends, and no error figure it does not have.
+  EXPECT_EQ(shown.out.find("ETA"), std::string::npos) << shown.out;
+  EXPECT_EQ(shown.out.find("inf"), std::string::npos) << shown.out;
 
   // rm refuses a job that is not finished; retry runs a cancelled one again to the same image.
   const std::string running = submit(scene, settings);
