@@ -50,23 +50,29 @@ void JobManager::schedule(Job& job) {
   scheduler_.set_priority(id, job.record.priority);
   scheduler_.set_paused(id, job.record.paused);
   Sequence* q = sequence_of(job.record.spec);
+  // The sequence's priority and pause are its frames' (set once for the group).
   if (q != nullptr) {
-    // The sequence's priority and pause are its frames' (set once for the group).
     scheduler_.set_group(job.record.spec.sequence, q->priority, q->paused || q->cancelled);
-    ++q->active;
-    if (job.record.paused) q->paused_alone.insert(id);
   }
-  if (job.record.paused || (q != nullptr && q->paused)) a.pause(Clock::now());
+  // A paused sequence stops the clocks of its started frames only: one not started yet starts
+  // its clock with its first unit, which a held sequence does not give it (and a resume visits
+  // the started frames alone).
+  if (job.record.paused || (q != nullptr && q->paused && a.started())) a.pause(Clock::now());
   a.planner.take_released();  // handed over below, with every other released unit
   if (a.merger.merged_count() == 0 && !a.planner.gated()) {
     scheduler_.release_all(id, a.grid().size());
-    return;
+  } else {
+    std::vector<uint64_t> units;
+    for (uint64_t unit = 0; unit < a.grid().size(); ++unit) {
+      if (a.planner.is_released(unit) && !a.merger.merged(unit)) units.push_back(unit);
+    }
+    scheduler_.release(id, units);
   }
-  std::vector<uint64_t> units;
-  for (uint64_t unit = 0; unit < a.grid().size(); ++unit) {
-    if (a.planner.is_released(unit) && !a.merger.merged(unit)) units.push_back(unit);
+  // Counted once the frame is scheduled: a throw above leaves the sequence's count as it was.
+  if (q != nullptr) {
+    if (job.record.paused) q->paused_alone.insert(id);
+    ++q->active;
   }
-  scheduler_.release(id, units);
 }
 
 void JobManager::on_round_done(Job& job) {

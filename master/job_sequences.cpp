@@ -120,6 +120,9 @@ wire::JobState JobManager::cancel_sequence(const std::string& id) {
     // After every frame queued so far, even within the same millisecond: a restart tells the
     // frames this cancel ended from those a later retry queued.
     q.cancelled_unix_ms = std::max(wall_ms(), q.queued_unix_ms + 1);
+    // Its pause ends with it: a retry later queues frames that run.
+    q.paused = false;
+    q.paused_alone.clear();
     q.elapsed_before = q.elapsed(Clock::now());
     q.running_since.reset();
     scheduler_.set_group(id, q.priority, /*paused=*/true);  // no frame gets a unit again
@@ -181,23 +184,32 @@ const JobRecord* JobManager::change_sequence(const std::string& id,
     what = fmt::format("priority {} (was {})", *priority, q.priority);
     q.priority = *priority;
   }
-  if (paused && *paused != q.paused) {
+  const bool was_paused = q.paused;
+  if (paused) {
     q.paused = *paused;
-    if (q.paused) {
+    if (q.paused && !was_paused) {
       q.elapsed_before = q.elapsed(now);
       q.running_since.reset();
-    } else {
-      // Resuming the sequence resumes the frames paused alone too.
-      for (const std::string& f : std::vector<std::string>(q.paused_alone.begin(),
-                                                           q.paused_alone.end())) {
-        ++jobs_visited_;
-        auto it = jobs_.find(f);
-        if (it != jobs_.end() && it->second.active && !it->second.active->finishing) {
-          change_one(f, std::nullopt, false);
-        }
-      }
-      q.paused_alone.clear();
     }
+  }
+  // Resuming the sequence resumes the frames paused alone too, also when the sequence itself
+  // was not paused (a sequence stored before its pause was its own kept it in its frames); the
+  // sequence is no longer paused here, so each frame's clock runs again.
+  if (paused && !*paused && !q.paused_alone.empty()) {
+    const size_t alone = q.paused_alone.size();
+    for (const std::string& f : std::vector<std::string>(q.paused_alone.begin(),
+                                                         q.paused_alone.end())) {
+      ++jobs_visited_;
+      auto it = jobs_.find(f);
+      if (it != jobs_.end() && it->second.active && !it->second.active->finishing) {
+        change_one(f, std::nullopt, false);
+      }
+    }
+    q.paused_alone.clear();
+    what += fmt::format("{}{} frame{} paused alone resumed", what.empty() ? "" : ", ", alone,
+                        alone == 1 ? "" : "s");
+  }
+  if (paused && q.paused != was_paused) {
     pause_frames(id, q.paused, now);
     what += fmt::format("{}{}", what.empty() ? "" : ", ", q.paused ? "paused" : "resumed");
   }

@@ -362,6 +362,36 @@ TEST(JobSequences, ASequencesRateIsItsSamplesOverItsTime) {
   EXPECT_NEAR(st->samples_per_second() * st->elapsed_seconds(), samples, samples * 1e-9);
 }
 
+// A sequence accepted paused and then resumed: a frame that starts afterwards runs its clock
+// (a frame was held paused before it started, and the resume, which visits the started frames
+// only, left it so: its time stayed 0, and a time limit never fired). A cancel ends the
+// sequence's pause, so that a retry runs.
+TEST(JobSequences, AFrameStartedAfterItsSequenceIsResumedRunsItsClock) {
+  TempDir dir;
+  JobStore store(dir.path() / "data");
+  JobManager jobs(store);
+  wire::SubmitJob request = animation_job(1, 3, 1);
+  request.set_paused(true);
+  const std::string seq = jobs.submit(request);
+  EXPECT_FALSE(jobs.next_unit("w1")) << "held";
+  ASSERT_NE(jobs.change(seq, std::nullopt, false), nullptr);
+  const auto unit = jobs.next_unit("w1");
+  ASSERT_TRUE(unit);
+  std::this_thread::sleep_for(std::chrono::milliseconds(30));
+  EXPECT_GT(jobs.status(unit->job_id(), 1)->elapsed_seconds(), 0.0);
+  EXPECT_GT(jobs.status(seq, 1)->elapsed_seconds(), 0.0);
+
+  ASSERT_NE(jobs.change(seq, std::nullopt, true), nullptr);
+  EXPECT_TRUE(jobs.status(seq, 1)->paused());
+  ASSERT_EQ(jobs.cancel(seq), wire::JOB_CANCELLED);
+  EXPECT_FALSE(jobs.status(seq, 1)->paused());
+  jobs.retry(seq);
+  EXPECT_FALSE(jobs.status(seq, 1)->paused());
+  const auto again = jobs.next_unit("w2");
+  ASSERT_TRUE(again) << "a retried sequence runs";
+  EXPECT_EQ(again->job_id(), JobStore::frame_id(seq, 1));
+}
+
 TEST(JobSequences, EachKeyHasABudgetOfChanges) {
   ChangeBudget budget;
   const auto t0 = ChangeBudget::Clock::now();
