@@ -22,6 +22,30 @@
 # units, kills, freezes, restarts, duplicates dropped, units requeued, stragglers, jobs resumed from
 # checkpoints, lost (jobs or frames not done or not bit-identical; must be 0) and the wall time.
 # Exit 0 when nothing is lost. Binaries from ./build (or $RAYFARM_BIN).
+#
+# With --duration SECONDS (e.g. 3600) it soaks for that long instead, in rounds, each submitting
+# new work (--jobs N still jobs, one per setting in turn, default 5; --sequences K short
+# sequences, default 1) and ending once that work is done, checked bit for bit and removed:
+#
+#   scripts/soak.sh --duration S [--long-frames N] [--disk-mb MB] [--disk-full-seconds S]
+#                   [--pollers P] [--poll-interval S] [--rss-bound-mb MB]
+#                   [--no-worker-kills] [--no-freezes] [--no-master-restarts] [--no-disk-full]
+#                   [--no-http] [--no-keys] [--no-long-sequence]   (and the options above)
+#
+# Throughout, every --kill-every S a random worker is killed (SIGKILL) and restarted, or frozen
+# (SIGSTOP, 2 s: declared lost) and thawed. Rounds take turns: a quiet one, the master killed
+# (SIGKILL), the disk filled, the master stopped (SIGTERM); the master restarts on the same data
+# dir. The data dir is a tmpfs of --disk-mb (96) that the script mounts (as root; otherwise the
+# disk phase is skipped, saying so): a filler file takes every free byte for --disk-full-seconds
+# (15), a submission meanwhile must be refused, then the filler goes and every job must finish.
+# The master runs with CURVE keys and --private-jobs: two client keys (alice, bob) submit in turn,
+# and each round `list`, `status` and the HTTP API (with each key's token, and anonymously) must
+# show a key none of the other's jobs. P = 3 pollers curl /api/jobs, /api/workers, /metrics and
+# the jobs' images, one request every --poll-interval (0.5) s each. One long sequence of
+# --long-frames (200) frames of 32x32 at 16 spp runs across the rounds. Every image (job and
+# frame) is compared with `rayfarm render`; the master's RSS is sampled after each round and must
+# stay within --rss-bound-mb (64) of the first round's. Exit 0 when nothing is lost, every image
+# is identical, no key saw another's job, no HTTP request got a 500, and the RSS stayed flat.
 set -euo pipefail
 
 repo_root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -34,6 +58,24 @@ kill_every=3
 timeout=600
 build="${RAYFARM_BIN:-$repo_root/build}"
 keep=0
+duration=""
+long_frames=200
+disk_mb=96
+disk_full_seconds=15
+pollers=3
+poll_interval=0.5
+rss_bound_mb=64
+do_kills=1
+do_freezes=1
+do_restarts=1
+do_disk=1
+do_keys=1
+jobs_given=0
+sequences_given=0
+for a in "$@"; do
+  [ "$a" = --jobs ] && jobs_given=1
+  [ "$a" = --sequences ] && sequences_given=1
+done
 
 while [ $# -gt 0 ]; do
   case $1 in
@@ -46,7 +88,21 @@ while [ $# -gt 0 ]; do
     --timeout) timeout=$2; shift 2 ;;
     --build) build=$2; shift 2 ;;
     --keep) keep=1; shift ;;
-    -h|--help) sed -n '2,24p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    --duration) duration=$2; shift 2 ;;
+    --long-frames) long_frames=$2; shift 2 ;;
+    --disk-mb) disk_mb=$2; shift 2 ;;
+    --disk-full-seconds) disk_full_seconds=$2; shift 2 ;;
+    --pollers) pollers=$2; shift 2 ;;
+    --poll-interval) poll_interval=$2; shift 2 ;;
+    --rss-bound-mb) rss_bound_mb=$2; shift 2 ;;
+    --no-worker-kills) do_kills=0; shift ;;
+    --no-freezes) do_freezes=0; shift ;;
+    --no-master-restarts) do_restarts=0; shift ;;
+    --no-disk-full) do_disk=0; shift ;;
+    --no-http) pollers=0; shift ;;
+    --no-keys) do_keys=0; shift ;;
+    --no-long-sequence) long_frames=0; shift ;;
+    -h|--help) sed -n '2,49p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "soak: unknown option '$1'" >&2; exit 2 ;;
   esac
 done
@@ -68,28 +124,41 @@ free_port() {
 }
 wport=$(free_port)
 cport=$(free_port)
+hport=$(free_port)
 export RAYFARM_MASTER="tcp://127.0.0.1:$cport"
+# The master's and workers' security: plain on loopback, unless the duration mode sets up keys.
+master_auth=(--insecure)
+secure=0
 
 master_pid=""
 declare -a worker_pids
 declare -a ref_pids=()
+declare -a poller_pids=()
+mounted=""
 cleanup() {
   local p
+  [ ${#poller_pids[@]} = 0 ] || touch "$work/stop-pollers"
+  for p in "${worker_pids[@]}"; do kill -CONT "$p" 2>/dev/null || true; done
   for p in "${worker_pids[@]}" $master_pid; do kill -KILL "$p" 2>/dev/null || true; done
-  for p in "${ref_pids[@]}"; do kill -TERM "$p" 2>/dev/null || true; done
+  for p in "${ref_pids[@]}" "${poller_pids[@]}"; do kill -TERM "$p" 2>/dev/null || true; done
   wait 2>/dev/null || true
+  if [ -n "$mounted" ]; then
+    umount "$mounted" 2>/dev/null || umount -l "$mounted" 2>/dev/null ||
+      echo "soak: cannot unmount $mounted" >&2
+  fi
   if [ "$keep" = 1 ]; then echo "soak: kept $work"; else rm -rf "$work"; fi
 }
 trap cleanup EXIT
+trap 'exit 130' INT TERM
 
 start_master() {
-  "$work/bin/rayfarm-master" --insecure --worker-endpoint "tcp://127.0.0.1:$wport" \
-    --client-endpoint "tcp://127.0.0.1:$cport" --data-dir "$work/data" \
+  "$work/bin/rayfarm-master" "${master_auth[@]}" --worker-endpoint "tcp://127.0.0.1:$wport" \
+    --client-endpoint "tcp://127.0.0.1:$cport" --http-endpoint "127.0.0.1:$hport" --data-dir "$work/data" \
     --heartbeat-ms 250 --liveness 4 --checkpoint-interval-ms 1000 --max-queued-jobs 1000 \
     >>"$work/logs/master.log" 2>&1 &
   master_pid=$!
   local i
-  for i in $(seq 100); do
+  for i in $(seq 300); do
     grep -q "master listening" "$work/logs/master.log" 2>/dev/null &&
       [ "$(grep -c 'master listening' "$work/logs/master.log")" -ge "$1" ] && return
     sleep 0.1
@@ -98,7 +167,9 @@ start_master() {
   exit 1
 }
 start_worker() {
-  "$work/bin/rayfarm-worker" --insecure --master "tcp://127.0.0.1:$wport" --threads 1 \
+  local auth=(--insecure)
+  [ "$secure" = 0 ] || auth=(--key "$work/keys/own/w$1.key_secret" --master-key "$work/keys/master.key")
+  "$work/bin/rayfarm-worker" "${auth[@]}" --master "tcp://127.0.0.1:$wport" --threads 1 \
     --cache-dir "$work/cache-$1" --name "w$1" --heartbeat-ms 250 --liveness 4 \
     --reconnect-max-ms 1000 >>"$work/logs/worker-$1.log" 2>&1 &
   worker_pids[$1]=$!
@@ -146,6 +217,510 @@ for s in $(seq 1 "$sequences"); do
   frames_total=$(( frames_total + ( b - a ) / step + 1 ))
 done
 frame_list() { local a b step; IFS='-:' read -r a b step <<<"${seq_frames[$1]}"; seq "$a" "$step" "$b"; }
+
+# ------------------------------------------------------------------------------------------------
+# --duration: rounds until the time is spent (see the header). Ends the script.
+run_duration() {
+  [ "$jobs_given" = 1 ] || jobs=5
+  [ "$sequences_given" = 1 ] || sequences=1
+  local t0 deadline
+  t0=$(date +%s)
+  deadline=$(( t0 + duration ))
+  now() { date +%s; }
+  say() { printf 'soak: [%5d s] %s\n' "$(( $(now) - t0 ))" "$*"; }
+
+  # Keys: the master's, one per worker, two clients. --private-jobs makes each client's jobs its own.
+  if [ "$do_keys" = 1 ]; then
+    secure=1
+    mkdir -p "$work/keys/own" "$work/keys/workers" "$work/keys/clients"
+    "$rayfarm" keygen -o "$work/keys" --name master >/dev/null
+    local w c
+    for w in $(seq 1 "$workers"); do
+      "$rayfarm" keygen -o "$work/keys/own" --name "w$w" >/dev/null
+      cp "$work/keys/own/w$w.key" "$work/keys/workers/"
+    done
+    for c in alice bob; do
+      "$rayfarm" keygen -o "$work/keys/own" --name "$c" >/dev/null
+      cp "$work/keys/own/$c.key" "$work/keys/clients/"
+    done
+    master_auth=(--key "$work/keys/master.key_secret" --worker-keys "$work/keys/workers"
+                 --client-keys "$work/keys/clients" --private-jobs)
+    clients=(alice bob)
+  else
+    clients=(plain)
+  fi
+  nclients=${#clients[@]}
+
+  # The data dir: a small tmpfs of its own, so that it can be filled.
+  mkdir -p "$work/data"
+  disk_note=""
+  if [ "$do_disk" = 1 ]; then
+    if [ "$(id -u)" != 0 ]; then
+      do_disk=0; disk_note="skipped: not root, so no tmpfs can be mounted"
+    elif mount -t tmpfs -o "size=${disk_mb}m,mode=0700" rayfarm-soak "$work/data"; then
+      mounted="$work/data"
+    else
+      do_disk=0; disk_note="skipped: mounting a tmpfs failed"
+    fi
+    [ -z "$disk_note" ] || echo "soak: the disk-full phase is $disk_note" >&2
+  fi
+
+  # References: every job setting, every sequence variant (its frames in one render), the long
+  # sequence (scenes/animated-box made --long-frames long, 32x32 at 16 spp).
+  declare -gA ref_pid_of=()
+  local i v opts scene range
+  for i in 0 1 2 3 4; do
+    IFS='|' read -r scene opts <<<"${settings[$i]}"
+    # shellcheck disable=SC2086
+    "$rayfarm" render "$scene" -o "$work/out/ref-$i.exr" --threads 1 $opts $layout \
+      >"$work/logs/ref-$i.log" 2>&1 &
+    ref_pids+=($!); ref_pid_of[job$i]=$!
+  done
+  for v in 0 1 2; do
+    IFS='|' read -r range opts <<<"${seq_settings[$v]}"
+    # shellcheck disable=SC2086
+    "$rayfarm" render "$seq_scene" --frames "$range" -o "$work/out/ref-seq$v.####.exr" --threads 1 \
+      $opts --seed $((11 + v)) $layout >"$work/logs/ref-seq$v.log" 2>&1 &
+    ref_pids+=($!); ref_pid_of[seq$v]=$!
+  done
+  long_scene="$work/scenes/long-box/scene.json"
+  long_opts="--spp 16 --seed 21"
+  if [ "$long_frames" -gt 0 ]; then
+    mkdir -p "$work/scenes/long-box"
+    cp -r "$repo_root/scenes/animated-box/." "$work/scenes/long-box/"
+    python3 - "$long_scene" "$long_frames" <<'EOF'
+import json, sys
+path, frames = sys.argv[1], int(sys.argv[2])
+scene = json.load(open(path))
+scene["film"] = {"width": 32, "height": 32}
+scene["animation"]["frames"] = [1, max(frames, scene["animation"]["frames"][1])]
+json.dump(scene, open(path, "w"), indent=2)
+EOF
+    # shellcheck disable=SC2086
+    "$rayfarm" render "$long_scene" --frames "1-$long_frames" -o "$work/out/ref-long.####.exr" \
+      --threads 1 $long_opts $layout >"$work/logs/ref-long.log" 2>&1 &
+    ref_pids+=($!); ref_pid_of[long]=$!
+  fi
+
+  # What was submitted: id -> owner, kind (job, seq, long), setting, round.
+  declare -gA item_own item_kind item_ref round_of frames_of
+  n_jobs=0; n_seqs=0; n_long=0; n_frames=0
+  declare -gA by_owner=()
+  unexpected_refusals=0
+  submit() {  # submit CLIENT KIND SETTING NAME ARGS...: records the id in $sub_id, "" if refused
+    local c=$1 k=$2 st=$3 name=$4 out
+    shift 4
+    sub_id=""
+    if out=$(rf "$c" submit "$@" $layout --name "$name" --timeout 60 2>"$work/out/submit-$name.err"); then
+      sub_id=$(head -n1 <<<"$out")
+      item_own[$sub_id]=$c; item_kind[$sub_id]=$k; item_ref[$sub_id]=$st; round_of[$sub_id]=$round
+      by_owner[$c]=$(( ${by_owner[$c]:-0} + 1 ))
+      return 0
+    fi
+    return 1
+  }
+  rf() {  # rf CLIENT ARGS...: the CLI as that client
+    local c=$1
+    shift
+    if [ "$secure" = 1 ]; then
+      RAYFARM_KEY="$work/keys/own/$c.key_secret" RAYFARM_MASTER_KEY="$work/keys/master.key" "$rayfarm" "$@"
+    else
+      "$rayfarm" "$@" --insecure
+    fi
+  }
+
+  # Events.
+  kills=0; freezes=0; events=0; frozen=""; thaw_at=0
+  next_kill=$(( $(now) + kill_every ))
+  tick_workers() {
+    local w
+    if [ -n "$frozen" ] && [ "$(now)" -ge "$thaw_at" ]; then
+      kill -CONT "${worker_pids[$frozen]}" 2>/dev/null || true
+      frozen=""
+    fi
+    [ "$do_kills" = 1 ] || [ "$do_freezes" = 1 ] || return 0
+    [ "$(now)" -ge "$next_kill" ] || return 0
+    next_kill=$(( $(now) + kill_every ))
+    w=$(( RANDOM % workers + 1 ))
+    events=$((events + 1))
+    if [ "$do_kills" = 1 ] && { [ "$do_freezes" = 0 ] || [ $((events % 2)) = 1 ] || [ -n "$frozen" ]; }; then
+      [ "$w" = "$frozen" ] && { kill -CONT "${worker_pids[$w]}" 2>/dev/null || true; frozen=""; }
+      kill -KILL "${worker_pids[$w]}" 2>/dev/null || true
+      wait "${worker_pids[$w]}" 2>/dev/null || true
+      kills=$((kills + 1))
+      start_worker "$w"
+    elif [ -z "$frozen" ]; then
+      kill -STOP "${worker_pids[$w]}" 2>/dev/null || true
+      frozen=$w
+      thaw_at=$(( $(now) + 2 ))
+      freezes=$((freezes + 1))
+    fi
+  }
+  master_starts=0
+  restarts_kill=0; restarts_term=0; term_slow=0; term_rc_bad=0
+  restart_master() {  # restart_master KILL|TERM
+    local sig=$1 i rc=0
+    kill "-$sig" "$master_pid" 2>/dev/null || true
+    for i in $(seq 600); do kill -0 "$master_pid" 2>/dev/null || break; sleep 0.1; done
+    if kill -0 "$master_pid" 2>/dev/null; then
+      say "the master did not stop within 60 s of SIGTERM: killed (see logs/master.log)"
+      term_slow=$((term_slow + 1))
+      kill -KILL "$master_pid" 2>/dev/null || true
+    fi
+    wait "$master_pid" 2>/dev/null || rc=$?
+    if [ "$sig" = TERM ]; then
+      restarts_term=$((restarts_term + 1))
+      [ "$rc" = 0 ] || { term_rc_bad=$((term_rc_bad + 1)); say "the master exited $rc after SIGTERM"; }
+    else
+      restarts_kill=$((restarts_kill + 1))
+    fi
+    master_starts=$((master_starts + 1))
+    start_master "$master_starts"
+  }
+  disk_episodes=0; disk_refused=0; disk_accepted=0; full_until=0
+  fill_disk() { cat /dev/zero >>"$work/data/filler" 2>/dev/null || true; }
+  start_disk_full() {
+    fill_disk
+    full_until=$(( $(now) + disk_full_seconds ))
+    disk_episodes=$((disk_episodes + 1))
+    say "disk full: $(df -m --output=used,size "$work/data" | tail -n1 | awk '{print $1 " of " $2 " MB used"}')"
+    # A submission now must be refused; one accepted must be kept and finished like any other.
+    local c=${clients[$((round % nclients))]} sc so
+    IFS='|' read -r sc so <<<"${settings[0]}"
+    # shellcheck disable=SC2086
+    if submit "$c" job 0 "soak-r$round-full" "$sc" $so; then
+      disk_accepted=$((disk_accepted + 1)); round_ids+=("$sub_id"); n_jobs=$((n_jobs + 1))
+      say "a submission on the full disk was accepted ($sub_id): it must finish"
+    else
+      disk_refused=$((disk_refused + 1))
+      say "a submission on the full disk was refused: $(tail -n1 "$work/out/submit-soak-r$round-full.err")"
+    fi
+  }
+  tick_disk() {
+    [ "$full_until" -gt 0 ] || return 0
+    if [ "$(now)" -ge "$full_until" ]; then
+      rm -f "$work/data/filler"
+      full_until=0
+      say "disk freed"
+    else
+      fill_disk   # what the master freed meanwhile (a failed temporary file) is taken again
+    fi
+  }
+
+  # Finished (done, failed or cancelled) jobs and sequences, as their owners list them.
+  finished_now() {
+    local c
+    for c in "${clients[@]}"; do
+      rf "$c" list --timeout 5 2>/dev/null || true
+    done | awk '$1 ~ /^j[0-9]+$/ && / (done|failed|cancelled) / {print $1}'
+  }
+
+  # Privacy: no key sees another's job, by list, status or the HTTP API; anonymous HTTP sees none.
+  privacy_checks=0; privacy_violations=0
+  declare -gA token=()
+  check_privacy() {
+    [ "$secure" = 1 ] || return 0
+    local c other id l ids body any=0
+    for c in alice bob; do
+      other=$([ "$c" = alice ] && echo bob || echo alice)
+      l=$(rf "$c" list --timeout 5 2>/dev/null) || return 1
+      ids=$(awk '$1 ~ /^j[0-9]+$/ {print $1}' <<<"$l")
+      body=$(curl -s --max-time 10 -H "Authorization: Bearer ${token[$c]}" "http://127.0.0.1:$hport/api/jobs") || return 1
+      ids="$ids $(grep -oE '"j[0-9]{4,}"' <<<"$body" | tr -d '"' || true)"
+      for id in $ids; do
+        if [ "${item_own[$id]:-$c}" != "$c" ]; then
+          say "PRIVACY: $c sees $id, a job of ${item_own[$id]}"; privacy_violations=$((privacy_violations + 1))
+        fi
+      done
+      for id in "${!item_own[@]}"; do
+        [ "${item_own[$id]}" = "$other" ] && [ "${round_of[$id]}" = "$round" ] || continue
+        any=1
+        if rf "$c" status "$id" --timeout 5 >/dev/null 2>"$work/out/privacy.err"; then
+          say "PRIVACY: $c gets the status of $id, a job of $other"; privacy_violations=$((privacy_violations + 1))
+        elif ! grep -q "unknown job" "$work/out/privacy.err"; then
+          say "privacy: status of $other's $id as $c: $(tail -n1 "$work/out/privacy.err")"
+        fi
+        break
+      done
+    done
+    body=$(curl -s --max-time 10 "http://127.0.0.1:$hport/api/jobs") || return 1
+    if grep -qE '"j[0-9]{4,}"' <<<"$body"; then
+      say "PRIVACY: the anonymous /api/jobs shows jobs: ${body:0:200}"; privacy_violations=$((privacy_violations + 1))
+    fi
+    privacy_checks=$((privacy_checks + 1))
+    [ "$any" = 1 ] || say "privacy: no job of the other key to ask about this round"
+    return 0
+  }
+
+  # HTTP pollers: a bounded rate of requests against the dashboard's API, /metrics and images.
+  poller() {
+    local n=$1 tok=$2 path id code k=0
+    local auth=()
+    local paths=(/api/jobs /api/workers /metrics image)
+    [ -z "$tok" ] || auth=(-H "Authorization: Bearer $tok")
+    trap 'exit 0' TERM
+    while [ ! -e "$work/stop-pollers" ]; do
+      path=${paths[$((k % 4))]}
+      k=$((k + 1))
+      if [ "$path" = image ]; then
+        id=$(grep -oE '"j[0-9]{4,}"' "$work/logs/http-$n.body" 2>/dev/null | tr -d '"' | shuf -n1 || true)
+        if [ -n "$id" ]; then path="/api/jobs/$id/image.png"; else path=/api/session; fi
+      fi
+      code=$(curl -s -o "$work/logs/http-$n.tmp" -w '%{http_code}' --max-time 10 "${auth[@]}" \
+               "http://127.0.0.1:$hport$path" 2>/dev/null || true)
+      [ "$path" != /api/jobs ] || mv -f "$work/logs/http-$n.tmp" "$work/logs/http-$n.body" 2>/dev/null || true
+      echo "$(date +%s) ${code:-000} $path" >>"$work/logs/http-$n.log"
+      sleep "$poll_interval"
+    done
+  }
+
+  # RSS of the master after each round.
+  declare -ga rss_kb=()
+  rss_now() { awk '/^VmRSS/ {print $2}' "/proc/$master_pid/status" 2>/dev/null || echo 0; }
+
+  # Checks, once a job or sequence is finished: every image against its reference, then removed.
+  checked=0; identical=0; differing=0; lost=0; frames_checked=0
+  wait_ref() {
+    local p=${ref_pid_of[$1]} i
+    for i in $(seq 1200); do kill -0 "$p" 2>/dev/null || return 0; sleep 0.5; done
+  }
+  check_image() {  # check_image WHAT OUT REF
+    checked=$((checked + 1))
+    if [ ! -s "$2" ]; then
+      say "LOST: $1 is not done or cannot be fetched"; lost=$((lost + 1))
+    elif [ ! -s "$3" ]; then
+      say "LOST: $1 has no reference ($3)"; lost=$((lost + 1))
+    elif "$rayfarm" compare "$2" "$3" >/dev/null 2>&1; then
+      identical=$((identical + 1))
+    else
+      say "DIFFERS: $1 differs from its reference"; differing=$((differing + 1))
+    fi
+  }
+  verify() {
+    local id=$1 c=${item_own[$1]} k=${item_kind[$1]} st=${item_ref[$1]} n f prefix status
+    case $k in
+      job)
+        wait_ref "job$st"
+        status=$(rf "$c" status "$id" --timeout 10 2>&1 | head -n 3 || true)
+        rm -f "$work/out/$id.exr"
+        if grep -q "done" <<<"$status"; then
+          rf "$c" fetch "$id" -o "$work/out/$id.exr" --timeout 30 >/dev/null 2>&1 || true
+        else
+          say "job $id is not done: $(tr '\n' ' ' <<<"$status")"
+        fi
+        check_image "job $id ($c)" "$work/out/$id.exr" "$work/out/ref-$st.exr"
+        ;;
+      seq|long)
+        if [ "$k" = long ]; then wait_ref long; prefix="$work/out/ref-long"
+        else wait_ref "seq$st"; prefix="$work/out/ref-seq$st"; fi
+        mkdir -p "$work/out/$id"
+        rf "$c" fetch "$id" --all -o "$work/out/$id/frame.####.exr" --timeout 60 \
+          >"$work/out/$id/fetch.out" 2>&1 || say "sequence $id: fetch --all: $(tail -n1 "$work/out/$id/fetch.out")"
+        for n in ${frames_of[$id]}; do
+          f=$(printf %04d "$n")
+          check_image "frame $n of $id ($c)" "$work/out/$id/frame.$f.exr" "$prefix.$f.exr"
+          frames_checked=$((frames_checked + 1))
+        done
+        ;;
+    esac
+    rf "$c" rm "$id" --timeout 10 >/dev/null 2>&1 || say "cannot remove $id: $(rf "$c" rm "$id" --timeout 10 2>&1 | tail -n1)"
+    unset "item_own[$id]" "item_kind[$id]" "item_ref[$id]" "round_of[$id]" "frames_of[$id]"
+    rm -rf "$work/out/$id" "$work/out/$id.exr" "$work/out/$id.png"
+  }
+
+  # wait_round EVENT_AT EVENT DRAIN: waits until every id in round_ids (and the round's event; with
+  # DRAIN 1, the long sequence too) is finished, ticking the events; then checks them. The long
+  # sequence is checked in whichever round it finishes.
+  wait_round() {
+    local limit=$(( $(now) + timeout )) fin id pending event_at=$1 event=$2 drain=$3 privacy_done=0
+    while :; do
+      sleep 1
+      tick_workers
+      tick_disk
+      if [ -n "$event" ] && [ "$(now)" -ge "$event_at" ]; then
+        case $event in
+          kill) say "master killed (SIGKILL)"; restart_master KILL ;;
+          term) say "master stopped (SIGTERM)"; restart_master TERM ;;
+          disk) start_disk_full ;;
+        esac
+        event=""
+      fi
+      [ "$privacy_done" = 1 ] || { check_privacy && privacy_done=1; }
+      fin=$(finished_now)
+      pending=0
+      for id in "${round_ids[@]}"; do grep -qx "$id" <<<"$fin" || pending=$((pending + 1)); done
+      if [ -n "$long_id" ] && grep -qx "$long_id" <<<"$fin"; then
+        say "the long sequence $long_id is finished: checking its $long_frames frames"
+        verify "$long_id"; long_id=""
+      fi
+      if [ "$pending" = 0 ] && [ -z "$event" ] && [ "$full_until" = 0 ]; then
+        [ "$drain" = 1 ] && [ -n "$long_id" ] || break
+      fi
+      if [ "$(now)" -ge "$limit" ]; then
+        say "round $round: $pending jobs not finished after $timeout s"
+        break
+      fi
+    done
+    [ "$full_until" = 0 ] || { rm -f "$work/data/filler"; full_until=0; }
+    [ -z "$frozen" ] || { kill -CONT "${worker_pids[$frozen]}" 2>/dev/null || true; frozen=""; }
+    for id in "${round_ids[@]}"; do verify "$id"; done
+  }
+
+  start=$(date +%s.%N)
+  master_starts=1
+  start_master 1
+  for w in $(seq 1 "$workers"); do start_worker "$w"; done
+  for c in "${clients[@]}"; do
+    token[$c]=$(rf "$c" token --timeout 30 2>/dev/null | head -n1 || true)
+  done
+  : >"$work/logs/http-0.log"
+  local p
+  for p in $(seq 1 "$pollers"); do
+    local tok=""
+    # Each client's token in turn; the last of several pollers reads anonymously.
+    if [ "$secure" = 1 ] && { [ "$p" -lt "$pollers" ] || [ "$pollers" = 1 ]; }; then
+      tok=${token[${clients[$(( (p - 1) % nclients ))]}]}
+    fi
+    poller "$p" "$tok" &
+    poller_pids+=($!)
+  done
+
+  local kinds=(quiet kill disk term) ev jn=0 sn=0 k name sc so a b step
+  declare -gA kind_count=()
+  long_id=""
+  round=0
+  while [ "$(now)" -lt "$deadline" ]; do
+    round=$((round + 1))
+    ev=${kinds[$(( (round - 1) % 4 ))]}
+    { [ "$ev" = kill ] || [ "$ev" = term ]; } && [ "$do_restarts" = 0 ] && ev=quiet
+    [ "$ev" = disk ] && [ "$do_disk" = 0 ] && ev=quiet
+    kind_count[$ev]=$(( ${kind_count[$ev]:-0} + 1 ))
+    local rstart
+    rstart=$(now)
+    round_ids=()
+    for k in $(seq 1 "$jobs"); do
+      c=${clients[$((jn % nclients))]}
+      i=$((jn % 5)); jn=$((jn + 1))
+      IFS='|' read -r sc so <<<"${settings[$i]}"
+      # shellcheck disable=SC2086
+      if submit "$c" job "$i" "soak-r$round-$k" "$sc" $so; then
+        round_ids+=("$sub_id"); n_jobs=$((n_jobs + 1))
+      else
+        unexpected_refusals=$((unexpected_refusals + 1))
+        say "submission refused: $(tail -n1 "$work/out/submit-soak-r$round-$k.err")"
+      fi
+    done
+    for k in $(seq 1 "$sequences"); do
+      c=${clients[$(( (sn + 1) % nclients ))]}
+      v=$((sn % 3)); sn=$((sn + 1))
+      IFS='|' read -r range so <<<"${seq_settings[$v]}"
+      # shellcheck disable=SC2086
+      if submit "$c" seq "$v" "soak-r$round-seq$k" "$seq_scene" --frames "$range" $so --seed $((11 + v)); then
+        round_ids+=("$sub_id"); n_seqs=$((n_seqs + 1))
+        IFS='-:' read -r a b step <<<"$range"
+        frames_of[$sub_id]=$(seq "$a" "$step" "$b" | tr '\n' ' ')
+        n_frames=$(( n_frames + (b - a) / step + 1 ))
+      else
+        unexpected_refusals=$((unexpected_refusals + 1))
+        say "submission refused: $(tail -n1 "$work/out/submit-soak-r$round-seq$k.err")"
+      fi
+    done
+    if [ "$round" = 1 ] && [ "$long_frames" -gt 0 ]; then
+      c=${clients[$((1 % nclients))]}
+      # shellcheck disable=SC2086
+      if submit "$c" long 0 soak-long "$long_scene" --frames "1-$long_frames" $long_opts; then
+        long_id=$sub_id; n_long=1; n_frames=$((n_frames + long_frames))
+        frames_of[$sub_id]=$(seq 1 "$long_frames" | tr '\n' ' ')
+        say "long sequence $long_id submitted by $c: $long_frames frames of 32x32 at 16 spp"
+      else
+        unexpected_refusals=$((unexpected_refusals + 1))
+        say "the long sequence was refused: $(tail -n1 "$work/out/submit-soak-long.err")"
+      fi
+    fi
+    say "round $round ($ev): ${#round_ids[@]} submitted (${round_ids[*]})"
+    if [ "$ev" = quiet ]; then
+      wait_round 0 "" 0
+    else
+      wait_round $(( $(now) + 2 + RANDOM % 4 )) "$ev" 0
+    fi
+    rss_kb+=("$(rss_now)")
+    say "round $round ($ev) done in $(( $(now) - rstart )) s; checked so far $checked (identical $identical, differing $differing, lost $lost); master RSS $(awk -v k="${rss_kb[-1]}" 'BEGIN {printf "%.1f", k / 1024}') MB"
+  done
+  # The long sequence, if it is still running.
+  if [ -n "$long_id" ]; then
+    say "time is up: waiting for the long sequence $long_id"
+    round_ids=()
+    wait_round 0 "" 1
+    if [ -n "$long_id" ]; then
+      say "LOST: the long sequence $long_id did not finish"
+      verify "$long_id"
+    fi
+    rss_kb+=("$(rss_now)")
+  fi
+  end=$(date +%s.%N)
+
+  touch "$work/stop-pollers"
+  for p in "${poller_pids[@]}"; do wait "$p" 2>/dev/null || true; done
+  poller_pids=()
+
+  # Figures.
+  local log="$work/logs/master.log" first max last r http_total http_5xx http_500 http_000 http_404 http_2xx codes
+  count() { grep -c -- "$1" "$log" || true; }
+  first=${rss_kb[0]}; max=$first; last=${rss_kb[-1]}
+  for r in "${rss_kb[@]}"; do [ "$r" -le "$max" ] || max=$r; done
+  rss_flat=1
+  [ $(( max - first )) -le $(( rss_bound_mb * 1024 )) ] || rss_flat=0
+  cat "$work"/logs/http-[0-9]*.log >"$work/logs/http-all.log" 2>/dev/null || true
+  http_total=$(wc -l <"$work/logs/http-all.log")
+  http_2xx=$(awk '$2 ~ /^2/' "$work/logs/http-all.log" | wc -l)
+  http_404=$(awk '$2 == 404' "$work/logs/http-all.log" | wc -l)
+  http_5xx=$(awk '$2 ~ /^5/' "$work/logs/http-all.log" | wc -l)
+  http_500=$(awk '$2 == 500' "$work/logs/http-all.log" | wc -l)
+  http_000=$(awk '$2 == "000"' "$work/logs/http-all.log" | wc -l)
+  codes=$(awk '{n[$2]++} END {for (c in n) printf "%s %d, ", c, n[c]}' "$work/logs/http-all.log" | sed 's/, $//')
+  requeued=$({ grep -o 'requeued [0-9]* unit' "$log" || true; } | awk '{s += $2} END {print s + 0}')
+  mb() { awk -v k="$1" 'BEGIN {printf "%.1f", k / 1024}'; }
+  local per_round="" result=PASS
+  for r in "${rss_kb[@]}"; do per_round="$per_round $(mb "$r")"; done
+  if [ "$lost" != 0 ] || [ "$differing" != 0 ] || [ "$rss_flat" = 0 ] || [ "$privacy_violations" != 0 ] ||
+     [ "$http_500" != 0 ] || [ "$checked" = 0 ]; then result=FAIL; fi
+
+  printf 'soak summary (%s)\n' "$(date -u +%Y-%m-%dT%H:%MZ)"
+  printf '  duration              %d s asked, %.0f s run; %d rounds (%d quiet, %d master SIGKILL, %d disk full, %d master SIGTERM)\n' \
+    "$duration" "$(awk -v a="$start" -v b="$end" 'BEGIN { print b - a }')" "$round" \
+    "${kind_count[quiet]:-0}" "${kind_count[kill]:-0}" "${kind_count[disk]:-0}" "${kind_count[term]:-0}"
+  printf '  submitted             %d jobs, %d sequences, %d long sequence; %d frames (%s)\n' "$n_jobs" "$n_seqs" "$n_long" "$n_frames" \
+    "$(for c in "${clients[@]}"; do printf '%s %d ' "$c" "${by_owner[$c]:-0}"; done | sed 's/ $//')"
+  printf '  images checked        %d (%d jobs, %d frames): %d identical, %d differing, %d lost\n' \
+    "$checked" "$((checked - frames_checked))" "$frames_checked" "$identical" "$differing" "$lost"
+  printf '  workers               %d x 1 thread; %d killed (SIGKILL) and restarted, %d frozen 2 s (SIGSTOP)\n' "$workers" "$kills" "$freezes"
+  printf '  master restarts       %d (%d SIGKILL, %d SIGTERM; %d slow to stop, %d exits not 0)\n' \
+    "$((restarts_kill + restarts_term))" "$restarts_kill" "$restarts_term" "$term_slow" "$term_rc_bad"
+  if [ -n "$disk_note" ]; then
+    printf '  disk full             %s\n' "$disk_note"
+  else
+    printf '  disk full             %d episodes of %d s on a %d MB tmpfs; submissions meanwhile %d refused, %d accepted; %d storage errors logged\n' \
+      "$disk_episodes" "$disk_full_seconds" "$disk_mb" "$disk_refused" "$disk_accepted" "$(count 'No space left')"
+  fi
+  if [ "$secure" = 1 ]; then
+    printf '  keys, private jobs    CURVE, 2 client keys; %d checks (list, status, /api/jobs per key, anonymous), %d violations\n' "$privacy_checks" "$privacy_violations"
+  fi
+  printf '  HTTP                  %d requests by %d pollers: %d 2xx, %d 404, %d 5xx (%d of them 500), %d unanswered (master down); codes: %s\n' \
+    "$http_total" "$pollers" "$http_2xx" "$http_404" "$http_5xx" "$http_500" "$http_000" "${codes:-none}"
+  printf '  master RSS            first %s MB, max %s MB, last %s MB (bound: first + %d MB); per round:%s\n' \
+    "$(mb "$first")" "$(mb "$max")" "$(mb "$last")" "$rss_bound_mb" "$per_round"
+  printf '  jobs resumed          %d from a checkpoint, %d from the start, %d queued again\n' "$(count 'resumed from checkpoint at')" "$(count 'restarted from the beginning')" "$(count 'queued again')"
+  printf '  duplicates dropped    %d; units requeued %d; stragglers %d; checkpoints unusable %d\n' \
+    "$(count 'duplicate result')" "$requeued" "$(count 'is a straggler')" "$(count 'cannot use checkpoint')"
+  [ "$unexpected_refusals" = 0 ] || printf '  refused submissions   %d (not while the disk was full)\n' "$unexpected_refusals"
+  printf '  lost                  %d\n' "$lost"
+  printf '  result                %s\n' "$result"
+  [ "$result" = PASS ]
+}
+if [ -n "$duration" ]; then
+  run_duration && exit 0
+  exit 1
+fi
 
 start=$(date +%s.%N)
 start_master 1
