@@ -58,6 +58,26 @@ class MitsubaLoader : public ::testing::Test {
   testing::TempDir dir_;
 };
 
+// The bundled Mitsuba scene (scenes/mitsuba-spheres) loads without a warning, as written, and
+// its $spp parameter is the sample count.
+TEST(MitsubaBundled, TheSpheresSceneLoadsAsWritten) {
+  const fs::path file =
+      fs::path(RAYFARM_SOURCE_DIR) / "scenes" / "mitsuba-spheres" / "scene.xml";
+  const Scene scene = load_mitsuba_scene(file, {}, SceneImages::kCheckOnly, {}, {});
+  std::string warnings;
+  for (const std::string& w : scene.warnings) warnings += w + "\n";
+  EXPECT_TRUE(scene.warnings.empty()) << warnings;
+  EXPECT_EQ(scene.film.width, 320u);
+  EXPECT_EQ(scene.film.height, 200u);
+  EXPECT_EQ(scene.render.spp, 64u);
+  EXPECT_EQ(scene.spheres.size(), 3u);
+  size_t emissive = 0;
+  for (const Material& m : scene.materials) emissive += m.is_emissive() ? 1 : 0;
+  EXPECT_EQ(emissive, 1u) << "the square light";
+  const Scene more = load_mitsuba_scene(file, {}, SceneImages::kCheckOnly, {}, {{"spp", "8"}});
+  EXPECT_EQ(more.render.spp, 8u);
+}
+
 TEST_F(MitsubaLoader, SensorFilmAndSamplerBecomeTheCameraFilmAndSampleCount) {
   const Scene s = load("");
   EXPECT_EQ(s.film.width, 30u);
