@@ -53,6 +53,7 @@ wire::JobStatus JobManager::make_status(const Job& job, uint32_t workers_total) 
   *st.mutable_settings() = protocol::settings_to_wire(s.settings);
   st.set_tile_size(s.tile_size);
   st.set_pass_spp(s.pass_spp);
+  st.set_target_error(s.stop.target_error);
   const UnitGrid grid(s.film, s.tile_size, s.settings.spp, s.pass_spp);
   st.set_passes_total(grid.pass_count());
   st.set_units_total(grid.size());

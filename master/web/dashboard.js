@@ -260,9 +260,9 @@ async function refreshDetail() {
 // as an inline SVG, log-log: the estimated relMSE, the relMSE measured against a reference when
 // the job has one, and the target error as a horizontal line when the job has one.
 
-// The job's target relMSE, or 0: the status carries it as target_error where the master sends it.
+// The job's target relMSE (its status's target_error), or 0 when it has none.
 function targetError(job) {
-  const t = Number(job.target_error ?? (job.stop && job.stop.target_error) ?? 0);
+  const t = Number(job.target_error || 0);
   return t > 0 && isFinite(t) ? t : 0;
 }
 

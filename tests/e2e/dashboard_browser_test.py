@@ -316,7 +316,8 @@ def main():
         name = "kitchen-interior_lookdev-v012_final-4k_cam03-denoise-off-tk7"
         check(len(name) == 60, f"the long name has {len(name)} characters")
         long_job = cli("submit", os.path.join(SOURCE, "scenes/cornell-box/scene.json"), "--name",
-                       name, "--res", "96x96", "--spp", "65536", "--pass-spp", "4", key="alice")
+                       name, "--res", "96x96", "--spp", "65536", "--pass-spp", "4",
+                       "--target-error", "3e-4", key="alice")
         long_row = f'#jobs tbody tr[data-job="{long_job}"]'
         wait_for(driver, "the long-named job's row", lambda d: text(d, long_row) is not None)
         click(driver, long_row)
@@ -326,6 +327,12 @@ def main():
                  lambda d: int(attribute(d, "#error-plot", "data-points") or 0) >= 4)
         wait_for(driver, "cancel offered on it",
                  lambda d: d.find_element(By.ID, "cancel").is_enabled())
+        # Its target error, from the job's status, drawn as a line on the plot.
+        wait_for(driver, "the target error on the plot",
+                 lambda d: float(attribute(d, "#error-plot", "data-target") or 0) == 3e-4)
+        check(driver.execute_script("return document.querySelector('#error-plot svg')"
+                                    ".textContent.includes('target error');"),
+              "the plot's legend names the target error")
         check_layout(driver, long_job, name)
         print(f"dashboard browser test passed (job {job}); screenshot in "
               f"{os.path.join(BUILD, 'dashboard-screenshot.png')}")
