@@ -480,9 +480,13 @@ EOF
 
   # Checks, once a job or sequence is finished: every image against its reference, then removed.
   checked=0; identical=0; differing=0; lost=0; frames_checked=0
+  # Waits once for a reference render; then forgets its PID, which the system reuses in a long
+  # soak (a live process of that PID would hold every later check for 10 minutes).
   wait_ref() {
-    local p=${ref_pid_of[$1]} i
-    for i in $(seq 1200); do kill -0 "$p" 2>/dev/null || return 0; sleep 0.5; done
+    local p=${ref_pid_of[$1]:-} i
+    [ -n "$p" ] || return 0
+    for i in $(seq 1200); do kill -0 "$p" 2>/dev/null || break; sleep 0.5; done
+    ref_pid_of[$1]=""
   }
   check_image() {  # check_image WHAT OUT REF
     checked=$((checked + 1))
