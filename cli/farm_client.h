@@ -3,6 +3,7 @@
 // request and its reply, every wait bounded by --timeout so that an unreachable master is an
 // error, never a hang), its options, its errors and the exit codes they become. Used by the farm
 // commands and by report.
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <filesystem>
@@ -77,17 +78,23 @@ class FarmClient {
 
   /// Sends a request and waits for a reply of type Reply. Throws Unreachable after the timeout,
   /// NotAdmitted when the master refused this client, and MasterError on an Error or Refusal.
+  /// A request refused as busy (Error BUSY: a key past its budget of changes, docs/reliability.md)
+  /// changed nothing: it is sent again, backing off, until the timeout.
   template <class Reply>
   Reply call(const net::Frames& request) {
     const auto deadline = std::chrono::steady_clock::now() + timeout_;
-    // A send fails while no connection can take the message (e.g. one refused in its handshake):
-    // try again until the deadline, saying why as soon as the handshake tells.
-    while (!socket_.send(request)) {
-      check_admitted();
-      if (std::chrono::steady_clock::now() >= deadline) throw_unanswered();
-      if (interrupted()) throw MasterError("interrupted");
-      std::this_thread::sleep_for(std::chrono::milliseconds{20});
-    }
+    auto backoff = std::chrono::milliseconds{100};
+    const auto send = [&] {
+      // A send fails while no connection can take the message (e.g. one refused in its
+      // handshake): try again until the deadline, saying why as soon as the handshake tells.
+      while (!socket_.send(request)) {
+        check_admitted();
+        if (std::chrono::steady_clock::now() >= deadline) throw_unanswered();
+        if (interrupted()) throw MasterError("interrupted");
+        std::this_thread::sleep_for(std::chrono::milliseconds{20});
+      }
+    };
+    send();
     while (true) {
       const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
           deadline - std::chrono::steady_clock::now());
@@ -100,7 +107,16 @@ class FarmClient {
       }
       protocol::Decoded msg = protocol::decode(*frames);
       if (const auto* refusal = msg.as<wire::Refusal>()) throw MasterError(refusal->reason());
-      if (const auto* error = msg.as<wire::Error>()) throw MasterError(error->message());
+      if (const auto* error = msg.as<wire::Error>()) {
+        if (error->code() == wire::Error::BUSY &&
+            std::chrono::steady_clock::now() + backoff < deadline && !interrupted()) {
+          std::this_thread::sleep_for(backoff);
+          backoff = std::min(backoff * 2, std::chrono::milliseconds{2000});
+          send();
+          continue;
+        }
+        throw MasterError(error->message());
+      }
       if (const auto* reply = msg.as<Reply>()) return *reply;
       throw MasterError("unexpected reply " + msg.type + " from the master");
     }

@@ -584,6 +584,26 @@ TEST_F(CliTest, CancelledJobsSayCancelledAndCanBeRetriedOrRemoved) {
   EXPECT_EQ(json_lines(cli({"list", "--json"}).out).size(), 1u);
 }
 
+// A burst of changes from one key beyond its budget (20 at once, then 10 a second): the master
+// refuses the excess as busy, having changed nothing, and the CLI asks again until its timeout,
+// so that every command of a script that pauses, resumes or removes many jobs succeeds.
+TEST_F(CliTest, ABurstOfChangesBeyondTheKeysBudgetAllSucceed) {
+  start_master();
+  const std::string job = submit(small_scene("furnace", 16), {"--spp", "8", "--paused"});
+  constexpr int kCommands = 40;
+  std::vector<std::unique_ptr<Process>> commands;
+  for (int i = 0; i < kCommands; ++i) {
+    commands.push_back(cli_in_background({i % 2 ? "pause" : "resume", job, "--timeout", "30"},
+                                         "change-" + std::to_string(i)));
+  }
+  for (int i = 0; i < kCommands; ++i) {
+    const RunResult r = finish(*commands[i], "change-" + std::to_string(i), milliseconds{60000});
+    EXPECT_EQ(r.code, 0) << i << ": " << r.err;
+    EXPECT_EQ(r.err.find("too many changes"), std::string::npos) << r.err;
+  }
+  EXPECT_EQ(cli({"cancel", job}).code, 0);
+}
+
 TEST_F(CliTest, AJobWhoseRecordCannotBeReadIsListedNotDropped) {
   start_master();
   const fs::path scene = small_scene("furnace", 16);
