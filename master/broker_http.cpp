@@ -6,6 +6,7 @@
 #include "common/protocol/codec.h"
 #include "common/util/log.h"
 #include "master/broker.h"
+#include "master/limits.h"
 
 namespace rayfarm::master {
 namespace protocol = rayfarm::protocol;
@@ -94,6 +95,32 @@ HttpAnswer Broker::answer_http(const HttpCall& call, bool& changed) {
     out.set_job_id(id);
     out.set_state(*state);
     return success(std::move(out));
+  }
+  if (call.kind == Kind::kRetry || call.kind == Kind::kRemove) {
+    try {
+      if (call.kind == Kind::kRemove) {
+        jobs_.remove(id);
+        log()->info("job {} removed over HTTP by key '{}'", protocol::printable(id),
+                    protocol::printable(user));
+        wire::RemoveReply out;
+        out.set_job_id(id);
+        return success(std::move(out));
+      }
+      // A retried job (each retried frame of a sequence) joins the queue again: within its limit.
+      if (auto full = check_queue(jobs_.active_jobs() + submissions_->jobs_in_flight(),
+                                  options_.limits, jobs_.retry_count(id))) {
+        return failure(409, *full);
+      }
+      wire::RetryReply out;
+      out.set_state(jobs_.retry(id));
+      out.set_job_id(id);
+      log()->info("job {} queued again over HTTP by key '{}'", protocol::printable(id),
+                  protocol::printable(user));
+      changed = true;
+      return success(std::move(out));
+    } catch (const JobRejected& e) {
+      return failure(409, jobs_.for_clients(e.what()));
+    }
   }
   std::optional<int32_t> priority;
   std::optional<bool> paused;

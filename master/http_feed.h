@@ -39,7 +39,7 @@ struct HttpAnswer {
 };
 
 struct HttpCall {
-  enum class Kind { kStatus, kCancel, kPause, kResume, kPriority };
+  enum class Kind { kStatus, kCancel, kPause, kResume, kPriority, kRetry, kRemove };
   Kind kind = Kind::kStatus;
   std::string job_id;
   HttpUser user;

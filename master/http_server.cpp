@@ -448,6 +448,8 @@ void HttpServer::routes() {
   s.Post(R"(/api/jobs/([^/]+)/pause)", action(HttpCall::Kind::kPause));
   s.Post(R"(/api/jobs/([^/]+)/resume)", action(HttpCall::Kind::kResume));
   s.Post(R"(/api/jobs/([^/]+)/priority)", action(HttpCall::Kind::kPriority));
+  s.Post(R"(/api/jobs/([^/]+)/retry)", action(HttpCall::Kind::kRetry));
+  s.Post(R"(/api/jobs/([^/]+)/remove)", action(HttpCall::Kind::kRemove));
 
   s.Get("/metrics", [=, this](const httplib::Request&, httplib::Response& res) {
     PrometheusText text;

@@ -218,6 +218,12 @@ async function refreshDetail() {
   $("pause").disabled = !canManage || !open || job.paused;
   $("resume").disabled = !canManage || !open || !job.paused;
   $("cancel").disabled = !canManage || !open;
+  // Over: retry a failed or cancelled job, delete any (its folder too); offered once it is over.
+  const st = STATES[job.state];
+  $("retry").hidden = open;
+  $("retry").disabled = !canManage || !(st === "failed" || st === "cancelled");
+  $("remove").hidden = open;
+  $("remove").disabled = !canManage || open;
   $("set-priority").disabled = !canManage || !open;
   $("priority").disabled = !canManage || !open;
   if (document.activeElement !== $("priority")) $("priority").value = job.priority;
@@ -540,6 +546,11 @@ window.addEventListener("DOMContentLoaded", async () => {
   $("resume").addEventListener("click", () => act("resume"));
   $("cancel").addEventListener("click", () => {
     if (confirm("Cancel job " + state.selected + "? Its samples so far are kept, no more are rendered.")) act("cancel");
+  });
+  $("retry").addEventListener("click", () => act("retry"));
+  $("remove").addEventListener("click", () => {
+    if (confirm("Delete job " + state.selected + " and its files (image, record, error record)? " +
+                "This cannot be undone.")) act("remove");
   });
   $("set-priority").addEventListener("click", () =>
     act("priority", { priority: parseInt($("priority").value, 10) }));

@@ -87,7 +87,7 @@ def accept_confirm(driver):
     try:
         WebDriverWait(driver, 10).until(EC.alert_is_present()).accept()
     except TimeoutException:
-        raise AssertionError("the page asked for no confirmation of the cancel") from None
+        raise AssertionError("the page asked for no confirmation") from None
 
 
 def wait_for(driver, what, predicate):
@@ -311,6 +311,34 @@ def main():
                  lambda d: attribute(d, row, "data-state") == "cancelled")
         state = json.loads(cli("status", job, "--json", key="alice"))
         check(state.get("state") in ("cancelled", "JOB_CANCELLED"), f"the CLI says {state}")
+
+        # Over, it offers Retry and Delete instead: a retry runs it again, from its first sample.
+        wait_for(driver, "retry offered on the cancelled job",
+                 lambda d: d.find_element(By.ID, "retry").is_displayed() and
+                 d.find_element(By.ID, "retry").is_enabled())
+        check(not driver.find_element(By.ID, "cancel").is_enabled(), "cancel offered on a job over")
+        driver.find_element(By.ID, "retry").click()
+        wait_for(driver, "the job queued again",
+                 lambda d: attribute(d, row, "data-state") in ("queued", "running"))
+        state = json.loads(cli("status", job, "--json", key="alice"))
+        check(state.get("state") in ("queued", "running", "JOB_QUEUED", "JOB_RUNNING"),
+              f"after a retry the CLI says {state}")
+        wait_for(driver, "cancel offered again", lambda d: d.find_element(By.ID, "cancel").is_enabled())
+        driver.find_element(By.ID, "cancel").click()
+        accept_confirm(driver)
+        wait_for(driver, "the retried job cancelled",
+                 lambda d: attribute(d, row, "data-state") == "cancelled")
+        # Delete: asked to confirm, then the job and its folder are gone.
+        wait_for(driver, "delete offered", lambda d: d.find_element(By.ID, "remove").is_enabled())
+        driver.find_element(By.ID, "remove").click()
+        accept_confirm(driver)
+        wait_for(driver, "the job's row gone", lambda d: text(d, row) is None)
+        gone = subprocess.run([os.path.join(BUILD, "cli/rayfarm"), "status", job, "--master",
+                               CLIENT, "--key", os.path.join(KEYS, "own", "alice.key_secret"),
+                               "--master-key", os.path.join(KEYS, "master.key")],
+                              capture_output=True, text=True, timeout=60)
+        check(gone.returncode == 1 and "unknown job" in gone.stderr,
+              f"after delete the CLI says {gone.returncode}: {gone.stderr}")
 
         # The layout, with a realistic long job name (60 characters) running, alice signed in.
         name = "kitchen-interior_lookdev-v012_final-4k_cam03-denoise-off-tk7"
