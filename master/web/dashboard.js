@@ -12,6 +12,8 @@ const state = {
   loads: 0,              // images loaded for the selected job (the preview's data-version)
   busy: false,
   plot: { rows: [], target: 0 },  // the selected job's error record, drawn by drawErrorPlot
+  sort: { key: null, ascending: true },  // the jobs table's order: the master's until a click
+  lastJobs: null,  // the latest job list, drawn again when the filter or the order changes
 };
 
 const $ = (id) => document.getElementById(id);
@@ -114,10 +116,49 @@ function jobRow(job) {
   return tr;
 }
 
+// The jobs' order and filter, the user's: a click on a sortable header sorts by it (again: the
+// other way), and the filter keeps the jobs whose id, name, owner or state holds its words.
+const SORT_KEYS = {
+  name: (j) => (j.name || j.job_id).toLowerCase(),
+  owner: (j) => (j.owner || "").toLowerCase(),
+  state: (j) => stateName(j),
+  priority: (j) => j.priority,
+  progress: (j) => percentOf(j),
+  rate: (j) => (finished(j) ? -1 : j.samples_per_second),
+  eta: (j) => (finished(j) || !(j.eta_seconds >= 0) ? Infinity : j.eta_seconds),
+  error: (j) => (j.est_rel_mse >= 0 ? j.est_rel_mse : Infinity),
+};
+
+function shownJobs(jobs) {
+  const words = $("job-filter").value.toLowerCase().split(/\s+/).filter(Boolean);
+  let out = jobs.filter((j) => {
+    const hay = [j.job_id, j.name || "", j.owner || "", stateName(j)].join(" ").toLowerCase();
+    return words.every((w) => hay.includes(w));
+  });
+  const key = SORT_KEYS[state.sort.key];
+  if (key) {
+    const dir = state.sort.ascending ? 1 : -1;
+    // Stable: equal keys keep the master's order (the order of submission).
+    out = out.map((j, i) => [j, i]).sort((a, b) => {
+      const ka = key(a[0]), kb = key(b[0]);
+      return ka < kb ? -dir : ka > kb ? dir : a[1] - b[1];
+    }).map((p) => p[0]);
+  }
+  return out;
+}
+
 function drawJobs(list) {
+  state.lastJobs = list;
   const body = $("jobs").querySelector("tbody");
-  body.replaceChildren(...list.jobs.map(jobRow));
+  const shown = shownJobs(list.jobs);
+  body.replaceChildren(...shown.map(jobRow));
+  for (const th of $("jobs").querySelectorAll("th[data-sort]")) {
+    const on = th.dataset.sort === state.sort.key;
+    if (on) th.setAttribute("aria-sort", state.sort.ascending ? "ascending" : "descending");
+    else th.removeAttribute("aria-sort");
+  }
   $("no-jobs").hidden = list.jobs.length > 0;
+  $("no-match").hidden = list.jobs.length === 0 || shown.length > 0;
   $("job-count").textContent = list.jobs.length ? "(" + list.jobs.length + ")" : "";
   $("farm").textContent = list.workers_total + " worker" + (list.workers_total === 1 ? "" : "s") +
     " connected" + (state.session ? " · " + state.session.build : "");
@@ -547,6 +588,14 @@ window.addEventListener("DOMContentLoaded", async () => {
   $("cancel").addEventListener("click", () => {
     if (confirm("Cancel job " + state.selected + "? Its samples so far are kept, no more are rendered.")) act("cancel");
   });
+  $("job-filter").addEventListener("input", () => { if (state.lastJobs) drawJobs(state.lastJobs); });
+  for (const th of $("jobs").querySelectorAll("th[data-sort]")) {
+    th.addEventListener("click", () => {
+      const key = th.dataset.sort;
+      state.sort = { key, ascending: state.sort.key === key ? !state.sort.ascending : true };
+      if (state.lastJobs) drawJobs(state.lastJobs);
+    });
+  }
   $("retry").addEventListener("click", () => act("retry"));
   $("remove").addEventListener("click", () => {
     if (confirm("Delete job " + state.selected + " and its files (image, record, error record)? " +

@@ -355,6 +355,36 @@ def main():
                  lambda d: int(attribute(d, "#error-plot", "data-points") or 0) >= 4)
         wait_for(driver, "cancel offered on it",
                  lambda d: d.find_element(By.ID, "cancel").is_enabled())
+        # Sorting and filtering: a second job, held paused; the filter keeps the jobs whose id,
+        # name, owner or state hold its words; a header sorts by its column, again the other way.
+        short_job = cli("submit", os.path.join(SOURCE, "scenes/cornell-box/scene.json"), "--name",
+                        "aaa-turntable", "--res", "32x32", "--spp", "64", "--paused", key="alice")
+        rows = ("return [...document.querySelectorAll('#jobs tbody tr')]"
+                ".map((r) => r.dataset.job);")
+        wait_for(driver, "both jobs listed", lambda d: set(d.execute_script(rows)) ==
+                 {long_job, short_job})
+        driver.find_element(By.ID, "job-filter").send_keys("kitchen")
+        wait_for(driver, "the filter keeps the long-named job alone",
+                 lambda d: d.execute_script(rows) == [long_job])
+        driver.find_element(By.ID, "job-filter").clear()
+        driver.find_element(By.ID, "job-filter").send_keys("paused alice")
+        wait_for(driver, "the filter reads the state and the owner",
+                 lambda d: d.execute_script(rows) == [short_job])
+        driver.find_element(By.ID, "job-filter").send_keys(" nomatch")
+        wait_for(driver, "no job matches", lambda d: d.execute_script(rows) == [] and
+                 d.find_element(By.ID, "no-match").is_displayed())
+        driver.find_element(By.ID, "job-filter").clear()
+        driver.execute_script("document.getElementById('job-filter')"
+                              ".dispatchEvent(new Event('input'));")
+        click(driver, '#jobs th[data-sort="name"]')
+        wait_for(driver, "sorted by name", lambda d: d.execute_script(rows) == [short_job, long_job])
+        check(attribute(driver, '#jobs th[data-sort="name"]', "aria-sort") == "ascending",
+              "the sorted header says so")
+        click(driver, '#jobs th[data-sort="name"]')
+        wait_for(driver, "sorted by name the other way",
+                 lambda d: d.execute_script(rows) == [long_job, short_job])
+        click(driver, long_row)
+
         # Its target error, from the job's status, drawn as a line on the plot.
         wait_for(driver, "the target error on the plot",
                  lambda d: float(attribute(d, "#error-plot", "data-target") or 0) == 3e-4)
