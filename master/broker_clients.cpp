@@ -4,6 +4,7 @@
 #include <string>
 #include <string_view>
 
+#include "common/image/exr_header.h"
 #include "common/limits.h"
 #include "common/protocol/codec.h"
 #include "common/protocol/convert.h"
@@ -30,40 +31,20 @@ std::string no_such_job(const std::string& id, bool private_jobs) {
 /// (common/image/film_output.cpp writes it); nullopt when the header has none or is not a
 /// well-formed EXR header.
 std::optional<uint32_t> exr_spp(std::string_view exr) {
-  auto read_i32 = [&](size_t at) {
-    uint32_t v = 0;
-    for (int b = 3; b >= 0; --b) v = (v << 8) | static_cast<unsigned char>(exr[at + b]);
-    return static_cast<int32_t>(v);
-  };
-  if (exr.size() < 8 || read_i32(0) != 20000630) return std::nullopt;  // the EXR magic number
-  size_t at = 8;
-  auto read_name = [&](std::string_view& out) {
-    const size_t end = exr.find('\0', at);
-    if (end == std::string_view::npos || end - at > 255) return false;
-    out = exr.substr(at, end - at);
-    at = end + 1;
-    return true;
-  };
-  for (;;) {
-    std::string_view name, type;
-    if (!read_name(name) || name.empty()) return std::nullopt;  // the header ended without it
-    if (!read_name(type) || at + 4 > exr.size()) return std::nullopt;
-    const int32_t size = read_i32(at);
-    at += 4;
-    if (size < 0 || at + static_cast<size_t>(size) > exr.size()) return std::nullopt;
-    if (name == "rayfarm:spp" && type == "string") {
-      const std::string_view value = exr.substr(at, static_cast<size_t>(size));
-      uint64_t spp = 0;
-      if (value.empty() || value.size() > 10) return std::nullopt;
-      for (const char c : value) {
-        if (c < '0' || c > '9') return std::nullopt;
-        spp = spp * 10 + static_cast<uint64_t>(c - '0');
-      }
-      if (spp > UINT32_MAX) return std::nullopt;
-      return static_cast<uint32_t>(spp);
+  const auto attributes = peek_exr_attributes(exr);
+  if (!attributes) return std::nullopt;
+  for (const ExrAttribute& a : *attributes) {
+    if (a.name != "rayfarm:spp" || a.type != "string") continue;
+    if (a.value.empty() || a.value.size() > 10) return std::nullopt;
+    uint64_t spp = 0;
+    for (const char c : a.value) {
+      if (c < '0' || c > '9') return std::nullopt;
+      spp = spp * 10 + static_cast<uint64_t>(c - '0');
     }
-    at += static_cast<size_t>(size);
+    if (spp > UINT32_MAX) return std::nullopt;
+    return static_cast<uint32_t>(spp);
   }
+  return std::nullopt;
 }
 
 std::string not_owner(const std::string& id, const std::string& owner, const char* action) {

@@ -21,6 +21,7 @@
 #include <half.h>
 
 #include "common/image/exr.h"
+#include "common/image/exr_header.h"
 #include "common/image/metrics.h"
 #include "common/image/png.h"
 
@@ -142,6 +143,36 @@ TEST_F(ExrTest, RoundTripIsBitExact) {
   EXPECT_EQ(bits_of(back.extra.at("variance")), bits_of(image.extra.at("variance")));
   EXPECT_EQ(back.attributes.at("rayfarm.scene"), "scenes/cornell.json");
   EXPECT_EQ(back.attributes.at("rayfarm.spp"), "1024");
+}
+
+// The header read without OpenEXR: every attribute OpenEXR wrote, string attributes as their
+// bytes, the data window's size; a header cut short is no header.
+TEST_F(ExrTest, AHeaderIsReadWithoutOpenExr) {
+  Image image = make_image(3, 2, std::vector<float>(18, 0.5f));
+  image.attributes["rayfarm:spp"] = "1024";
+  const fs::path path = dir_ / "peek.exr";
+  write_exr(path, image);
+  std::ifstream in(path, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const auto attributes = peek_exr_attributes(bytes);
+  ASSERT_TRUE(attributes);
+  bool spp = false, window = false;
+  for (const ExrAttribute& a : *attributes) {
+    if (a.name == "rayfarm:spp") {
+      EXPECT_EQ(a.type, "string");
+      EXPECT_EQ(a.value, "1024");
+      spp = true;
+    }
+    window = window || a.name == "dataWindow";
+  }
+  EXPECT_TRUE(spp);
+  EXPECT_TRUE(window);
+  EXPECT_EQ(peek_exr_data_window(bytes), (std::pair<int64_t, int64_t>{3, 2}));
+  // Cut inside the header (its last attribute), or not an EXR at all.
+  const size_t end = bytes.find(std::string("rayfarm:spp")) + 12;
+  EXPECT_FALSE(peek_exr_attributes(std::string_view(bytes).substr(0, end)));
+  EXPECT_FALSE(peek_exr_attributes("not an exr file"));
+  EXPECT_FALSE(peek_exr_data_window(std::string_view(bytes).substr(0, 8)));
 }
 
 TEST_F(ExrTest, ReadsHalfChannelsAsFloat) {

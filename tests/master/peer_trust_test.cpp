@@ -823,59 +823,24 @@ TEST_F(BrokerTrustTest, AHiddenJobAnswersEveryRequestExactlyAsAMissingOne) {
   const std::string missing = "j9999";
   ASSERT_EQ(id.size(), missing.size());
   // The requests a client can make about a job, each for a job id.
+  const auto about = [](auto message, const std::string& job) {
+    message.set_job_id(job);
+    return protocol::encode(message);
+  };
+  wire::ChangeJob pause, resume, priority;
+  pause.set_paused(true);
+  resume.set_paused(false);
+  priority.set_priority(-5);
   const std::vector<std::pair<const char*, std::function<net::Frames(const std::string&)>>>
       requests{
-          {"status",
-           [](const std::string& job) {
-             wire::StatusRequest r;
-             r.set_job_id(job);
-             return protocol::encode(r);
-           }},
-          {"cancel",
-           [](const std::string& job) {
-             wire::CancelJob r;
-             r.set_job_id(job);
-             return protocol::encode(r);
-           }},
-          {"pause",
-           [](const std::string& job) {
-             wire::ChangeJob r;
-             r.set_job_id(job);
-             r.set_paused(true);
-             return protocol::encode(r);
-           }},
-          {"resume",
-           [](const std::string& job) {
-             wire::ChangeJob r;
-             r.set_job_id(job);
-             r.set_paused(false);
-             return protocol::encode(r);
-           }},
-          {"priority",
-           [](const std::string& job) {
-             wire::ChangeJob r;
-             r.set_job_id(job);
-             r.set_priority(-5);
-             return protocol::encode(r);
-           }},
-          {"rm",
-           [](const std::string& job) {
-             wire::RemoveJob r;
-             r.set_job_id(job);
-             return protocol::encode(r);
-           }},
-          {"retry",
-           [](const std::string& job) {
-             wire::RetryJob r;
-             r.set_job_id(job);
-             return protocol::encode(r);
-           }},
-          {"fetch",
-           [](const std::string& job) {
-             wire::FetchImage r;
-             r.set_job_id(job);
-             return protocol::encode(r);
-           }},
+          {"status", [&](const std::string& j) { return about(wire::StatusRequest{}, j); }},
+          {"cancel", [&](const std::string& j) { return about(wire::CancelJob{}, j); }},
+          {"pause", [&](const std::string& j) { return about(pause, j); }},
+          {"resume", [&](const std::string& j) { return about(resume, j); }},
+          {"priority", [&](const std::string& j) { return about(priority, j); }},
+          {"rm", [&](const std::string& j) { return about(wire::RemoveJob{}, j); }},
+          {"retry", [&](const std::string& j) { return about(wire::RetryJob{}, j); }},
+          {"fetch", [&](const std::string& j) { return about(wire::FetchImage{}, j); }},
       };
   auto answer = [&](net::Dealer& d, const net::Frames& request) {
     EXPECT_TRUE(d.send(request));
