@@ -19,6 +19,7 @@
 #include "master/job_store.h"
 #include "master/merger.h"
 #include "master/scheduler.h"
+#include "master/unit_book.h"
 
 namespace rayfarm::master {
 
@@ -99,6 +100,7 @@ struct ActiveJob {
   std::unordered_map<uint64_t, std::vector<std::pair<WorkerId, std::string>>> lease_history;
 
   std::optional<Finishing> finishing;  // the work is over, the final writes are not
+  UnitBook book;  // its units' history and its workers' shares, for its detail view
 };
 
 }  // namespace rayfarm::master

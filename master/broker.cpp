@@ -212,14 +212,20 @@ void Broker::register_worker(const net::PeerId& peer, const wire::Hello& hello,
   w.threads = hello.threads();
   w.key_name = key_name;  // as the ZAP handler named it: leases and failures go by it
   w.build = protocol::printable(hello.build());
+  // A worker drained or disabled keeps it when it reconnects under the same key and name.
+  const auto remembered = controls_.find(std::make_pair(w.key_name, w.name));
+  w.control = remembered == controls_.end() ? WorkerControl::kEnabled : remembered->second;
   heard_from(w);
   w.wants = 0;
   peer_log(PeerLog::kHello, "worker", peer, key_name, spdlog::level::info,
-           fmt::format("{} joined{}: {} threads, {}; {} worker{} connected", worker_label(peer),
+           fmt::format("{} joined{}: {} threads, {}; {} worker{} connected{}", worker_label(peer),
                        key_name.empty() ? "" : " with key '" + protocol::printable(key_name) + "'",
                        w.threads,
                        hello.build().empty() ? "unknown build" : protocol::printable(hello.build()),
-                       workers_.size(), workers_.size() == 1 ? "" : "s"));
+                       workers_.size(), workers_.size() == 1 ? "" : "s",
+                       w.control == WorkerControl::kDraining   ? "; it stays drained"
+                       : w.control == WorkerControl::kDisabled ? "; it stays disabled"
+                                                               : ""));
   wire::Welcome welcome;
   welcome.set_build(protocol::kBuildVersion);
   welcome.set_heartbeat_interval_ms(static_cast<uint32_t>(options_.heartbeat.interval.count()));
@@ -251,7 +257,7 @@ void Broker::dispatch() {
   while (sent && jobs_.has_pending()) {
     sent = false;
     for (auto& [peer, w] : workers_) {
-      if (w.wants == 0) continue;
+      if (w.wants == 0 || w.control != WorkerControl::kEnabled) continue;
       auto unit = jobs_.next_unit(peer, w.key_name);
       if (!unit) continue;  // e.g. blocked from the jobs that have units
       message_bounds_.leased(peer, *unit);

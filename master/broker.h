@@ -36,6 +36,15 @@
 
 namespace rayfarm::master {
 
+/// The answer to a request that the client socket and the HTTP endpoint both serve: the reply,
+/// or why not (code and text).
+struct RequestAnswer {
+  std::shared_ptr<google::protobuf::Message> reply;
+  wire::Error::Code code = wire::Error::CODE_UNSPECIFIED;
+  std::string error;
+  std::string job_id;  ///< the job a refusal concerns
+};
+
 class Broker {
  public:
   /// Opens the data dir, reloads its jobs, binds the ZAP handler and then both endpoints. Throws
@@ -66,8 +75,12 @@ class Broker {
 
  private:
   using Clock = std::chrono::steady_clock;
+  /// How a worker takes part in the farm (ChangeWorker): draining and disabled workers get no
+  /// units; a disabled one's were taken back.
+  enum class WorkerControl { kEnabled, kDraining, kDisabled };
   struct Worker {
     std::string name;
+    WorkerControl control = WorkerControl::kEnabled;
     uint32_t threads = 0;
     Clock::time_point heard;    // its last message
     Clock::time_point expires;  // declared lost when silent until then
@@ -102,6 +115,10 @@ class Broker {
   net::Router workers_socket_;
   net::Router clients_socket_;
   std::map<net::PeerId, Worker> workers_;
+  // The workers drained or disabled, by key and name: a worker that reconnects keeps its
+  // control while the master runs. At most kRememberedControls.
+  static constexpr size_t kRememberedControls = 1024;
+  std::map<std::pair<std::string, std::string>, WorkerControl> controls_;
   // The HTTP endpoint (http_server.h): its tokens, what it sees of the farm, and the server,
   // last, so that it stops before the rest goes.
   HttpFeed http_feed_;
@@ -134,6 +151,15 @@ class Broker {
   /// The connected workers; for client key `user` (when given) with the units of the jobs it may
   /// not see left out.
   wire::WorkerList worker_list(const std::string* user = nullptr) const;
+  wire::WorkerInfo worker_info(const net::PeerId& peer, const Worker& w,
+                               const std::string* user) const;
+
+  /// Requests that the client socket and the HTTP endpoint both serve (broker_requests.cpp).
+  /// `user` is the client key's name; nullptr for an HTTP reader without a token.
+  RequestAnswer job_detail(const std::string& id, const std::string* user) const;
+  /// Drains, disables or enables a worker; sets `changed` when a worker may take units again.
+  RequestAnswer change_worker(const wire::ChangeWorker& request, const std::string* user,
+                              bool& changed);
   /// Gives a fetched job image the samples per pixel of the image itself (its EXR's header says),
   /// the job's own beside them, and why they differ when they do.
   void describe_image(wire::ImageData& image, uint32_t worker_count) const;

@@ -20,13 +20,6 @@ namespace {
 
 std::shared_ptr<spdlog::logger> log() { return get_logger("master"); }
 
-/// The one answer to a request for a job that does not exist and, under --private-jobs, to one
-/// for another key's job: the same bytes for both, so that the other key's job does not leak.
-std::string no_such_job(const std::string& id, bool private_jobs) {
-  return "unknown job '" + protocol::printable(id) + "'" +
-         (private_jobs ? " (this master keeps jobs private to the key that submitted them)" : "");
-}
-
 /// The samples per pixel of the image in `exr`, from the `rayfarm:spp` attribute of its header
 /// (common/image/film_output.cpp writes it); nullopt when the header has none or is not a
 /// well-formed EXR header.
@@ -142,6 +135,18 @@ void Broker::handle_client(const net::Delivery& delivery) {
     reply(peer, error_frames(wire::Error::BUSY, *refusal, id));
     return true;
   };
+  // A request answered in broker_requests.cpp, for the HTTP endpoint too.
+  auto send_answer = [&](const RequestAnswer& a) {
+    if (a.reply) {
+      reply(peer, protocol::encode_raw(*a.reply));
+      return;
+    }
+    if (a.code == wire::Error::FORBIDDEN) {
+      complain(PeerLog::kForbidden, "client", delivery,
+               fmt::format("{}: {}; refused", label, a.error));
+    }
+    reply(peer, error_frames(a.code, a.error, a.job_id));
+  };
   // Only the job's owner or an admin may change it, within its key's budget. True when the
   // request was refused (and answered).
   auto refuse_unless_manager = [&](const std::string& id, const char* action) {
@@ -218,7 +223,7 @@ void Broker::handle_client(const net::Delivery& delivery) {
       reply(peer, encode(std::move(list)));
     } else if (const auto* cancel = msg.as<wire::CancelJob>()) {
       if (refuse_unless_manager(cancel->job_id(), "cancel")) return;
-      if (auto state = jobs_.cancel(cancel->job_id())) {
+      if (auto state = jobs_.cancel(cancel->job_id(), delivery.user)) {
         wire::CancelReply out;
         out.set_job_id(cancel->job_id());
         out.set_state(*state);
@@ -242,7 +247,8 @@ void Broker::handle_client(const net::Delivery& delivery) {
         const JobRecord* r = jobs_.change(
             change->job_id(),
             change->has_priority() ? std::optional<int32_t>(change->priority()) : std::nullopt,
-            change->has_paused() ? std::optional<bool>(change->paused()) : std::nullopt);
+            change->has_paused() ? std::optional<bool>(change->paused()) : std::nullopt,
+            delivery.user);
         if (r == nullptr) {
           reply(peer, error_frames(wire::Error::NOT_FOUND,
                                    no_such_job(change->job_id(), rights_.private_jobs),
@@ -281,6 +287,12 @@ void Broker::handle_client(const net::Delivery& delivery) {
       }
     } else if (msg.as<wire::ListWorkers>()) {
       reply(peer, encode(worker_list(&delivery.user)));
+    } else if (const auto* detail = msg.as<wire::JobDetailRequest>()) {
+      send_answer(job_detail(detail->job_id(), &delivery.user));
+    } else if (const auto* change_worker_request = msg.as<wire::ChangeWorker>()) {
+      bool changed = false;
+      send_answer(change_worker(*change_worker_request, &delivery.user, changed));
+      if (changed) dispatch();
     } else if (const auto* remove = msg.as<wire::RemoveJob>()) {
       if (refuse_unless_manager(remove->job_id(), "remove")) return;
       try {
@@ -303,7 +315,7 @@ void Broker::handle_client(const net::Delivery& delivery) {
       }
       try {
         wire::RetryReply out;
-        out.set_state(jobs_.retry(retry->job_id()));
+        out.set_state(jobs_.retry(retry->job_id(), delivery.user));
         out.set_job_id(retry->job_id());
         reply(peer, encode(std::move(out)));
         dispatch();
@@ -365,9 +377,16 @@ void Broker::describe_image(wire::ImageData& image, uint32_t worker_count) const
 
 wire::WorkerList Broker::worker_list(const std::string* user) const {
   wire::WorkerList list;
+  for (const auto& [peer, w] : workers_) *list.add_workers() = worker_info(peer, w, user);
+  return list;
+}
+
+wire::WorkerInfo Broker::worker_info(const net::PeerId& peer, const Worker& w,
+                                     const std::string* user) const {
   const auto now = Clock::now();
-  for (const auto& [peer, w] : workers_) {
-    wire::WorkerInfo* info = list.add_workers();
+  wire::WorkerInfo out;
+  wire::WorkerInfo* info = &out;
+  {
     info->set_id(net::peer_label(peer));
     info->set_name(w.name);
     info->set_key_name(protocol::printable(w.key_name));
@@ -387,8 +406,11 @@ wire::WorkerList Broker::worker_list(const std::string* user) const {
                                                                    : 0.0);
     info->set_last_seen_seconds(std::chrono::duration<double>(now - w.heard).count());
     info->set_build(w.build);
+    info->set_control(w.control == WorkerControl::kEnabled    ? "enabled"
+                      : w.control == WorkerControl::kDraining ? "draining"
+                                                              : "disabled");
   }
-  return list;
+  return out;
 }
 
 }  // namespace rayfarm::master

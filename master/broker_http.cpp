@@ -22,6 +22,24 @@ HttpAnswer failure(int status, std::string error) {
   return a;
 }
 
+/// The HTTP status of a refusal's code.
+int http_status(wire::Error::Code code) {
+  switch (code) {
+    case wire::Error::BAD_REQUEST:
+      return 400;
+    case wire::Error::NOT_FOUND:
+      return 404;
+    case wire::Error::FORBIDDEN:
+      return 403;
+    case wire::Error::REFUSED:
+      return 409;
+    case wire::Error::BUSY:
+      return 429;
+    default:
+      return 500;
+  }
+}
+
 template <class M>
 HttpAnswer success(M message) {
   HttpAnswer a;
@@ -61,15 +79,34 @@ void Broker::serve_http() {
 }
 
 HttpAnswer Broker::answer_http(const HttpCall& call, bool& changed) {
+  using Kind = HttpCall::Kind;
+  const std::string& user = call.user.key_name;
+  const std::string* key = call.user.authenticated ? &user : nullptr;
+  // Answered in broker_requests.cpp, as on the client socket.
+  auto answered = [](const RequestAnswer& a) {
+    if (a.reply) {
+      HttpAnswer out;
+      out.message = a.reply;
+      return out;
+    }
+    return failure(http_status(a.code), a.error);
+  };
+  if (call.kind == Kind::kDetail) return answered(job_detail(call.job_id, key));
+  if (call.kind == Kind::kDrainWorker || call.kind == Kind::kDisableWorker ||
+      call.kind == Kind::kEnableWorker) {
+    wire::ChangeWorker request;
+    request.set_worker(call.job_id);
+    request.set_control(call.kind == Kind::kDrainWorker     ? wire::ChangeWorker::DRAIN
+                        : call.kind == Kind::kDisableWorker ? wire::ChangeWorker::DISABLE
+                                                            : wire::ChangeWorker::ENABLE);
+    return answered(change_worker(request, key, changed));
+  }
   const std::string& id = call.job_id;
   const std::string unknown = "unknown job '" + protocol::printable(id) + "'";
   const std::string* owner = jobs_.owner_of(id);
   // The client socket's rules, for the token's key; without a token a job is visible unless
   // the master keeps jobs private, and nothing may be changed.
-  const std::string& user = call.user.key_name;
-  const std::string* key = call.user.authenticated ? &user : nullptr;
   if (!owner || !rights_.may_see(*owner, key)) return failure(404, unknown);
-  using Kind = HttpCall::Kind;
   if (call.kind == Kind::kStatus) {
     auto st = jobs_.status(id, static_cast<uint32_t>(workers_.size()));
     if (!st) return failure(404, unknown);
@@ -87,7 +124,7 @@ HttpAnswer Broker::answer_http(const HttpCall& call, bool& changed) {
     return failure(429, *refusal);
   }
   if (call.kind == Kind::kCancel) {
-    auto state = jobs_.cancel(id);
+    auto state = jobs_.cancel(id, user);
     if (!state) return failure(404, unknown);
     log()->info("job {} cancelled over HTTP by key '{}'", protocol::printable(id),
                 protocol::printable(user));
@@ -112,7 +149,7 @@ HttpAnswer Broker::answer_http(const HttpCall& call, bool& changed) {
         return failure(409, *full);
       }
       wire::RetryReply out;
-      out.set_state(jobs_.retry(id));
+      out.set_state(jobs_.retry(id, user));
       out.set_job_id(id);
       log()->info("job {} queued again over HTTP by key '{}'", protocol::printable(id),
                   protocol::printable(user));
@@ -134,7 +171,7 @@ HttpAnswer Broker::answer_http(const HttpCall& call, bool& changed) {
     paused = call.kind == Kind::kPause;
   }
   try {
-    const JobRecord* r = jobs_.change(id, priority, paused);
+    const JobRecord* r = jobs_.change(id, priority, paused, user);
     if (r == nullptr) return failure(404, unknown);
     changed = true;
     wire::ChangeJobReply out;

@@ -39,9 +39,21 @@ struct HttpAnswer {
 };
 
 struct HttpCall {
-  enum class Kind { kStatus, kCancel, kPause, kResume, kPriority, kRetry, kRemove };
+  enum class Kind {
+    kStatus,
+    kCancel,
+    kPause,
+    kResume,
+    kPriority,
+    kRetry,
+    kRemove,
+    kDetail,
+    kDrainWorker,
+    kDisableWorker,
+    kEnableWorker
+  };
   Kind kind = Kind::kStatus;
-  std::string job_id;
+  std::string job_id;  ///< the job's id; a worker's for the worker kinds
   HttpUser user;
   int32_t priority = 0;  ///< kPriority
 };

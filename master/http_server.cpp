@@ -138,6 +138,7 @@ std::shared_ptr<const HttpServer::SnapshotJson> HttpServer::json_of(
   fresh->jobs_anonymous = anonymous.dump(-1, ' ', false, json::error_handler_t::replace);
   json workers = message_json(snap->workers);
   if (!workers.contains("workers")) workers["workers"] = json::array();
+  for (auto& w : workers["workers"]) w["can_manage"] = false;
   fresh->workers_all = workers.dump(-1, ' ', false, json::error_handler_t::replace);
   json_ = fresh;
   return json_;
@@ -318,9 +319,21 @@ void HttpServer::routes() {
     if (!user) return;
     const auto snap = snapshot(res);
     if (!snap) return;
-    if (!options_.rights.private_jobs || is_admin(*user)) {
+    if (!user->authenticated && !options_.rights.private_jobs) {
+      // Every unit shown, no worker this reader may change: the same text for every such reader.
       res.set_header("Cache-Control", "no-store");
       res.set_content(json_of(snap)->workers_all, "application/json");
+      return;
+    }
+    // Which workers this user may drain, disable or enable: the worker's key's own, or an admin.
+    auto with_rights = [&](json out) {
+      for (auto& w : out["workers"]) {
+        w["can_manage"] = may_manage(w.value("key_name", std::string()), *user);
+      }
+      return out;
+    };
+    if (!options_.rights.private_jobs || is_admin(*user)) {
+      send_json(res, with_rights(json::parse(json_of(snap)->workers_all)));
       return;
     }
     // A worker's units name their jobs: only those this user may see are shown.
@@ -339,7 +352,7 @@ void HttpServer::routes() {
     }
     json out = message_json(workers);
     if (!out.contains("workers")) out["workers"] = json::array();
-    send_json(res, out);
+    send_json(res, with_rights(std::move(out)));
   });
 
   // A call for the reactor, answered as JSON.
@@ -367,6 +380,15 @@ void HttpServer::routes() {
     const std::string id = req.matches[1];
     if (!plausible_job_id(id)) return send_error(res, 404, "unknown job '" + id.substr(0, 80) + "'");
     call(HttpCall{HttpCall::Kind::kStatus, id, *user, 0}, res);
+  });
+  // Its units, who rendered them and its log: the job view's.
+  s.Get(R"(/api/jobs/([^/]+)/detail)", [=](const httplib::Request& req, httplib::Response& res) {
+    const auto user = reader_of(req, res);
+    if (!user) return;
+    const std::string id = req.matches[1];
+    if (!plausible_job_id(id))
+      return send_error(res, 404, "unknown job '" + id.substr(0, 80) + "'");
+    call(HttpCall{HttpCall::Kind::kDetail, id, *user, 0}, res);
   });
 
   s.Get(R"(/api/jobs/([^/]+)/(image\.png|error\.png|error\.csv|contact\.png))",
@@ -406,7 +428,11 @@ void HttpServer::routes() {
         return;
       }
       const std::string id = req.matches[1];
-      if (!plausible_job_id(id)) return send_error(res, 404, "unknown job");
+      const bool worker = kind == HttpCall::Kind::kDrainWorker ||
+                          kind == HttpCall::Kind::kDisableWorker ||
+                          kind == HttpCall::Kind::kEnableWorker;
+      if (!plausible_job_id(id))
+        return send_error(res, 404, worker ? "unknown worker" : "unknown job");
       HttpCall c{kind, id, *user, 0};
       if (kind == HttpCall::Kind::kPriority) {
         std::optional<long long> p;
@@ -450,6 +476,9 @@ void HttpServer::routes() {
   s.Post(R"(/api/jobs/([^/]+)/priority)", action(HttpCall::Kind::kPriority));
   s.Post(R"(/api/jobs/([^/]+)/retry)", action(HttpCall::Kind::kRetry));
   s.Post(R"(/api/jobs/([^/]+)/remove)", action(HttpCall::Kind::kRemove));
+  s.Post(R"(/api/workers/([^/]+)/drain)", action(HttpCall::Kind::kDrainWorker));
+  s.Post(R"(/api/workers/([^/]+)/disable)", action(HttpCall::Kind::kDisableWorker));
+  s.Post(R"(/api/workers/([^/]+)/enable)", action(HttpCall::Kind::kEnableWorker));
 
   s.Get("/metrics", [=, this](const httplib::Request&, httplib::Response& res) {
     PrometheusText text;

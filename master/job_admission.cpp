@@ -482,6 +482,13 @@ std::string JobManager::admit_one(const JobSpec& spec, std::optional<Image> refe
       grid.pass_count(), spec.pass_spp, grid.size(), bundle_files, human_bytes(bundle_bytes),
       hash.substr(0, 12), spec.has_reference ? "; error measured against its reference image" : "");
   for (const auto& w : warnings) log_jobs()->warn("job {}: {}", spec.id, w);
+  note(job.record, "info",
+       fmt::format("accepted{}: scene {}, {}x{}, {}, {}; {} units",
+                   job.record.paused ? " paused" : "", spec.scene_path, spec.film.width,
+                   spec.film.height, describe_stop(spec.stop, spec.settings.spp),
+                   integrator_name(spec.settings.integrator), grid.size()),
+       /*routine=*/true);
+  for (const auto& w : warnings) note(job.record, "warning", "the scene: " + w);
   const std::string id = spec.id;
   jobs_.emplace(id, std::move(job));
   return id;

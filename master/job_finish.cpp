@@ -34,6 +34,7 @@ void JobManager::finish(Job& job, wire::JobState state, const std::string& error
   r.stop_reason = stop_reason_name(reason);
   r.elapsed_seconds = a.finishing ? a.finishing->elapsed : a.elapsed();
   r.state = state;
+  r.finished_unix_ms = wall_ms();
   r.paused = false;  // an ended job is not paused, whatever it was
   r.error = error;
   r.units_done = a.merger.merged_count();
@@ -46,6 +47,33 @@ void JobManager::finish(Job& job, wire::JobState state, const std::string& error
   if (!a.rows.empty()) {
     r.est_rel_mse = a.rows.back().est_rel_mse;
     if (a.rows.back().ref_rel_mse) r.ref_rel_mse = *a.rows.back().ref_rel_mse;
+  }
+  {
+    // How it ended, in its log, and who rendered it.
+    const double seconds = r.elapsed_seconds;
+    std::string by;
+    size_t named = 0;
+    for (const auto& [worker, share] : a.book.shares()) {
+      if (share.units_done == 0) continue;
+      if (named++ == 8) {
+        by += ", ...";
+        break;
+      }
+      by += fmt::format("{}{} ({} unit{})", by.empty() ? "" : ", ", worker, share.units_done,
+                        share.units_done == 1 ? "" : "s");
+    }
+    // final_record is a fresh copy of the job's at each try of the final writes: noted once.
+    if (state == wire::JOB_DONE) {
+      note(r, "info",
+           fmt::format("done ({}): {:.1f} spp mean in {:.2f} s{}", r.stop_reason, r.spp_mean,
+                       seconds, by.empty() ? "" : "; rendered by " + by),
+           /*routine=*/true);
+    } else if (state == wire::JOB_CANCELLED) {
+      note(r, "info", fmt::format("{} after {:.2f} s at {} spp", error, seconds, r.spp_min),
+           /*routine=*/true);
+    } else {
+      note(r, "error", fmt::format("failed after {:.2f} s: {}", seconds, error));
+    }
   }
   scheduler_.remove_job(s.id);  // no more units either way
   if (state == wire::JOB_DONE) {
@@ -129,6 +157,7 @@ void JobManager::storage_failed(Job& job, const std::string& what) {
   job.storage_retry = Clock::now() + job.storage_backoff;
   job.storage_error = what;
   attention_.insert(job.record.spec.id);  // tick() tries again
+  if (first) note(job.record, "error", what + "; the master tries again with back-off");
   log_jobs()->error("job {}: {}{}; trying again in {:.0f} s", job.record.spec.id, what,
                     job.active && job.active->finishing
                         ? " (its work is done: it stays running, with its checkpoints, "

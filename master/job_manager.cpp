@@ -130,6 +130,13 @@ bool JobManager::on_unit_failed(const WorkerId& worker, const wire::UnitFailed& 
     return false;
   }
   log_jobs()->warn("job {} unit {} failed on {}: {}", ref.job, ref.unit, name_of(worker), reason);
+  job.active->book.failed(ref.unit, name_of(worker), reason);
+  {
+    const UnitGrid::Unit u = job.active->grid().unit(ref.unit);
+    note(job.record, "warning",
+         fmt::format("unit {} (tile {},{} to {},{}, pass {}) failed on {}: {}", ref.unit, u.rect.x0,
+                     u.rect.y0, u.rect.x1, u.rect.y1, u.pass, name_of(worker), reason));
+  }
   for (const uint64_t unit : scheduler_.lease_of(ref, worker)) {  // the whole lease failed
     scheduler_.requeue(UnitRef{ref.job, unit}, worker);
   }
@@ -168,6 +175,9 @@ void JobManager::note_failure(Job& job, const WorkerId& worker, const std::strin
         "job {}: {} blocked from the job after {} failures (last: {}); it gets "
         "other jobs' units",
         id, label, worker_count, why);
+    note(job.record, "warning",
+         fmt::format("{} blocked from the job after {} failures; it gets other jobs' units", label,
+                     worker_count));
     fail_if_nobody_can_render(job, Clock::now());
   }
 }
@@ -203,7 +213,7 @@ bool JobManager::fail_if_nobody_can_render(Job& job, Clock::time_point now) {
   return true;
 }
 
-size_t JobManager::release_worker(const WorkerId& worker) {
+size_t JobManager::release_worker(const WorkerId& worker, const std::string& why) {
   for (auto& [id, job] : jobs_) {
     if (job.active) job.active->contributors.erase(worker);
   }
@@ -214,14 +224,24 @@ size_t JobManager::release_worker(const WorkerId& worker) {
     list += fmt::format("{}{} unit {}", list.empty() ? "" : ", ", u.job, u.unit);
   log_scheduler()->warn("requeued {} unit{} of {}: {}", units.size(), units.size() == 1 ? "" : "s",
                         name_of(worker), list);
+  // One line in each job's log: how many of its units went back, and why.
+  std::map<std::string, size_t> per_job;
+  for (const auto& u : units) ++per_job[u.job];
+  for (const auto& [id, count] : per_job) {
+    auto it = jobs_.find(id);
+    if (it == jobs_.end()) continue;
+    note(it->second.record, "warning",
+         fmt::format("{} unit{} of {} back in the queue: {}", count, count == 1 ? "" : "s",
+                     name_of(worker), why));
+  }
   return units.size();
 }
 
-std::optional<wire::JobState> JobManager::cancel(const std::string& id) {
+std::optional<wire::JobState> JobManager::cancel(const std::string& id, const std::string& by) {
   if (sequence_frames(id)) return cancel_sequence(id);
   auto it = jobs_.find(id);
   if (it == jobs_.end()) return std::nullopt;
-  if (it->second.active) finish(it->second, wire::JOB_CANCELLED, "cancelled by a client");
+  if (it->second.active) finish(it->second, wire::JOB_CANCELLED, "cancelled by " + requester(by));
   return it->second.record.state;
 }
 
@@ -265,7 +285,7 @@ void JobManager::remove_job(const std::string& id) {
                   id);
 }
 
-wire::JobState JobManager::retry(const std::string& id) {
+wire::JobState JobManager::retry(const std::string& id, const std::string& by) {
   if (sequence_frames(id)) return retry_sequence(id);
   auto it = jobs_.find(id);
   if (it == jobs_.end()) throw JobRejected("unknown job '" + id + "'");
@@ -300,8 +320,13 @@ wire::JobState JobManager::retry(const std::string& id) {
   JobRecord& r = job.record;
   const JobSpec spec = r.spec;
   const int32_t priority = r.priority;
+  JobLog log = std::move(r.log);  // the job's history goes on
   r = JobRecord{};
   r.spec = spec;
+  r.log = std::move(log);
+  note(r, "info",
+       "queued again by " + requester(by) + ": retried after it " +
+           (state == wire::JOB_FAILED ? "failed" : "was cancelled"));
   r.priority = priority;  // a retried job keeps its place among the others, and runs
   if (q != nullptr) {
     // Queued after the sequence's latest cancel, which a restart must not apply to it.
@@ -350,6 +375,8 @@ void JobManager::tick_job(const std::string& id, Job& job, Clock::time_point now
         job.storage_error.clear();
         if (!a) checkpoints_.forget(id, store_.job_dir(id));
         log_jobs()->info("job {}: its record is on disk again", id);
+        note(job.record, "info", "its record is on disk again");
+        save(job);
       }
     } else {
       // An image or checkpoint failure: cleared once a later write succeeds.
@@ -373,6 +400,7 @@ void JobManager::tick_job(const std::string& id, Job& job, Clock::time_point now
   const double limit = job.record.spec.stop.time_limit_s;
   if (a->started() && limit > 0 && a->elapsed() >= limit) {
     log_jobs()->info("job {}: time limit of {:g} s reached", id, limit);
+    note(job.record, "info", fmt::format("time limit of {:g} s reached", limit));
     finish(job, wire::JOB_DONE, "", StopReason::kTimeLimit);
     return;
   }

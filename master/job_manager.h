@@ -148,20 +148,24 @@ class JobManager {
   /// different keys. A failure of a unit `worker` does not hold is ignored (false).
   bool on_unit_failed(const WorkerId& worker, const wire::UnitFailed& failed,
                       const std::string& key = {});
-  /// Takes back the leases of a worker that is lost or gone; returns how many were requeued.
-  size_t release_worker(const WorkerId& worker);
+  /// Takes back the leases of a worker that is lost, gone or disabled (`why`, for the jobs'
+  /// logs); returns how many were requeued.
+  size_t release_worker(const WorkerId& worker, const std::string& why = "its worker is gone");
 
   /// Cancels a job; the state afterwards, or nullopt when the job is unknown. A sequence is
   /// cancelled at once (none of its frames gets a unit again, and the reply is CANCELLED), and
   /// its frames are ended by tick(), kCancelSlice at a time.
-  std::optional<wire::JobState> cancel(const std::string& id);
+  /// "key 'alice'" for client key `by`, or "a client" without keys: who asked, in logs.
+  static std::string requester(const std::string& by);
+  /// `by` names who asked, for the job's log ("key 'alice'"; "" : a client).
+  std::optional<wire::JobState> cancel(const std::string& id, const std::string& by = {});
   /// Changes how a queued or running job shares the farm: its priority (kMinPriority to
   /// kMaxPriority) and whether it is paused (no new units; those out finish and count; its clock
   /// stops). Saved in its record, so that a restart keeps it. Returns the record afterwards;
   /// nullptr when the job is unknown. Throws JobRejected naming the cause: a finished or
   /// unreadable job, a priority out of range.
   const JobRecord* change(const std::string& id, std::optional<int32_t> priority,
-                          std::optional<bool> paused);
+                          std::optional<bool> paused, const std::string& by = {});
   /// Takes one state-changing request (pause, resume, priority, cancel, retry, rm) of client key
   /// `key` out of its budget (ChangeBudget); past it, the refusal to send, naming the limit.
   std::optional<std::string> take_change(const std::string& key,
@@ -182,7 +186,7 @@ class JobManager {
   /// Runs a failed or cancelled job again from its first sample, under the same id (its image
   /// and error record start over). Returns the state afterwards (queued). Throws JobRejected
   /// naming the cause: an unknown job, one that is done, queued or running, or unreadable.
-  wire::JobState retry(const std::string& id);
+  wire::JobState retry(const std::string& id, const std::string& by = {});
   /// How many jobs retry(id) would queue again: the failed or cancelled frames of a sequence, 1
   /// for a job of its own (0 when unknown).
   uint64_t retry_count(const std::string& id) const;
@@ -190,6 +194,9 @@ class JobManager {
   std::vector<std::string> units_of(const WorkerId& worker) const;
   /// Status of one job; nullopt when unknown. `workers_total` is the master's worker count.
   std::optional<wire::JobStatus> status(const std::string& id, uint32_t workers_total) const;
+  /// A job's units, who rendered them, and its log (job_detail.cpp); nullopt when unknown. A
+  /// sequence's has its status (with its frames) only.
+  std::optional<wire::JobDetail> detail(const std::string& id, uint32_t workers_total) const;
   /// Status of every job, in id order.
   std::vector<wire::JobStatus> list(uint32_t workers_total) const;
   /// The job's current image; throws JobRejected when unknown or nothing is written yet. Of a
@@ -354,6 +361,10 @@ class JobManager {
   /// The final image and record of a job whose work is over; "" when both are on disk, else why.
   std::string store_final(Job& job, const JobRecord& final_record, bool image);
 
+  /// Adds a line to the job's log (job_log.h; saved with its record). A routine line (accepted,
+  /// started, done) is left out of a sequence's frames: their times say as much, and a sequence
+  /// may have 100,000 of them.
+  static void note(JobRecord& record, const char* level, std::string text, bool routine = false);
   /// The wall clock in Unix milliseconds.
   static int64_t wall_ms();
   /// Seconds of rendering: the record's once the job is over.

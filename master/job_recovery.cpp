@@ -66,6 +66,7 @@ size_t JobManager::recover() {
         job.record.paused = false;
         job.record.error = "cancelled by a client";
         job.record.stop_reason = stop_reason_name(StopReason::kCancelled);
+        job.record.finished_unix_ms = q->second.cancelled_unix_ms;
         if (started) save(job);  // what it rendered stays; nothing else said it ended
       }
     }

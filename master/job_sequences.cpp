@@ -158,6 +158,7 @@ void JobManager::cancel_slice(const std::string& id, Sequence& q) {
     r.error = "cancelled by a client";
     r.stop_reason = stop_reason_name(StopReason::kCancelled);
     r.paused = false;
+    r.finished_unix_ms = q.cancelled_unix_ms;
     job.active.reset();
     frame_ended(id);
   }
@@ -337,6 +338,8 @@ wire::JobStatus JobManager::sequence_status(const std::string& id, const Sequenc
   bool first = true, all_paused = true, any_active = false;
   double spp_mean = 0.0, samples = 0.0;
   uint32_t spp_min = 0;
+  int64_t started = 0, finished = 0;  // its first frame's start, its last frame's end
+  bool all_ended = true;
   for (const std::string& f : frames) {
     auto it = jobs_.find(f);
     if (it == jobs_.end()) continue;
@@ -353,9 +356,15 @@ wire::JobStatus JobManager::sequence_status(const std::string& id, const Sequenc
       out.set_passes_total(st.passes_total());
       out.set_priority(st.priority());
       out.set_passes_done(st.passes_done());
+      out.set_submitted_unix_ms(st.submitted_unix_ms());
       spp_min = st.spp_done();
       first = false;
     }
+    if (st.started_unix_ms() > 0 && (started == 0 || st.started_unix_ms() < started)) {
+      started = st.started_unix_ms();
+    }
+    finished = std::max(finished, st.finished_unix_ms());
+    all_ended = all_ended && st.finished_unix_ms() > 0;
     if (st.state() == wire::JOB_DONE) ++done;
     if (!out.has_frame() && st.state() != wire::JOB_DONE && st.has_frame()) {
       out.set_frame(st.frame());  // the first frame not done
@@ -392,6 +401,8 @@ wire::JobStatus JobManager::sequence_status(const std::string& id, const Sequenc
     }
   }
   out.set_frames_done(done);
+  out.set_started_unix_ms(started);
+  out.set_finished_unix_ms(all_ended && !is_active_state(out.state()) ? finished : 0);
   out.set_previews(previews_note(id, q));
   out.set_paused(is_active_state(out.state()) && (q.paused || (any_active && all_paused)));
   out.set_priority(q.priority);

@@ -9,7 +9,7 @@ namespace rayfarm::master {
 using namespace detail;
 
 const JobRecord* JobManager::change(const std::string& id, std::optional<int32_t> priority,
-                                    std::optional<bool> paused) {
+                                    std::optional<bool> paused, const std::string& by) {
   if (sequence_frames(id)) return change_sequence(id, priority, paused);
   auto it = jobs_.find(id);
   if (it == jobs_.end()) return nullptr;
@@ -20,7 +20,20 @@ const JobRecord* JobManager::change(const std::string& id, std::optional<int32_t
         fmt::format("job {} is frame {} of sequence {}: give the sequence its priority", id,
                     spec.frame.value_or(0), spec.sequence));
   }
-  return change_one(id, priority, paused);
+  const int32_t priority_before = it->second.record.priority;
+  const bool paused_before = it->second.record.paused;
+  const JobRecord* r = change_one(id, priority, paused);
+  if (r != nullptr && (r->priority != priority_before || r->paused != paused_before)) {
+    std::string what;
+    if (r->priority != priority_before) {
+      what = fmt::format("priority {} (was {})", r->priority, priority_before);
+    }
+    if (r->paused != paused_before)
+      what += (what.empty() ? "" : ", ") + std::string(r->paused ? "paused" : "resumed");
+    note(it->second.record, "info", what + " by " + requester(by));
+    save(it->second);
+  }
+  return r;
 }
 
 const JobRecord* JobManager::change_one(const std::string& id, std::optional<int32_t> priority,

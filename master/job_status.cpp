@@ -54,6 +54,9 @@ wire::JobStatus JobManager::make_status(const Job& job, uint32_t workers_total) 
   st.set_tile_size(s.tile_size);
   st.set_pass_spp(s.pass_spp);
   st.set_target_error(s.stop.target_error);
+  st.set_submitted_unix_ms(s.submitted_unix_ms);
+  st.set_started_unix_ms(job.record.started_unix_ms);
+  st.set_finished_unix_ms(job.active ? 0 : job.record.finished_unix_ms);
   const UnitGrid grid(s.film, s.tile_size, s.settings.spp, s.pass_spp);
   st.set_passes_total(grid.pass_count());
   st.set_units_total(grid.size());

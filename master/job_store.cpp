@@ -53,6 +53,26 @@ double number_or(const json& j, const char* key, double fallback) {
   return std::isfinite(v) ? v : fallback;
 }
 
+/// A job's log as [[unix_ms, "level", "text"], ...].
+json log_json(const JobLog& log) {
+  json lines = json::array();
+  for (const JobLogLine& l : log.lines) lines.push_back(json::array({l.unix_ms, l.level, l.text}));
+  return lines;
+}
+
+JobLog log_from_json(const json& j) {
+  if (!j.is_array() || j.size() > JobLog::kMaxLines) throw std::runtime_error("malformed log");
+  JobLog log;
+  for (const json& line : j) {
+    if (!line.is_array() || line.size() != 3 || !line[0].is_number_integer() ||
+        !line[1].is_string() || !line[2].is_string()) {
+      throw std::runtime_error("malformed log line");
+    }
+    log.add(line[0].get<int64_t>(), line[1].get<std::string>(), line[2].get<std::string>());
+  }
+  return log;
+}
+
 json to_json(const JobRecord& r) {
   const JobSpec& s = r.spec;
   return json{{"id", s.id},
@@ -85,6 +105,10 @@ json to_json(const JobRecord& r) {
               {"priority", r.priority},
               {"paused", r.paused},
               {"queued_unix_ms", r.queued_unix_ms},
+              {"started_unix_ms", r.started_unix_ms},
+              {"finished_unix_ms", r.finished_unix_ms},
+              {"log", log_json(r.log)},
+              {"log_left_out", r.log.left_out},
               {"error", r.error},
               {"elapsed_seconds", finite_or(r.elapsed_seconds, 0.0)},
               {"stop_reason", r.stop_reason},
@@ -189,6 +213,11 @@ JobRecord from_json(const json& j) {
     r.paused = p->get<bool>() && (r.state == wire::JOB_QUEUED || r.state == wire::JOB_RUNNING);
   }
   r.queued_unix_ms = j.value("queued_unix_ms", int64_t{0});
+  // Records from before job times and logs have neither.
+  r.started_unix_ms = j.value("started_unix_ms", int64_t{0});
+  r.finished_unix_ms = j.value("finished_unix_ms", int64_t{0});
+  if (const auto log = j.find("log"); log != j.end()) r.log = log_from_json(*log);
+  r.log.left_out = j.value("log_left_out", 0u);
   r.error = j.value("error", "");
   r.elapsed_seconds = number_or(j, "elapsed_seconds", 0.0);
   r.stop_reason = j.value("stop_reason", "");

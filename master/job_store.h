@@ -26,6 +26,7 @@
 
 #include "common/scene/scene.h"
 #include "common/schedule/stop_rules.h"
+#include "master/job_log.h"
 #include "proto/rayfarm.pb.h"
 
 namespace rayfarm::master {
@@ -77,6 +78,12 @@ struct JobRecord {
   bool paused = false;
   /// When the job was last queued by a retry (Unix ms); 0: never, it was queued when submitted.
   int64_t queued_unix_ms = 0;
+  /// When its first unit was handed out since it was last queued, and when it ended (Unix ms);
+  /// 0: not yet.
+  int64_t started_unix_ms = 0;
+  int64_t finished_unix_ms = 0;
+  /// What happened to it (job_log.h).
+  JobLog log;
   /// The job's job.json could not be read: state is JOB_STATE_UNSPECIFIED, `error` says why, and
   /// only spec.id is known. Such a record is listed, never saved over.
   bool unreadable = false;

@@ -1,6 +1,7 @@
 // Leases and results: the units a worker gets (one, or a run of one tile's passes sized by time,
 // scheduler.h) and the merge of what it sends back, checked against what it was given.
 #include <algorithm>
+#include <cmath>
 
 #include "common/protocol/codec.h"
 #include "common/protocol/convert.h"
@@ -19,6 +20,11 @@ std::optional<wire::WorkUnit> JobManager::next_unit(const WorkerId& worker,
     const auto straggler = scheduler_.lease_straggler(worker, options_.stragglers, now, key);
     if (!straggler) return std::nullopt;
     lease = Lease{straggler->unit.job, straggler->units};
+    note(jobs_.at(lease->job).record, "info",
+         fmt::format("unit {} leased a second time, to {}: {} has held it for {:.1f} s, the "
+                     "job's median unit takes {:.2f} s; the first result is merged",
+                     lease->units.front(), name_of(worker), name_of(straggler->first),
+                     straggler->leased_seconds, straggler->median_seconds));
     log_scheduler()->info(
         "job {} unit {} is a straggler: leased to {} for {:.1f} s ({} unit{}), the job's median "
         "unit takes {:.2f} s; also leased to {}, the first result is merged",
@@ -30,6 +36,7 @@ std::optional<wire::WorkUnit> JobManager::next_unit(const WorkerId& worker,
   ActiveJob& a = *job.active;
   const JobSpec& s = job.record.spec;
   for (const uint64_t unit : lease->units) {
+    a.book.leased(unit);
     // The unit's past holders: kept until it merges, the latest few (a unit handed out again and
     // again to reconnecting workers must not grow without bound).
     constexpr size_t kHoldersKept = 8;
@@ -44,6 +51,9 @@ std::optional<wire::WorkUnit> JobManager::next_unit(const WorkerId& worker,
     a.start_time = Clock::now();
     a.last_write = *a.start_time;
     job.record.state = wire::JOB_RUNNING;
+    job.record.started_unix_ms = wall_ms();
+    note(job.record, "info", "started: its first unit went to " + name_of(worker),
+         /*routine=*/true);
     attention_.insert(s.id);  // tick() looks after it from now on
     save(job);
     log_jobs()->info("job {} started", s.id);
@@ -121,6 +131,10 @@ MergeOutcome JobManager::on_result(const WorkerId& worker, const wire::UnitResul
          fmt::format("job {} unit {}: result from {} rejected: {}", id, result.unit_id(),
                      name_of(worker), why));
     requeue_lease();
+    a.book.failed(result.unit_id(), name_of(worker), "result rejected: " + why);
+    JobManager::note(job.record, "warning",
+                     fmt::format("a result of unit {} from {} was rejected: {}", result.unit_id(),
+                                 name_of(worker), why));
     note_failure(job, worker, key, result.unit_id(), "result rejected: " + why);
     return MergeOutcome::kRejected;
   };
@@ -199,6 +213,10 @@ MergeOutcome JobManager::on_result(const WorkerId& worker, const wire::UnitResul
   for (const uint64_t unit : lease) {
     if (!a.merger.merged(unit)) scheduler_.requeue(UnitRef{id, unit}, worker);
   }
+  // The worker's own figure, for its share in the job's detail view: bounded, never NaN.
+  const double render = result.render_seconds();
+  a.book.merged(result.unit_id(), run, a.grid().tile_count(), name_of(worker),
+                std::isfinite(render) ? std::clamp(render, 0.0, 86400.0) : 0.0);
   a.dirty = true;
   a.checkpoint_due = true;
   a.contributors[worker] = now;

@@ -397,7 +397,22 @@ Scheduler::Counts Scheduler::counts(const std::string& job) const {
     for (const auto& h : holders) workers.insert(h.worker);
   }
   c.workers = static_cast<uint32_t>(workers.size());
+  c.pending =
+      j.ready.size() + j.requeued.size() + (j.fresh_end - j.next_fresh) - j.taken_ahead.size();
   return c;
+}
+
+std::vector<Scheduler::Holding> Scheduler::holdings(const std::string& job, size_t max) const {
+  std::vector<Holding> out;
+  auto it = jobs_.find(job);
+  if (it == jobs_.end()) return out;
+  for (const auto& [unit, holders] : it->second.leased) {
+    for (const auto& h : holders) {
+      if (out.size() >= max) return out;
+      out.push_back(Holding{unit, h.worker, h.since, h.lease});
+    }
+  }
+  return out;
 }
 
 std::vector<UnitRef> Scheduler::leased_units(const WorkerId& worker) const {

@@ -91,6 +91,14 @@ class Scheduler {
   struct Counts {
     uint64_t leased = 0;   ///< units leased now
     uint32_t workers = 0;  ///< distinct workers holding leases of the job
+    uint64_t pending = 0;  ///< units released and waiting for a lease
+  };
+  /// One worker's lease of one unit, as a job's detail view shows it.
+  struct Holding {
+    uint64_t unit = 0;
+    WorkerId worker;
+    Clock::time_point since;
+    uint64_t lease = 0;  ///< the lease's serial: the units of a run share it
   };
 
   /// Adds a job with no unit pending yet, of priority 0, not paused. A job id already present is
@@ -160,6 +168,9 @@ class Scheduler {
   /// Some unit of some job that is not paused waits for a lease.
   bool has_pending() const;
   Counts counts(const std::string& job) const;
+  /// The job's leases now, unit by unit in unit order (a straggler's two holders each); at most
+  /// `max`.
+  std::vector<Holding> holdings(const std::string& job, size_t max) const;
   /// The units leased to `worker`, in order.
   std::vector<UnitRef> leased_units(const WorkerId& worker) const;
   /// Seconds per unit of `worker`'s latest lease of `job` that completed; nullopt when none has.

@@ -20,6 +20,13 @@ inline net::Frames error_frames(wire::Error::Code code, const std::string& messa
   return protocol::encode(std::move(e));
 }
 
+/// The one answer to a request for a job that does not exist and, under --private-jobs, to one
+/// for another key's job: the same bytes for both, so that the other key's job does not leak.
+inline std::string no_such_job(const std::string& id, bool private_jobs) {
+  return "unknown job '" + protocol::printable(id) + "'" +
+         (private_jobs ? " (this master keeps jobs private to the key that submitted them)" : "");
+}
+
 inline net::Frames refusal_frames(uint32_t peer_version, const char* peer_kind) {
   wire::Refusal r;
   r.set_master_version(protocol::kProtocolVersion);

@@ -63,9 +63,10 @@ TEST(Codec, AnotherVersionIsDecodedAndFlagged) {
 
 TEST(Codec, EveryTopLevelMessageCarriesTheVersion) {
   const auto* file = wire::Hello::descriptor()->file();
-  const std::set<std::string> building_blocks{"RenderSettings", "Rect",         "BundleFile",
-                                              "Bundle",         "JobOverrides", "WorkerInfo",
-                                              "FrameList",      "SequenceFrame"};
+  const std::set<std::string> building_blocks{"RenderSettings", "Rect",          "BundleFile",
+                                              "Bundle",         "JobOverrides",  "WorkerInfo",
+                                              "FrameList",      "SequenceFrame", "UnitInfo",
+                                              "JobWorkerShare", "JobLogLine"};
   int wire_messages = 0;
   for (int i = 0; i < file->message_type_count(); ++i) {
     const auto* d = file->message_type(i);

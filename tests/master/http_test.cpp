@@ -257,6 +257,7 @@ class BrokerHttpTest : public ::testing::Test {
   std::map<std::string, net::KeyPair> clients{{"owner", net::generate_key_pair()},
                                               {"other", net::generate_key_pair()},
                                               {"boss", net::generate_key_pair()}};
+  net::KeyPair worker_keys = net::generate_key_pair();  // the workers' key "w1"
   std::unique_ptr<Broker> broker;
   std::atomic<bool> stop{false};
   std::thread reactor;
@@ -264,7 +265,7 @@ class BrokerHttpTest : public ::testing::Test {
   /// The master's options: keys and allow-lists (written once), HTTP on loopback.
   MasterOptions options(bool private_jobs) {
     if (!fs::exists(dir.path() / "clients")) {
-      net::write_key_pair(dir.path() / "workers", "w1", net::generate_key_pair());
+      net::write_key_pair(dir.path() / "workers", "w1", worker_keys);
       for (const auto& [name, keys] : clients) {
         net::write_key_pair(dir.path() / "clients", name, keys);
         // Only the public halves on the allow-list.
@@ -562,6 +563,67 @@ TEST_F(BrokerHttpTest, PrivateJobsAreHiddenFromOtherKeysAndFromNoKey) {
   EXPECT_EQ(get("/api/jobs/" + id, owner).first, 200);
   // A worker's units name their jobs: hidden as the jobs are (none here: no worker).
   EXPECT_EQ(get("/api/workers").first, 200);
+}
+
+TEST_F(BrokerHttpTest, AJobsDetailAndAWorkersControlsFollowTheKeysRights) {
+  clients.emplace("w1", net::generate_key_pair());  // the client key of the worker key's name
+  MasterOptions o = options(/*private_jobs=*/true);
+  o.heartbeat.liveness = 100000;  // the test's worker sends no heartbeats
+  start(o);
+  const std::string id = submit("owner");
+  const std::string owner = token("owner"), other = token("other"), boss = token("boss"),
+                    w1 = token("w1");
+  auto [status, detail] = get("/api/jobs/" + id + "/detail", owner);
+  ASSERT_EQ(status, 200) << detail.dump();
+  EXPECT_EQ(detail["status"]["job_id"], id);
+  EXPECT_NE(detail["status"]["submitted_unix_ms"], "0");
+  ASSERT_FALSE(detail["log"].empty());
+  EXPECT_EQ(detail["log"][0]["text"].get<std::string>().rfind("accepted", 0), 0u);
+  EXPECT_EQ(get("/api/jobs/" + id + "/detail", other).first, 404);
+  EXPECT_EQ(get("/api/jobs/" + id + "/detail").first, 404);
+  EXPECT_EQ(get("/api/jobs/" + id + "/detail", boss).first, 200);
+
+  net::Dealer worker(
+      broker->worker_endpoint(), net::kDefaultMaxMessageBytes,
+      net::Curve{worker_keys.public_key, worker_keys.secret_key, master_keys.public_key, ""});
+  ASSERT_TRUE(worker.send(protocol::encode(test_peer::hello(wire::ROLE_WORKER))));
+  ASSERT_TRUE(test_peer::next(worker));
+  ASSERT_TRUE(worker.send(protocol::encode(wire::WorkRequest{})));
+  const auto unit = test_peer::next(worker);
+  ASSERT_TRUE(unit && unit->as<wire::WorkUnit>());
+  // Who may change the worker: its key's namesake and the admin; the page reads it per worker.
+  std::string wid;
+  for (const auto& [name, may] : std::vector<std::pair<std::string, bool>>{
+           {w1, true}, {boss, true}, {other, false}, {"", false}}) {
+    json workers;
+    for (int i = 0; i < 100; ++i) {  // the snapshot shows the worker within a second
+      workers = get("/api/workers", name).second;
+      if (!workers["workers"].empty() && !workers["workers"][0]["units"].empty()) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds{20});
+    }
+    ASSERT_EQ(workers["workers"].size(), 1u) << workers.dump();
+    EXPECT_EQ(workers["workers"][0]["can_manage"], may) << workers.dump();
+    EXPECT_EQ(workers["workers"][0]["control"], "enabled");
+    wid = workers["workers"][0]["id"];
+  }
+  const std::string path = "/api/workers/" + wid;
+  EXPECT_EQ(post(path + "/drain", "").first, 401);
+  EXPECT_EQ(post(path + "/drain", other).first, 403);
+  EXPECT_EQ(post("/api/workers/0123456789/drain", boss).first, 404);
+  auto [drained, d] = post(path + "/drain", w1);
+  ASSERT_EQ(drained, 200) << d.dump();
+  EXPECT_EQ(d["worker"]["control"], "draining");
+  auto [disabled, x] = post(path + "/disable", boss);
+  ASSERT_EQ(disabled, 200) << x.dump();
+  EXPECT_EQ(x["worker"]["control"], "disabled");
+  EXPECT_EQ(x["units_requeued"], 1);
+  auto [enabled, e] = post(path + "/enable", w1);
+  ASSERT_EQ(enabled, 200) << e.dump();
+  EXPECT_EQ(e["worker"]["control"], "enabled");
+  // The job's log says where its unit went.
+  const json log = get("/api/jobs/" + id + "/detail", owner).second["log"];
+  EXPECT_NE(log.dump().find("its worker was disabled by key 'boss'"), std::string::npos)
+      << log.dump();
 }
 
 TEST_F(BrokerHttpTest, BeyondLoopbackReadingNeedsATokenUnlessAllowed) {

@@ -6,6 +6,7 @@
 // that counts down instead of swinging with each round's estimate.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <limits>
@@ -424,6 +425,82 @@ TEST_F(JobRecordsTest, RetryRunsAFailedJobAgainToTheSameImageAsAFreshOne) {
   EXPECT_EQ(done->units_done(), jobs.status(fresh, 1)->units_done());
   const Image a = read_exr(store.image_path(fresh)), b = read_exr(store.image_path(failed));
   EXPECT_EQ(a.rgb, b.rgb);
+}
+
+TEST_F(JobRecordsTest, AJobsTimesAndLogSurviveARestartAndARetryAndTheLogStaysBounded) {
+  const std::string id = jobs.submit(furnace(8, 16, 4));
+  const auto queued = jobs.status(id, 1);
+  EXPECT_GT(queued->submitted_unix_ms(), 0);
+  EXPECT_EQ(queued->started_unix_ms(), 0) << "not started before its first unit goes out";
+  fail_unit(id);  // three workers fail the same unit: the job fails
+  const auto failed = jobs.status(id, 1);
+  ASSERT_EQ(failed->state(), wire::JOB_FAILED);
+  EXPECT_GE(failed->started_unix_ms(), failed->submitted_unix_ms());
+  EXPECT_GE(failed->finished_unix_ms(), failed->started_unix_ms());
+  const auto log = jobs.detail(id, 1)->log();
+  auto has = [](const auto& lines, const std::string& level, const std::string& text) {
+    return std::any_of(lines.begin(), lines.end(), [&](const wire::JobLogLine& l) {
+      return l.level() == level && l.text().find(text) != std::string::npos;
+    });
+  };
+  EXPECT_TRUE(has(log, "info", "accepted: scene")) << jobs.detail(id, 1)->DebugString();
+  EXPECT_TRUE(has(log, "info", "started: its first unit went to"));
+  // Workers are named by the hex of their id without a naming function: "f2" is 6632.
+  EXPECT_TRUE(has(log, "warning", "failed on 6632: scene does not load on f2"));
+  EXPECT_TRUE(has(log, "error", "failed after"));
+
+  // A restarted master has the same times and lines; a retry keeps the history and starts anew.
+  JobManager restarted(store);
+  restarted.recover();
+  const auto again = restarted.detail(id, 1);
+  ASSERT_TRUE(again);
+  EXPECT_EQ(again->status().finished_unix_ms(), failed->finished_unix_ms());
+  EXPECT_EQ(again->status().submitted_unix_ms(), failed->submitted_unix_ms());
+  ASSERT_EQ(again->log_size(), log.size());
+  for (int i = 0; i < log.size(); ++i) {
+    EXPECT_EQ(again->log(i).SerializeAsString(), log.Get(i).SerializeAsString()) << i;
+  }
+  EXPECT_EQ(restarted.retry(id, "alice"), wire::JOB_QUEUED);
+  const auto retried = restarted.detail(id, 1);
+  EXPECT_EQ(retried->status().started_unix_ms(), 0);
+  EXPECT_EQ(retried->status().finished_unix_ms(), 0);
+  EXPECT_EQ(retried->status().submitted_unix_ms(), failed->submitted_unix_ms());
+  EXPECT_TRUE(has(retried->log(), "error", "failed after"));
+  EXPECT_TRUE(has(retried->log(), "info", "queued again by key 'alice'"));
+
+  // Failures without end: the latest JobLog::kMaxLines lines, the rest counted.
+  const auto unit = restarted.next_unit("w9");
+  ASSERT_TRUE(unit);
+  for (int i = 0; i < 100; ++i) {
+    restarted.change(id, std::nullopt, i % 2 == 0, "bob");  // pause, resume: a line each
+  }
+  const auto bounded = restarted.detail(id, 1);
+  EXPECT_EQ(static_cast<size_t>(bounded->log_size()), JobLog::kMaxLines);
+  EXPECT_EQ(bounded->log_left_out() + bounded->log_size(),
+            retried->log_left_out() + retried->log_size() + 1 + 100)
+      << "the lines before, the start, and a pause or resume each";
+  EXPECT_TRUE(has(bounded->log(), "info", "resumed by key 'bob'"));
+}
+
+TEST(JobStoreRecords, AMalformedLogMakesTheRecordUnreadableNamingIt) {
+  TempDir dir;
+  JobStore store(dir.path() / "data");
+  JobRecord r = sample_record(store.allocate_id(), wire::JOB_DONE);
+  // Cut where a two-byte character begins: the line stays UTF-8.
+  r.log.add(5, "info", std::string(JobLog::kMaxText - 4, 'x') + "\xc3\xa9" + std::string(99, 'y'));
+  store.save_record(r);
+  auto loaded = store.load_records();
+  ASSERT_EQ(loaded.size(), 1u);
+  ASSERT_EQ(loaded[0].log.lines.size(), 1u);
+  EXPECT_EQ(loaded[0].log.lines[0].text, std::string(JobLog::kMaxText - 4, 'x') + "...");
+  const fs::path path = store.job_dir(r.spec.id) / "job.json";
+  nlohmann::json j = nlohmann::json::parse(read_file(path));
+  j["log"] = nlohmann::json::array({nlohmann::json::array({1, "info"})});
+  std::ofstream(path) << j.dump();
+  loaded = store.load_records();
+  ASSERT_EQ(loaded.size(), 1u);
+  EXPECT_TRUE(loaded[0].unreadable);
+  EXPECT_NE(loaded[0].error.find("malformed log"), std::string::npos) << loaded[0].error;
 }
 
 // ---------------------------------------------------------------------------------------------

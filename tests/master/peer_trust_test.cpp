@@ -841,6 +841,7 @@ TEST_F(BrokerTrustTest, AHiddenJobAnswersEveryRequestExactlyAsAMissingOne) {
           {"rm", [&](const std::string& j) { return about(wire::RemoveJob{}, j); }},
           {"retry", [&](const std::string& j) { return about(wire::RetryJob{}, j); }},
           {"fetch", [&](const std::string& j) { return about(wire::FetchImage{}, j); }},
+          {"detail", [&](const std::string& j) { return about(wire::JobDetailRequest{}, j); }},
       };
   auto answer = [&](net::Dealer& d, const net::Frames& request) {
     EXPECT_TRUE(d.send(request));
@@ -1015,6 +1016,164 @@ TEST_F(BrokerTrustTest, AWorkerMessageIsBoundedByWhatItsUnitsCanHold) {
   }
   EXPECT_EQ(done, 1u);
   EXPECT_EQ(dropped(), 2.0);
+}
+
+/// A ChangeWorker of `control` for worker `worker` (its id or its name).
+wire::ChangeWorker worker_control(const std::string& worker, wire::ChangeWorker::Control control) {
+  wire::ChangeWorker c;
+  c.set_worker(worker);
+  c.set_control(control);
+  return c;
+}
+
+/// The code of the Error `reply` is; CODE_UNSPECIFIED (a failure) when it is no Error.
+wire::Error::Code error_code(const protocol::Decoded& reply) {
+  const auto* e = reply.as<wire::Error>();
+  EXPECT_TRUE(e) << "not an error: " << reply.type;
+  return e ? e->code() : wire::Error::CODE_UNSPECIFIED;
+}
+
+TEST_F(BrokerTrustTest, AWorkerIsDrainedDisabledAndEnabledByItsOwnKeyOrAnAdminOnly) {
+  clients.emplace("w1", net::generate_key_pair());  // the client key of the worker key's name
+  MasterOptions o = options();
+  o.heartbeat.liveness = 100000;  // the test's workers send no heartbeats
+  Running master(std::move(o));
+  auto alice = connect(master.broker.client_endpoint(), clients["alice"]);
+  auto owner = connect(master.broker.client_endpoint(), clients["w1"]);
+  auto boss = connect(master.broker.client_endpoint(), clients["boss"]);
+  const std::string id = submit_as(alice);  // 4 tiles x 2 passes
+  auto worker = connect(master.broker.worker_endpoint(), worker_keys);
+  ASSERT_TRUE(ask(worker, hello(wire::ROLE_WORKER)).as<wire::Welcome>());
+  const auto first = ask(worker, wire::WorkRequest{});
+  ASSERT_TRUE(first.as<wire::WorkUnit>()) << first.type;
+  const auto list = ask(alice, wire::ListWorkers{});
+  ASSERT_TRUE(list.as<wire::WorkerList>());
+  ASSERT_EQ(list.as<wire::WorkerList>()->workers_size(), 1);
+  const wire::WorkerInfo listed = list.as<wire::WorkerList>()->workers(0);
+  EXPECT_EQ(listed.control(), "enabled");
+  const std::string wid = listed.id();
+
+  // Alice's key is neither the worker's nor an admin's: refused, whatever she asks.
+  for (auto c :
+       {wire::ChangeWorker::DRAIN, wire::ChangeWorker::DISABLE, wire::ChangeWorker::ENABLE}) {
+    EXPECT_EQ(error_code(ask(alice, worker_control(wid, c))), wire::Error::FORBIDDEN);
+  }
+  EXPECT_EQ(error_code(ask(owner, worker_control("nobody", wire::ChangeWorker::DRAIN))),
+            wire::Error::NOT_FOUND);
+  EXPECT_EQ(error_code(ask(owner, worker_control(wid, wire::ChangeWorker::CONTROL_UNSPECIFIED))),
+            wire::Error::BAD_REQUEST);
+
+  // Drained by its own key, named by its name: it keeps its unit and gets no new one.
+  const auto drained = ask(owner, worker_control(listed.name(), wire::ChangeWorker::DRAIN));
+  ASSERT_TRUE(drained.as<wire::ChangeWorkerReply>()) << drained.type;
+  EXPECT_EQ(drained.as<wire::ChangeWorkerReply>()->worker().control(), "draining");
+  EXPECT_EQ(drained.as<wire::ChangeWorkerReply>()->worker().units_size(), 1);
+  EXPECT_EQ(drained.as<wire::ChangeWorkerReply>()->units_requeued(), 0u);
+  ASSERT_TRUE(worker.send(protocol::encode(wire::WorkRequest{})));
+  EXPECT_FALSE(next(worker, std::chrono::milliseconds{400})) << "a draining worker got work";
+
+  // Disabled by an admin: its unit goes back to the queue, and another connection of the same
+  // key gets exactly that unit.
+  const auto disabled = ask(boss, worker_control(wid, wire::ChangeWorker::DISABLE));
+  ASSERT_TRUE(disabled.as<wire::ChangeWorkerReply>()) << disabled.type;
+  EXPECT_EQ(disabled.as<wire::ChangeWorkerReply>()->worker().control(), "disabled");
+  EXPECT_EQ(disabled.as<wire::ChangeWorkerReply>()->units_requeued(), 1u);
+  EXPECT_EQ(disabled.as<wire::ChangeWorkerReply>()->worker().units_size(), 0);
+  {
+    auto other = connect(master.broker.worker_endpoint(), worker_keys);
+    wire::Hello h = hello(wire::ROLE_WORKER);
+    h.set_name("other");
+    ASSERT_TRUE(ask(other, h).as<wire::Welcome>());
+    const auto again = ask(other, wire::WorkRequest{});
+    ASSERT_TRUE(again.as<wire::WorkUnit>()) << again.type;
+    EXPECT_EQ(again.as<wire::WorkUnit>()->unit_id(), first.as<wire::WorkUnit>()->unit_id());
+    ASSERT_TRUE(other.send(protocol::encode(wire::Goodbye{})));
+  }
+  // A worker that says hello again under the same name and key stays disabled.
+  ASSERT_TRUE(ask(worker, hello(wire::ROLE_WORKER)).as<wire::Welcome>());
+  ASSERT_TRUE(worker.send(protocol::encode(wire::WorkRequest{})));
+  EXPECT_FALSE(next(worker, std::chrono::milliseconds{400})) << "a disabled worker got work";
+
+  // Enabled by its own key: its waiting request is answered at once.
+  const auto enabled = ask(owner, worker_control(wid, wire::ChangeWorker::ENABLE));
+  ASSERT_TRUE(enabled.as<wire::ChangeWorkerReply>()) << enabled.type;
+  EXPECT_EQ(enabled.as<wire::ChangeWorkerReply>()->worker().control(), "enabled");
+  const auto unit = next(worker);
+  ASSERT_TRUE(unit && unit->as<wire::WorkUnit>()) << (unit ? unit->type : "nothing");
+  EXPECT_EQ(unit->as<wire::WorkUnit>()->job_id(), id);
+
+  // The job's log says where its unit went and why.
+  wire::JobDetailRequest request;
+  request.set_job_id(id);
+  const auto detail = ask(alice, request);
+  ASSERT_TRUE(detail.as<wire::JobDetail>()) << detail.type;
+  bool said = false;
+  for (const auto& line : detail.as<wire::JobDetail>()->log()) {
+    said = said || line.text().find("back in the queue: its worker was disabled by key 'boss'") !=
+                       std::string::npos;
+  }
+  EXPECT_TRUE(said) << detail.as<wire::JobDetail>()->DebugString();
+}
+
+TEST_F(BrokerTrustTest, AJobsDetailNamesItsUnitsWorkersAndTheWorkersWordsForAFailure) {
+  MasterOptions o = options();
+  o.heartbeat.liveness = 100000;
+  Running master(std::move(o));
+  auto alice = connect(master.broker.client_endpoint(), clients["alice"]);
+  const std::string id = submit_as(alice);
+  auto worker = connect(master.broker.worker_endpoint(), worker_keys);
+  ASSERT_TRUE(ask(worker, hello(wire::ROLE_WORKER)).as<wire::Welcome>());
+  const auto leased = ask(worker, wire::WorkRequest{});
+  ASSERT_TRUE(leased.as<wire::WorkUnit>()) << leased.type;
+  const uint64_t unit = leased.as<wire::WorkUnit>()->unit_id();
+  wire::JobDetailRequest request;
+  request.set_job_id(id);
+  auto detail = [&] {
+    const auto reply = ask(alice, request);
+    EXPECT_TRUE(reply.as<wire::JobDetail>()) << reply.type;
+    return reply.as<wire::JobDetail>() ? *reply.as<wire::JobDetail>() : wire::JobDetail{};
+  };
+  // Leased: rendering, on the worker, handed out once.
+  wire::JobDetail d = detail();
+  EXPECT_EQ(d.status().job_id(), id);
+  EXPECT_GT(d.status().submitted_unix_ms(), 0);
+  EXPECT_GE(d.status().started_unix_ms(), d.status().submitted_unix_ms());
+  EXPECT_EQ(d.status().finished_unix_ms(), 0);
+  ASSERT_GE(d.units_size(), 1);
+  EXPECT_EQ(d.units(0).unit_id(), unit);
+  EXPECT_EQ(d.units(0).state(), "rendering");
+  ASSERT_EQ(d.units(0).workers_size(), 1);
+  EXPECT_NE(d.units(0).workers(0).find("test"), std::string::npos) << d.units(0).workers(0);
+  EXPECT_EQ(d.units(0).leases(), 1u);
+  EXPECT_EQ(d.units_queued(), 7u);
+
+  // It fails there: queued again, with the worker's words, in the units and in the log.
+  wire::UnitFailed failed;
+  failed.set_job_id(id);
+  failed.set_unit_id(unit);
+  failed.set_reason("the scene's texture is missing on this machine");
+  ASSERT_TRUE(worker.send(protocol::encode(failed)));
+  ASSERT_TRUE(worker.send(protocol::encode(wire::WorkRequest{})));
+  const auto again = next(worker);
+  ASSERT_TRUE(again && again->as<wire::WorkUnit>());
+  d = detail();
+  const wire::UnitInfo* info = nullptr;
+  for (const auto& u : d.units()) {
+    if (u.unit_id() == unit) info = &u;
+  }
+  ASSERT_TRUE(info) << d.DebugString();
+  EXPECT_EQ(info->error(), "the scene's texture is missing on this machine");
+  EXPECT_EQ(info->leases(), again->as<wire::WorkUnit>()->unit_id() == unit ? 2u : 1u);
+  EXPECT_EQ(d.units_failed(), 1u);
+  bool logged = false;
+  for (const auto& line : d.log()) {
+    logged = logged || (line.level() == "warning" &&
+                        line.text().find("the scene's texture is missing") != std::string::npos &&
+                        line.text().find("unit " + std::to_string(unit)) != std::string::npos);
+  }
+  EXPECT_TRUE(logged) << d.DebugString();
+  ASSERT_EQ(d.workers_size(), 1);
+  EXPECT_EQ(d.workers(0).failures(), 1u);
 }
 
 }  // namespace
