@@ -32,5 +32,7 @@ void add_retry(CLI::App& app, int& exit_code);
 void add_workers(CLI::App& app, int& exit_code);
 void add_fetch(CLI::App& app, int& exit_code);
 void add_token(CLI::App& app, int& exit_code);  // the HTTP endpoint's bearer token
+// worker_commands.cpp
+void add_worker_controls(CLI::App& app, int& exit_code);  // drain, disable, enable
 
 }  // namespace rayfarm::cli

@@ -1,8 +1,10 @@
 #include "cli/farm_output.h"
 
 #include <cmath>
+#include <ctime>
 #include <iostream>
 
+#include <fmt/chrono.h>
 #include <fmt/format.h>
 
 #include "common/protocol/convert.h"
@@ -60,6 +62,9 @@ const char* roulette_label(wire::Roulette value) {
     return "unknown roulette";
   }
 }
+
+/// A time for JSON: Unix milliseconds, null when not yet (0).
+nlohmann::json unix_ms(int64_t ms) { return ms > 0 ? nlohmann::json(ms) : nlohmann::json(nullptr); }
 
 /// A figure for JSON: null when unknown (negative or not finite).
 nlohmann::json figure(double value) {
@@ -140,7 +145,18 @@ nlohmann::json status_json(const wire::JobStatus& st) {
       {"elapsed_seconds", st.elapsed_seconds()},
       {"eta_seconds", figure(st.eta_seconds())},
       {"workers_busy", st.workers_busy()},
-      {"workers_total", st.workers_total()}};
+      {"workers_total", st.workers_total()},
+      {"submitted_unix_ms", unix_ms(st.submitted_unix_ms())},
+      {"started_unix_ms", unix_ms(st.started_unix_ms())},
+      {"finished_unix_ms", unix_ms(st.finished_unix_ms())}};
+}
+
+std::string format_time(int64_t unix_ms) {
+  if (unix_ms <= 0) return "-";
+  const std::time_t t = static_cast<std::time_t>(unix_ms / 1000);
+  std::tm local{};
+  if (localtime_r(&t, &local) == nullptr) return "?";
+  return fmt::format("{:%Y-%m-%d %H:%M:%S}", local);
 }
 
 std::string state_label(const wire::JobStatus& st) {
@@ -233,6 +249,14 @@ void print_status(const wire::JobStatus& st) {
                            human_rate(st.samples_per_second()));
   std::cout << fmt::format("workers    {} busy on this job, {} connected\n", st.workers_busy(),
                            st.workers_total());
+  // When it was submitted, started (its first unit since it was last queued) and ended.
+  if (st.submitted_unix_ms() > 0) {
+    std::cout << fmt::format(
+        "submitted  {}{}{}\n", format_time(st.submitted_unix_ms()),
+        st.started_unix_ms() > 0 ? ", started " + format_time(st.started_unix_ms()) : std::string(),
+        st.finished_unix_ms() > 0 ? ", ended " + format_time(st.finished_unix_ms())
+                                  : std::string());
+  }
   if (st.frames_size() > 0) {
     std::cout << fmt::format("\n{:>8} {:<16} {:<9} {:>7}\n", "FRAME", "JOB", "STATE", "DONE");
     for (const wire::SequenceFrame& f : st.frames()) {
@@ -271,7 +295,8 @@ nlohmann::json worker_json(const wire::WorkerInfo& w) {
       {"id", w.id()},
       {"name", w.name()},
       {"key_name", w.key_name().empty() ? nlohmann::json(nullptr) : nlohmann::json(w.key_name())},
-      {"state", w.units().empty() ? "idle" : "busy"},
+      {"state", worker_state(w)},
+      {"control", w.control().empty() ? "enabled" : w.control()},
       {"threads", w.threads()},
       {"units", w.units()},
       {"units_done", w.units_done()},

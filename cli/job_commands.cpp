@@ -21,14 +21,30 @@ void add_status(CLI::App& app, int& exit_code) {
   auto args = std::make_shared<ClientArgs>();
   auto job = std::make_shared<std::string>();
   auto json = std::make_shared<bool>(false);
+  auto detail = std::make_shared<bool>(false);
   CLI::App* cmd = app.add_subcommand("status", "Show one job in detail, or every job");
   cmd->add_option("job", *job, "Job id (default: every job)");
   add_client_options(cmd, *args);
   cmd->add_flag("--json", *json, "One JSON object (per job, one a line)");
-  cmd->callback([args, job, json, &exit_code] {
+  cmd->add_flag("--detail", *detail,
+                "With a job: also its units (leased now, failed or retried, the latest merged; "
+                "worker, time, retries), what each worker did, and the job's log");
+  cmd->callback([args, job, json, detail, &exit_code] {
     exit_code = guarded("status", [&] {
+      if (*detail && job->empty()) {
+        throw CLI::ValidationError("--detail", "needs a job id: rayfarm status JOB --detail");
+      }
       FarmClient client(*args);
-      if (job->empty()) {
+      if (*detail) {
+        wire::JobDetailRequest request;
+        request.set_job_id(*job);
+        const auto d = client.call<wire::JobDetail>(encode(std::move(request)));
+        if (*json) {
+          print_json(detail_json(d));
+        } else {
+          print_detail(d);
+        }
+      } else if (job->empty()) {
         const auto list = client.call<wire::JobList>(encode(wire::ListJobs{}));
         if (*json) {
           for (const auto& st : list.jobs()) print_json(status_json(st));

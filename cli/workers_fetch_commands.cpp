@@ -35,16 +35,17 @@ void add_workers(CLI::App& app, int& exit_code) {
         std::cout << "no workers connected\n";
         return 0;
       }
-      std::cout << fmt::format("{:<20} {:<16} {:<5} {:>7} {:<16} {:>6} {:>16} {:>9}\n", "NAME",
-                               "KEY", "STATE", "THREADS", "UNIT", "DONE", "RATE", "SEEN");
+      std::cout << fmt::format("{:<20} {:<10} {:<16} {:<8} {:>7} {:<16} {:>6} {:>16} {:>9}\n",
+                               "NAME", "ID", "KEY", "STATE", "THREADS", "UNIT", "DONE", "RATE",
+                               "SEEN");
       for (const auto& w : list.workers()) {
         std::string units = w.units().empty() ? "-" : w.units(0);
         if (w.units_size() > 1) units += fmt::format(" +{}", w.units_size() - 1);
         std::cout << fmt::format(
-            "{:<20} {:<16} {:<5} {:>7} {:<16} {:>6} {:>16} {:>9}\n", w.name().substr(0, 20),
-            w.key_name().empty() ? "-" : w.key_name().substr(0, 16),
-            w.units().empty() ? "idle" : "busy", w.threads(), units, w.units_done(),
-            human_rate(w.samples_per_second()), format_duration(w.last_seen_seconds()) + " ago");
+            "{:<20} {:<10} {:<16} {:<8} {:>7} {:<16} {:>6} {:>16} {:>9}\n", w.name().substr(0, 20),
+            w.id(), w.key_name().empty() ? "-" : w.key_name().substr(0, 16), worker_state(w),
+            w.threads(), units, w.units_done(), human_rate(w.samples_per_second()),
+            format_duration(w.last_seen_seconds()) + " ago");
       }
       return 0;
     });
