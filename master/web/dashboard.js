@@ -1,6 +1,10 @@
 // rayfarm's dashboard: polls the master's JSON API (docs/farm.md, "The dashboard") once a second
-// and draws jobs, the selected job's image, error plot and frames, and the workers. Actions send
-// the token from `rayfarm token` as a bearer token; without one the page is read-only.
+// and draws jobs, the selected job's image, error plot, frames, units and log, and the workers.
+// Actions send the token from `rayfarm token` as a bearer token; without one the page is
+// read-only. The script comes in parts, which master/CMakeLists.txt joins in this order into the
+// one /dashboard.js the master serves: this file (the state, the helpers, the jobs, the selected
+// job, the session and the loop), error_plot.js, job_detail.js (units, workers' shares, log,
+// frames) and workers.js (the workers and their controls).
 "use strict";
 
 const state = {
@@ -14,6 +18,7 @@ const state = {
   plot: { rows: [], target: 0 },  // the selected job's error record, drawn by drawErrorPlot
   sort: { key: null, ascending: true },  // the jobs table's order: the master's until a click
   lastJobs: null,  // the latest job list, drawn again when the filter or the order changes
+  frame: null,     // the selected sequence's frame whose units and log are shown (its job id)
 };
 
 const $ = (id) => document.getElementById(id);
@@ -87,6 +92,41 @@ function percentOf(job) {
 }
 function sppTotal(job) { return job.pass_spp * job.passes_total; }
 
+// Times: the API's Unix milliseconds (64-bit, so strings; "0": not yet) in the browser's time
+// zone, compact ("16:45" today, "Dec 5 16:45" before), in full for tooltips.
+const MONTHS = ["Jan", "Feb", "Mar", "Apr", "May", "Jun", "Jul", "Aug", "Sep", "Oct", "Nov", "Dec"];
+function unixMs(v) { const t = Number(v || 0); return t > 0 && isFinite(t) ? t : 0; }
+function pad2(n) { return String(n).padStart(2, "0"); }
+function clock(ms, withSeconds) {
+  if (!ms) return "–";
+  const d = new Date(ms), now = new Date();
+  const time = pad2(d.getHours()) + ":" + pad2(d.getMinutes()) + (withSeconds ? ":" + pad2(d.getSeconds()) : "");
+  if (d.toDateString() === now.toDateString()) return time;
+  return MONTHS[d.getMonth()] + " " + d.getDate() +
+    (d.getFullYear() === now.getFullYear() ? "" : " " + d.getFullYear()) + " " + time;
+}
+// The compact time as lines: the day when not today, then the time.
+function compactTime(ms) {
+  const text = clock(ms), cut = text.lastIndexOf(" ");
+  return cut < 0 ? [text] : [el("span", {}, text.slice(0, cut)), " ", el("span", {}, text.slice(cut + 1))];
+}
+function fullTime(ms) {
+  if (!ms) return "";
+  const d = new Date(ms);
+  return d.getFullYear() + "-" + pad2(d.getMonth() + 1) + "-" + pad2(d.getDate()) + " " +
+    pad2(d.getHours()) + ":" + pad2(d.getMinutes()) + ":" + pad2(d.getSeconds());
+}
+// A job's (or frame's) submitted, started and finished times, the wait and the run between them.
+function jobTimes(job) {
+  const submitted = unixMs(job.submitted_unix_ms), started = unixMs(job.started_unix_ms);
+  const ended = unixMs(job.finished_unix_ms);
+  return {
+    submitted, started, finished: ended,
+    wait: submitted && started ? (started - submitted) / 1000 : NaN,
+    run: started && ended ? (ended - started) / 1000 : NaN,
+  };
+}
+
 // ---- jobs -------------------------------------------------------------------------------------
 
 function jobRow(job) {
@@ -99,6 +139,8 @@ function jobRow(job) {
     el("td", {}, job.owner || "–"),
     el("td", {}, el("span", { class: "state " + s }, s)),
     el("td", { class: "num" }, job.priority),
+    el("td", { class: "num submitted", title: "submitted " + fullTime(unixMs(job.submitted_unix_ms)) },
+       ...compactTime(unixMs(job.submitted_unix_ms))),
     el("td", {}, job.frames_total > 0 ? job.frames_done + " / " + job.frames_total
                                       : ("frame" in job ? "frame " + job.frame : "–")),
     el("td", {}, job.frames_total > 0 ? "–" : job.spp_done + " / " + sppTotal(job)),
@@ -123,6 +165,7 @@ const SORT_KEYS = {
   owner: (j) => (j.owner || "").toLowerCase(),
   state: (j) => stateName(j),
   priority: (j) => j.priority,
+  submitted: (j) => unixMs(j.submitted_unix_ms),
   progress: (j) => percentOf(j),
   rate: (j) => (finished(j) ? -1 : j.samples_per_second),
   eta: (j) => (finished(j) || !(j.eta_seconds >= 0) ? Infinity : j.eta_seconds),
@@ -164,25 +207,6 @@ function drawJobs(list) {
     " connected" + (state.session ? " · " + state.session.build : "");
 }
 
-// ---- workers ----------------------------------------------------------------------------------
-
-function drawWorkers(list) {
-  const rows = list.workers.map((w) => el("tr", { "data-worker": w.id },
-    el("td", { class: "text", title: w.name }, w.name),
-    el("td", { class: "text", title: w.key_name || "" }, w.key_name || "–"),
-    el("td", {}, el("span", { class: "state " + (w.units.length ? "running" : "") },
-                    w.units.length ? "busy" : "idle")),
-    el("td", { class: "num" }, w.threads),
-    el("td", { class: "text", title: w.units.join("\n") },
-       w.units.length ? w.units[0] + (w.units.length > 1 ? " +" + (w.units.length - 1) : "") : "–"),
-    el("td", { class: "num" }, w.units_done),
-    el("td", { class: "num" }, rate(w.samples_per_second)),
-    el("td", { class: "num" }, duration(w.last_seen_seconds) + " ago")));
-  $("workers").querySelector("tbody").replaceChildren(...rows);
-  $("no-workers").hidden = list.workers.length > 0;
-  $("worker-count").textContent = list.workers.length ? "(" + list.workers.length + ")" : "";
-}
-
 // ---- the selected job -------------------------------------------------------------------------
 
 function select(id) {
@@ -192,6 +216,8 @@ function select(id) {
     drawErrorPlot();
     for (const url of state.thumbs.values()) if (url) URL.revokeObjectURL(url);
     state.thumbs.clear();
+    state.frame = null;
+    clearJobDetail();
   }
   state.selected = id;
   state.shown = {};
@@ -221,19 +247,37 @@ async function loadImage(img, id, path) {
   }
 }
 
-function fact(name, value) { return [el("div", { class: "fact" }, el("dt", {}, name), el("dd", {}, value))]; }
+// A figure of the selected job; `key` names it for scripts (data-fact), `title` is its tooltip.
+function fact(name, value, key, title) {
+  const dd = el("dd", key ? { "data-fact": key } : {}, value);
+  if (title) dd.title = title;
+  return [el("div", { class: "fact" }, el("dt", {}, name), dd)];
+}
+// The submitted, started and finished facts of a job (or frame), with the wait and the run.
+function timeFacts(job) {
+  const t = jobTimes(job);
+  return [
+    ...fact("Submitted", clock(t.submitted, true), "submitted", fullTime(t.submitted)),
+    ...fact("Started", t.started ? clock(t.started, true) + " · waited " + duration(t.wait) : "not yet",
+            "started", fullTime(t.started)),
+    ...fact("Finished", t.finished ? clock(t.finished, true) + (t.started ? " · ran " + duration(t.run) : "")
+                                   : "not yet", "finished", fullTime(t.finished)),
+  ];
+}
 
 async function refreshDetail() {
   const id = state.selected;
   if (!id) { $("detail").hidden = true; return; }
-  let job;
+  // The job's status comes with its units, workers and log (/detail): one request a refresh.
+  let detail;
   try {
-    job = await apiJson("/api/jobs/" + encodeURIComponent(id));
+    detail = await apiJson("/api/jobs/" + encodeURIComponent(id) + "/detail");
   } catch (e) {
     if (e.status === 404) { state.selected = null; $("detail").hidden = true; return; }
     throw e;
   }
   if (id !== state.selected) return;
+  const job = detail.status || {};
   $("detail").hidden = false;
   $("detail").dataset.job = id;
   $("detail-title").textContent = (job.name || id) + " (" + id + ") · " + stateName(job);
@@ -243,6 +287,7 @@ async function refreshDetail() {
     ...fact("Samples per pixel", job.frames_total > 0 ? "–" : job.spp_done + " of " + sppTotal(job) +
             " (mean " + Number(job.spp_mean).toFixed(1) + ")"),
     ...fact("Progress", percentOf(job).toFixed(1) + "%"),
+    ...timeFacts(job),
     ...fact("Elapsed", duration(job.elapsed_seconds)),
     ...fact("ETA", finished(job) ? "–" : duration(job.eta_seconds)),
     ...fact("Samples/s", rate(job.samples_per_second)),
@@ -300,198 +345,7 @@ async function refreshDetail() {
   $("preview").previousElementSibling.textContent = sequence ? "Contact sheet" : "Current image";
   $("frames-box").hidden = !sequence;
   if (sequence) drawFrames(job.frames || []);
-}
-
-// ---- the error plot ---------------------------------------------------------------------------
-// The job's error record (error.csv: time_s, spp, ..., est_rel_mse, ..., ref_rel_mse, ...) drawn
-// as an inline SVG, log-log: the estimated relMSE, the relMSE measured against a reference when
-// the job has one, and the target error as a horizontal line when the job has one.
-
-// The job's target relMSE (its status's target_error), or 0 when it has none.
-function targetError(job) {
-  const t = Number(job.target_error || 0);
-  return t > 0 && isFinite(t) ? t : 0;
-}
-
-function parseErrorCsv(text) {
-  const lines = text.split(/\r?\n/).filter((l) => l.trim());
-  if (!lines.length) return [];
-  const head = lines[0].split(",").map((c) => c.trim());
-  const col = (name) => head.indexOf(name);
-  const [t, est, ref] = [col("time_s"), col("est_rel_mse"), col("ref_rel_mse")];
-  if (t < 0 || est < 0) return [];
-  return lines.slice(1).map((l) => {
-    const c = l.split(",");
-    const num = (i) => (i >= 0 && c[i] !== undefined && c[i].trim() !== "" ? Number(c[i]) : NaN);
-    return { t: num(t), est: num(est), ref: num(ref) };
-  }).filter((r) => r.t > 0 && isFinite(r.t));
-}
-
-async function loadErrorRecord(id, path) {
-  let rows = [];
-  try {
-    rows = parseErrorCsv(await (await api(path)).text());
-  } catch (e) { /* not written yet */ }
-  if (id !== state.selected) return;
-  state.plot.rows = rows;
-  drawErrorPlot();
-}
-
-const SUPERSCRIPT = { "-": "⁻", 0: "⁰", 1: "¹", 2: "²", 3: "³", 4: "⁴", 5: "⁵", 6: "⁶", 7: "⁷", 8: "⁸", 9: "⁹" };
-function powerOfTen(e) { return "10" + String(e).split("").map((c) => SUPERSCRIPT[c]).join(""); }
-function splitTen(x) {
-  const e = Math.floor(Math.log10(x) + 1e-9);
-  return [Math.round(x / Math.pow(10, e)), e];
-}
-function seconds(x) {
-  if (x >= 1e5 || x < 1e-3) { const [m, e] = splitTen(x); return (m === 1 ? "" : m + "×") + powerOfTen(e); }
-  return String(Number(x.toPrecision(2)));
-}
-function relMse(x) { const [m, e] = splitTen(x); return (m === 1 ? "" : m + "×") + powerOfTen(e); }
-
-// Ticks of a log axis over [lo, hi]: 1, 2, 5 (or 1..9 on a short axis) times the powers of ten,
-// only the powers of ten on a long one.
-function logTicks(lo, hi) {
-  const span = Math.log10(hi / lo);
-  const steps = span > 3 ? [1] : span > 1.2 ? [1, 2, 5] : [1, 2, 3, 4, 5, 6, 7, 8, 9];
-  const every = span > 8 ? Math.ceil(span / 6) : 1;
-  const ticks = [];
-  for (let e = Math.floor(Math.log10(lo)) - 1; e <= Math.ceil(Math.log10(hi)); ++e) {
-    if (steps.length === 1 && e % every) continue;
-    for (const m of steps) {
-      const v = m * Math.pow(10, e);
-      if (v >= lo * (1 - 1e-9) && v <= hi * (1 + 1e-9)) ticks.push(v);
-    }
-  }
-  return ticks;
-}
-
-// A range [lo, hi] around `values` (all > 0), a little wider than they are, in log space.
-function logRange(values) {
-  let lo = Math.min(...values), hi = Math.max(...values);
-  if (hi / lo < 1.5) { const mid = Math.sqrt(lo * hi); lo = mid / 1.6; hi = mid * 1.6; }
-  const pad = Math.pow(hi / lo, 0.05);
-  return [lo / pad, hi * pad];
-}
-
-function svgEl(tag, attrs, text) {
-  const e = document.createElementNS("http://www.w3.org/2000/svg", tag);
-  for (const [k, v] of Object.entries(attrs || {})) e.setAttribute(k, v);
-  if (text !== undefined) e.textContent = text;
-  return e;
-}
-
-function drawErrorPlot() {
-  const box = $("error-plot");
-  const W = Math.max(300, Math.round(box.clientWidth)), H = Math.max(240, Math.round(box.clientHeight));
-  const svg = svgEl("svg", { viewBox: `0 0 ${W} ${H}`, width: W, height: H, id: "error-plot-svg" });
-  const { rows, target } = state.plot;
-  const est = rows.filter((r) => r.est > 0 && isFinite(r.est));
-  const ref = rows.filter((r) => r.ref > 0 && isFinite(r.ref));
-  box.dataset.points = String(est.length);
-  box.dataset.target = target ? String(target) : "";
-  // The legend above the plot, in as many rows as its entries need.
-  const now = est[est.length - 1];
-  const entries = est.length ? [["series-est", "estimated relMSE (now " + sci(now.est) + " at " + duration(now.t) + ")"]] : [];
-  if (ref.length) entries.push(["series-ref", "measured against the reference"]);
-  if (target && est.length) entries.push(["target", "target error " + sci(target)]);
-  const m = { left: 78, right: 18, top: 30, bottom: 48 };
-  const placed = [];
-  let lx = m.left, ly = 14;
-  for (const [cls, name] of entries) {
-    const w = 28 + name.length * 6.6 + 20;
-    if (lx > m.left && lx + w > W - m.right) { lx = m.left; ly += 18; }
-    placed.push([cls, name, lx, ly]);
-    lx += w;
-  }
-  m.top = ly + 16;
-  const pw = W - m.left - m.right, ph = H - m.top - m.bottom;
-  // Axis labels, always there.
-  svg.append(svgEl("text", { class: "label axis-label x-label", x: m.left + pw / 2, y: H - 8,
-                             "text-anchor": "middle" }, "time (s)"));
-  svg.append(svgEl("text", { class: "label axis-label y-label", "text-anchor": "middle",
-                             transform: `translate(16 ${m.top + ph / 2}) rotate(-90)` },
-                   "relative MSE"));
-  svg.append(svgEl("rect", { class: "axis", x: m.left, y: m.top, width: pw, height: ph }));
-  if (!est.length) {
-    svg.append(svgEl("text", { class: "none", x: m.left + pw / 2, y: m.top + ph / 2,
-                               "text-anchor": "middle" }, "no error record yet"));
-    box.replaceChildren(svg);
-    return;
-  }
-  const times = est.concat(ref).map((r) => r.t);
-  const errors = est.map((r) => r.est).concat(ref.map((r) => r.ref), target ? [target] : []);
-  const [x0, x1] = logRange(times), [y0, y1] = logRange(errors);
-  const X = (v) => m.left + pw * Math.log(v / x0) / Math.log(x1 / x0);
-  const Y = (v) => m.top + ph * (1 - Math.log(v / y0) / Math.log(y1 / y0));
-  // Grid lines and tick labels; a label closer to the last one than a label's size is left out.
-  let last = -Infinity;
-  for (const v of logTicks(x0, x1)) {
-    const x = X(v);
-    svg.append(svgEl("line", { class: "grid", x1: x, x2: x, y1: m.top, y2: m.top + ph }));
-    svg.append(svgEl("line", { class: "axis", x1: x, x2: x, y1: m.top + ph, y2: m.top + ph + 5 }));
-    const label = seconds(v);
-    if (x - last < label.length * 7 + 10) continue;
-    last = x;
-    svg.append(svgEl("text", { class: "tick x-tick", x, y: m.top + ph + 19, "text-anchor": "middle" }, label));
-  }
-  last = Infinity;
-  for (const v of logTicks(y0, y1)) {
-    const y = Y(v);
-    svg.append(svgEl("line", { class: "grid", x1: m.left, x2: m.left + pw, y1: y, y2: y }));
-    svg.append(svgEl("line", { class: "axis", x1: m.left - 5, x2: m.left, y1: y, y2: y }));
-    if (last - y < 16) continue;
-    last = y;
-    svg.append(svgEl("text", { class: "tick y-tick", x: m.left - 8, y: y + 4, "text-anchor": "end" }, relMse(v)));
-  }
-  if (target) {
-    const y = Y(target);
-    svg.append(svgEl("line", { class: "target", x1: m.left, x2: m.left + pw, y1: y, y2: y }));
-    // Labelled at the left end, above the line: the curves fall towards it from there, and reach
-    // it (if ever) at the right.
-    svg.append(svgEl("text", { class: "target-label", x: m.left + 8, y: y - 6 }, "target " + sci(target)));
-  }
-  const series = (list, key, cls, name) => {
-    if (!list.length) return;
-    const points = list.map((r) => X(r.t).toFixed(1) + "," + Y(r[key]).toFixed(1)).join(" ");
-    const line = svgEl("polyline", { class: "series-" + cls, points });
-    line.append(svgEl("title", {}, name));
-    svg.append(line);
-    const endpoint = list[list.length - 1];
-    svg.append(svgEl("circle", { class: "dot-" + cls, cx: X(endpoint.t), cy: Y(endpoint[key]), r: 3.5 }));
-  };
-  series(ref, "ref", "ref", "measured against the reference");
-  series(est, "est", "est", "estimated relMSE");
-  for (const [cls, name, x, y] of placed) {
-    svg.append(svgEl("line", { class: cls, x1: x, x2: x + 22, y1: y, y2: y }));
-    svg.append(svgEl("text", { class: "legend", x: x + 28, y: y + 4 }, name));
-  }
-  box.replaceChildren(svg);
-}
-
-function drawFrames(frames) {
-  const tiles = frames.map((f) => {
-    const done = STATES[f.state] === "done";
-    const box = el("div", { class: "frame", "data-frame": f.frame });
-    if (done && state.thumbs.get(f.job_id)) {
-      box.append(el("img", { src: state.thumbs.get(f.job_id), alt: "frame " + f.frame }));
-    } else {
-      box.append(el("div", { class: "pending" }));
-      // One fetch per finished frame (a finished frame's image does not change), a few at a time.
-      const loading = [...state.thumbs.values()].filter((u) => u === null).length;
-      if (done && !state.thumbs.has(f.job_id) && loading < 4) {
-        state.thumbs.set(f.job_id, null);
-        api("/api/jobs/" + encodeURIComponent(f.job_id) + "/image.png")
-          .then((r) => r.blob())
-          .then((b) => state.thumbs.set(f.job_id, URL.createObjectURL(b)))
-          .catch(() => state.thumbs.delete(f.job_id));
-      }
-    }
-    box.append(el("div", {}, f.frame + " · " +
-      (done ? "done" : STATES[f.state] === "running" ? Number(f.percent).toFixed(0) + "%" : STATES[f.state])));
-    return box;
-  });
-  $("frames").replaceChildren(...tiles);
+  await showJobDetail(id, detail, sequence);
 }
 
 // ---- actions ----------------------------------------------------------------------------------
@@ -603,13 +457,9 @@ window.addEventListener("DOMContentLoaded", async () => {
   });
   $("set-priority").addEventListener("click", () =>
     act("priority", { priority: parseInt($("priority").value, 10) }));
-  // The plot is drawn to its box's size: again when the box changes size.
-  let plotWidth = 0;
-  new ResizeObserver(() => {
-    const w = $("error-plot").clientWidth;
-    if (w && w !== plotWidth) { plotWidth = w; drawErrorPlot(); }
-  }).observe($("error-plot"));
-  drawErrorPlot();
+  watchErrorPlot();
+  watchFrames();
+  watchWorkers();
   try { await loadSession(); } catch (e) { say("cannot reach the master: " + e.message, true); }
   refresh();
   setInterval(refresh, 1000);

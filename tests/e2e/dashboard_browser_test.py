@@ -2,14 +2,20 @@
 """The dashboard in a real browser: a master with CURVE keys, a worker and the CLI as real
 processes on loopback, and the page opened in headless Chromium (Debian's chromium and
 chromium-driver, through python3-selenium). From the page's DOM it checks that a running job's
-progress and preview update, that the page is read-only without a token, that a token of another
-key is refused when it cancels the job, and that the owner's token cancels it. Then, with a job
-of a 60-character name running, it checks the layout at 1024, 1280 and 1600 px wide viewports:
-no table cell's content is clipped and every table fits its card (the tables' .table-wrap would
-scroll sideways otherwise, never the page), every visible button and input lies inside the
-viewport once scrolled into view, and the error plot is an SVG at least 300 px wide and tall with
-labelled log axes and the job's error record drawn. Every wait is bounded; every process is
-killed by PID at the end; a screenshot is left in the build folder.
+progress and preview update, that its view shows its submitted and started times, a unit
+rendering on the worker, the worker's share and the job's log, that the page is read-only without
+a token, that a token of another key is refused when it cancels the job and is shown no worker
+buttons, and that the owner's token cancels it (then its finished time shows). A sequence's
+frames show their states, and one selected shows its own view. The worker's owner (the client key
+of the worker key's name) drains, enables, disables (its units go back) and enables it from the
+page. Then, with a job of a 60-character name running and an admin signed in, it checks the
+layout at 1024, 1280 and 1600 px wide viewports: no table cell's content is clipped and every
+table fits its card (the tables' .table-wrap would scroll sideways otherwise, never the page),
+every visible button and input lies inside the viewport once scrolled into view, and the error
+plot is an SVG at least 300 px wide and tall with labelled log axes and the job's error record
+drawn. Every wait is bounded; every process is killed by PID at the end; a screenshot is left in
+the build folder. (Helpers: dashboard_browser_util.py; the job view and worker checks:
+dashboard_browser_views.py.)
 
 Usage: dashboard_browser_test.py BUILD_DIR SOURCE_DIR
 With RAYFARM_SCREENSHOTS=DIR set, the whole page at 1024 and 1600 px is saved to
@@ -26,15 +32,16 @@ import tempfile
 import time
 
 from selenium import webdriver
-from selenium.common.exceptions import (NoSuchElementException, StaleElementReferenceException,
-                                        TimeoutException)
 from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.by import By
-from selenium.webdriver.support import expected_conditions as EC
-from selenium.webdriver.support.ui import WebDriverWait
+
+from dashboard_browser_util import (accept_confirm, attribute, check, check_layout, click, text,
+                                    wait_for)
+from dashboard_browser_views import (check_finished_detail, check_no_worker_buttons,
+                                     check_running_detail, check_sequence, check_worker_controls,
+                                     count)
 
 BUILD, SOURCE = sys.argv[1], sys.argv[2]
-WAIT = 45  # seconds, for anything the page should show
 processes = []
 
 
@@ -62,145 +69,14 @@ def cli(*args, key=None):
     return out.stdout.strip()
 
 
-def check(condition, message):
-    if not condition:
-        raise AssertionError(message)
-
-
-# The page redraws its tables every second: elements are read and clicked in one script, so that
-# none goes stale between finding it and using it.
-def text(d, selector):
-    return d.execute_script("const e = document.querySelector(arguments[0]);"
-                            "return e ? e.textContent : null;", selector)
-
-
-def attribute(d, selector, name):
-    return d.execute_script("const e = document.querySelector(arguments[0]);"
-                            "return e ? e.getAttribute(arguments[1]) : null;", selector, name)
-
-
-def click(d, selector):
-    d.execute_script("document.querySelector(arguments[0]).click();", selector)
-
-
-def accept_confirm(driver):
-    try:
-        WebDriverWait(driver, 10).until(EC.alert_is_present()).accept()
-    except TimeoutException:
-        raise AssertionError("the page asked for no confirmation") from None
-
-
-def wait_for(driver, what, predicate):
-    try:
-        return WebDriverWait(driver, WAIT, poll_frequency=0.2,
-                             ignored_exceptions=(NoSuchElementException,
-                                                 StaleElementReferenceException)
-                             ).until(lambda d: predicate(d))
-    except TimeoutException:
-        raise AssertionError(f"the page did not show {what} within {WAIT} s") from None
-
-
-# What the page shows wrong at the current viewport width: a list of problems, empty when none.
-LAYOUT_PROBLEMS = """
-const problems = [];
-const root = document.documentElement;
-const vw = root.clientWidth, vh = window.innerHeight;
-if (root.scrollWidth > vw + 1) problems.push(`the page is ${root.scrollWidth} px wide in a ${vw} px window`);
-const show = (e) => (e.id ? '#' + e.id : e.tagName.toLowerCase()) +
-  (e.textContent ? ' "' + e.textContent.trim().slice(0, 40) + '"' : '');
-for (const table of document.querySelectorAll('table')) {
-  const wrap = table.closest('.table-wrap');
-  if (!wrap) { problems.push(`table #${table.id} has no .table-wrap`); continue; }
-  const overflowX = getComputedStyle(wrap).overflowX;
-  if (!['auto', 'scroll'].includes(overflowX)) problems.push(`#${table.id}'s wrap does not scroll (${overflowX})`);
-  // Scrolling is the fallback: at these widths every table fits without it.
-  if (wrap.scrollWidth > wrap.clientWidth + 1)
-    problems.push(`table #${table.id} is ${wrap.scrollWidth} px wide in a ${wrap.clientWidth} px container ` +
-      '(columns ' + [...table.querySelectorAll('th')].map((th) => th.textContent + ' ' +
-                                                           Math.round(th.offsetWidth)).join(', ') + ')');
-  const card = wrap.closest('.card').getBoundingClientRect(), r = wrap.getBoundingClientRect();
-  if (r.left < card.left - 0.5 || r.right > card.right + 0.5) problems.push(`#${table.id}'s wrap sticks out of its card`);
-  for (const cell of table.querySelectorAll('th, td')) {
-    if (cell.scrollWidth > cell.clientWidth + 1 || cell.scrollHeight > cell.clientHeight + 1)
-      problems.push(`a cell of #${table.id} clips its content: ${show(cell)}`);
-    const c = cell.getBoundingClientRect();
-    if (c.right > r.right + 0.5 && wrap.scrollWidth <= wrap.clientWidth + 1)
-      problems.push(`a cell of #${table.id} lies outside its container: ${show(cell)}`);
-  }
-}
-for (const e of document.querySelectorAll('button, input, #detail h2, .detail-body > *')) {
-  if (!e.getClientRects().length) continue;  // hidden
-  e.scrollIntoView({block: 'nearest', inline: 'nearest'});
-  const b = e.getBoundingClientRect();
-  if (b.left < -0.5 || b.top < -0.5 || b.right > vw + 0.5 || b.bottom > vh + 0.5)
-    problems.push(`${show(e)} is not inside the ${vw}x${vh} window: ${JSON.stringify(b)}`);
-  const card = e.closest('.card');
-  if (card) {
-    const cb = card.getBoundingClientRect();
-    if (b.left < cb.left - 0.5 || b.right > cb.right + 0.5) problems.push(`${show(e)} sticks out of its card`);
-  }
-}
-window.scrollTo(0, 0);
-return problems;
-"""
-
-# The error plot: its size, its axis and tick labels, the points drawn.
-PLOT = """
-const svg = document.querySelector('#error-plot svg');
-if (!svg) return null;
-const r = svg.getBoundingClientRect();
-const texts = (sel) => [...svg.querySelectorAll(sel)].map((t) => t.textContent);
-const line = svg.querySelector('polyline.series-est');
-return {width: r.width, height: r.height, x_label: texts('.x-label').join(), y_label: texts('.y-label').join(),
-        x_ticks: texts('.x-tick'), y_ticks: texts('.y-tick'),
-        points: line ? line.getAttribute('points').trim().split(/\\s+/).length : 0,
-        card_width: document.getElementById('detail').getBoundingClientRect().width};
-"""
-
-
-def viewport(driver, width, height):
-    driver.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",
-                           {"width": width, "height": height, "deviceScaleFactor": 1,
-                            "mobile": False})
-
-
-def check_layout(driver, job, name):
-    row = f'#jobs tbody tr[data-job="{job}"]'
-    shots = os.environ.get("RAYFARM_SCREENSHOTS")
-    for width in (1600, 1280, 1024):
-        viewport(driver, width, 900)
-        time.sleep(1.5)  # a redraw of the tables, and of the plot at its new size
-        # The whole page in the window, so that the screenshot shows all of it.
-        height = min(2400, driver.execute_script("return document.documentElement.scrollHeight"))
-        viewport(driver, width, max(height, 700))
-        time.sleep(0.5)
-        inner = driver.execute_script("return window.innerWidth")
-        check(inner == width, f"the window is {inner} px wide, not {width}")
-        check(text(driver, row + " .job-name") == name,
-              f"at {width} px the job's name reads {text(driver, row + ' .job-name')!r}")
-        problems = driver.execute_script(LAYOUT_PROBLEMS)
-        # With the window as tall as the page, buttons fit anyway: check them in a short one too.
-        viewport(driver, width, 700)
-        time.sleep(0.3)
-        problems += driver.execute_script(LAYOUT_PROBLEMS)
-        check(not problems, f"at {width} px: " + "; ".join(dict.fromkeys(problems)))
-        plot = driver.execute_script(PLOT)
-        check(plot is not None, f"at {width} px there is no error plot SVG")
-        check(plot["width"] >= 300 and plot["height"] >= 300,
-              f"at {width} px the error plot is {plot['width']}x{plot['height']} px")
-        check("time" in plot["x_label"] and "(s)" in plot["x_label"],
-              f"the plot's x axis label is {plot['x_label']!r}")
-        check("relative MSE" in plot["y_label"], f"the plot's y axis label is {plot['y_label']!r}")
-        check(len(plot["x_ticks"]) >= 2 and len(plot["y_ticks"]) >= 2,
-              f"the plot's tick labels: x {plot['x_ticks']}, y {plot['y_ticks']}")
-        check(plot["points"] >= 2, f"the plot draws {plot['points']} points")
-        print(f"{width} px: layout fine; error plot {plot['width']:.0f}x{plot['height']:.0f} px, "
-              f"x ticks {plot['x_ticks']}, y ticks {plot['y_ticks']}, {plot['points']} points")
-        if shots and width in (1024, 1600):
-            viewport(driver, width, max(height, 700))
-            time.sleep(1.2)
-            os.makedirs(shots, exist_ok=True)
-            driver.save_screenshot(os.path.join(shots, f"dashboard-{width}.png"))
+def sign_in(driver, token, badge):
+    """Signs out whoever is signed in, then in with `token`; `badge`: what the page then says."""
+    if driver.find_element(By.ID, "signout").is_displayed():
+        driver.find_element(By.ID, "signout").click()
+        wait_for(driver, "signed out", lambda d: text(d, "#who") == "read-only")
+    driver.find_element(By.ID, "token").send_keys(token)
+    driver.find_element(By.ID, "signin-button").click()
+    wait_for(driver, badge + " signed in", lambda d: text(d, "#who") == badge)
 
 
 def main():
@@ -211,19 +87,22 @@ def main():
     CLIENT = f"tcp://127.0.0.1:{client_port}"
     driver = None
     try:
-        # Keys: the master's, two client keys (alice submits, bob does not own the job), a worker.
+        # Keys: the master's, client keys (alice submits, bob does not own the job, root is an
+        # admin), a worker's, w1, also listed as a client: w1's owner, who may drain it.
         cli("keygen", "--dir", KEYS, "--name", "master")
-        for name, allow in (("alice", "clients"), ("bob", "clients"), ("w1", "workers")):
+        for name, allow in (("alice", ["clients"]), ("bob", ["clients"]), ("root", ["clients"]),
+                            ("w1", ["workers", "clients"])):
             cli("keygen", "--dir", os.path.join(KEYS, "own"), "--name", name)
-            os.makedirs(os.path.join(KEYS, allow), exist_ok=True)
-            shutil.copy(os.path.join(KEYS, "own", name + ".key"), os.path.join(KEYS, allow))
+            for folder in allow:
+                os.makedirs(os.path.join(KEYS, folder), exist_ok=True)
+                shutil.copy(os.path.join(KEYS, "own", name + ".key"), os.path.join(KEYS, folder))
         master = start([os.path.join(BUILD, "master/rayfarm-master"),
                         "--worker-endpoint", f"tcp://127.0.0.1:{worker_port}",
                         "--client-endpoint", CLIENT, "--data-dir", os.path.join(work, "data"),
                         "--http-endpoint", f"127.0.0.1:{http_port}",
                         "--key", os.path.join(KEYS, "master.key_secret"),
                         "--worker-keys", os.path.join(KEYS, "workers"),
-                        "--client-keys", os.path.join(KEYS, "clients"),
+                        "--client-keys", os.path.join(KEYS, "clients"), "--admin-clients", "root",
                         "--image-interval-ms", "300"], os.path.join(work, "master.log"))
         deadline = time.time() + 20
         while "master listening" not in open(os.path.join(work, "master.log")).read():
@@ -240,7 +119,9 @@ def main():
                   "browser-test", "--res", "96x96", "--spp", "65536", "--pass-spp", "4",
                   key="alice")
         alice, bob = cli("token", key="alice"), cli("token", key="bob")
-        check(alice.startswith("rft1.") and alice != bob, f"odd tokens: {alice!r}, {bob!r}")
+        root, owner = cli("token", key="root"), cli("token", key="w1")
+        check(alice.startswith("rft1.") and len({alice, bob, root, owner}) == 4,
+              f"odd tokens: {alice!r}, {bob!r}, {root!r}, {owner!r}")
 
         options = webdriver.ChromeOptions()
         options.binary_location = shutil.which("chromium") or "/usr/bin/chromium"
@@ -271,6 +152,9 @@ def main():
         width = driver.execute_script("return document.getElementById('preview').naturalWidth")
         check(width == 96, f"the preview is {width} pixels wide, not 96")
         wait_for(driver, "the preview updating", lambda d: loaded(d) not in (None, version))
+        # Its view: times, units, the worker's share, the log; no worker buttons without a token.
+        check_running_detail(driver, job)
+        check_no_worker_buttons(driver, None, "a reader without a token")
         check(not driver.find_element(By.ID, "cancel").is_enabled(),
               "cancel is offered without a token")
         # Without a token the API refuses the action itself, not only the button.
@@ -281,10 +165,8 @@ def main():
 
         # Bob's token: signed in, but not the job's owner: the button stays off, and a cancel
         # sent anyway is refused, with the reason on the page.
-        driver.find_element(By.ID, "token").send_keys(bob)
-        driver.find_element(By.ID, "signin-button").click()
-        wait_for(driver, "bob signed in", lambda d: text(d, "#who") == "key bob")
-        time.sleep(1.5)  # a refresh with the session
+        sign_in(driver, bob, "key bob")
+        check_no_worker_buttons(driver, bob, "bob")  # neither w1's key nor an admin
         check(not driver.find_element(By.ID, "cancel").is_enabled(),
               "cancel is offered to a key that does not own the job")
         # Enabled and clicked in one turn of the page's loop, which re-disables it every second.
@@ -297,11 +179,7 @@ def main():
               "the job stopped running after a refused cancel")
 
         # Alice's token cancels it.
-        driver.find_element(By.ID, "signout").click()
-        wait_for(driver, "signed out", lambda d: text(d, "#who") == "read-only")
-        driver.find_element(By.ID, "token").send_keys(alice)
-        driver.find_element(By.ID, "signin-button").click()
-        wait_for(driver, "alice signed in", lambda d: text(d, "#who") == "key alice")
+        sign_in(driver, alice, "key alice")
         wait_for(driver, "cancel offered to the owner",
                  lambda d: d.find_element(By.ID, "cancel").is_enabled())
         driver.save_screenshot(os.path.join(BUILD, "dashboard-screenshot.png"))
@@ -311,6 +189,7 @@ def main():
                  lambda d: attribute(d, row, "data-state") == "cancelled")
         state = json.loads(cli("status", job, "--json", key="alice"))
         check(state.get("state") in ("cancelled", "JOB_CANCELLED"), f"the CLI says {state}")
+        check_finished_detail(driver, job)
 
         # Over, it offers Retry and Delete instead: a retry runs it again, from its first sample.
         wait_for(driver, "retry offered on the cancelled job",
@@ -340,6 +219,15 @@ def main():
         check(gone.returncode == 1 and "unknown job" in gone.stderr,
               f"after delete the CLI says {gone.returncode}: {gone.stderr}")
 
+        # A sequence of three small frames: a tile per frame with its state, one frame's view.
+        seq = cli("submit", os.path.join(SOURCE, "scenes/animated-box/scene.json"), "--name",
+                  "browser-sequence", "--frames", "1-3", "--res", "32x32", "--spp", "16",
+                  "--pass-spp", "4", key="alice")
+        wait_for(driver, "the sequence's row", lambda d: text(d, f'#jobs tbody tr[data-job="{seq}"]'))
+        check_sequence(driver, seq, [1, 2, 3])
+        cli("rm", seq, key="alice")
+        wait_for(driver, "the sequence gone", lambda d: text(d, f'#jobs tbody tr[data-job="{seq}"]') is None)
+
         # The layout, with a realistic long job name (60 characters) running, alice signed in.
         name = "kitchen-interior_lookdev-v012_final-4k_cam03-denoise-off-tk7"
         check(len(name) == 60, f"the long name has {len(name)} characters")
@@ -354,6 +242,16 @@ def main():
         wait_for(driver, "its error plot with a few points",
                  lambda d: int(attribute(d, "#error-plot", "data-points") or 0) >= 4)
         wait_for(driver, "cancel offered on it",
+                 lambda d: d.find_element(By.ID, "cancel").is_enabled())
+        # w1's owner drains, enables, disables and enables it again, the job running on it.
+        sign_in(driver, owner, "key w1")
+        check_worker_controls(driver, long_job)
+        # An admin may change any worker, and act on anyone's job; the layout is checked with
+        # both the job's and the worker's buttons shown.
+        sign_in(driver, root, "key root (admin)")
+        wait_for(driver, "the worker's buttons for an admin",
+                 lambda d: count(d, '#workers tbody button[data-action="drain"]') == 1)
+        wait_for(driver, "cancel offered to an admin",
                  lambda d: d.find_element(By.ID, "cancel").is_enabled())
         # Sorting and filtering: a second job, held paused; the filter keeps the jobs whose id,
         # name, owner or state hold its words; a header sorts by its column, again the other way.
