@@ -92,21 +92,24 @@ struct BrokerRun {
   double warmup = -1;       // before the window; negative: chosen from the mode
   uint32_t size = 1024, tile = 64, spp = 16, pass_spp = 4;
   int http_pollers = 0;         // dashboard pages polling the master's HTTP endpoint
-  int http_interval_ms = 1000;  // each page's round of /api/jobs, /api/workers and /metrics
+  int http_interval_ms = 1000;  // each page's round: jobs, workers, the job's detail, metrics
 };
 
 /// Pages polling the master's HTTP endpoint, as the dashboard and Prometheus do: each a round of
-/// /api/jobs, /api/workers and /metrics every interval, on threads of their own.
+/// /api/jobs, /api/workers, the job's detail view (/api/jobs/JOB/detail, which the reactor
+/// answers) and /metrics every interval, on threads of their own.
 class HttpPollers {
  public:
-  HttpPollers(const std::string& url, int pollers, int interval_ms) {
+  HttpPollers(const std::string& url, const std::string& job, int pollers, int interval_ms) {
     for (int i = 0; i < pollers; ++i) {
-      threads_.emplace_back([this, url, interval_ms] {
+      threads_.emplace_back([this, url, job, interval_ms] {
         httplib::Client c(url.substr(0, url.size() - 1));
         c.set_keep_alive(true);
+        const std::string detail = "/api/jobs/" + job + "/detail";
         while (!stop_) {
           const auto next = Clock::now() + milliseconds{interval_ms};
-          for (const char* path : {"/api/jobs", "/api/workers", "/metrics"}) {
+          for (const std::string& path : {std::string("/api/jobs"), std::string("/api/workers"),
+                                          detail, std::string("/metrics")}) {
             auto res = c.Get(path);
             if (res && res->status == 200) {
               ++ok_;
@@ -237,7 +240,8 @@ void bench_broker(const BrokerRun& run) {
     const Sample before = sample(0);
     fleet.emplace(broker.worker_endpoint(),
                   rayfarm::bench::FleetOptions{run.workers, run.worker_threads, run.unit_seconds});
-    if (run.http_pollers > 0) pollers.emplace(broker.http_url(), run.http_pollers, run.http_interval_ms);
+    if (run.http_pollers > 0)
+      pollers.emplace(broker.http_url(), job, run.http_pollers, run.http_interval_ms);
     first = before;
     if (run.seconds > 0) {
       const double warmup = run.warmup >= 0 ? run.warmup : std::max(2.0, 1.5 * run.unit_seconds);
@@ -330,7 +334,8 @@ int main(int argc, char** argv) {
   app.add_option("--spp", run.spp, "samples per pixel")->capture_default_str();
   app.add_option("--pass-spp", run.pass_spp, "samples per pass")->capture_default_str();
   app.add_option("--http-pollers", run.http_pollers,
-                 "pages polling the master's HTTP endpoint (/api/jobs, /api/workers, /metrics)")
+                 "pages polling the master's HTTP endpoint (/api/jobs, /api/workers, the job's "
+                 "detail, /metrics)")
       ->capture_default_str();
   app.add_option("--http-interval-ms", run.http_interval_ms, "each page's polling interval")
       ->capture_default_str();
