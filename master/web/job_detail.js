@@ -92,8 +92,8 @@ async function showJobDetail(id, detail, sequence) {
       ...timeFacts(job));
   }
   drawUnits(detail, job, sequence && !frame);
-  drawShares(detail.workers || []);
-  drawLog(detail.log || [], Number(detail.log_left_out || 0));
+  drawShares(detail.workers || [], finished(job), Boolean(job.sequence));
+  drawLog(detail.log || [], Number(detail.log_left_out || 0), Boolean(job.sequence));
 }
 
 const UNIT_STATES = { rendering: "running", queued: "queued", done: "done" };
@@ -154,7 +154,7 @@ function drawUnits(detail, job, sequence) {
     : "No unit of it handed out yet.";
 }
 
-function drawShares(shares) {
+function drawShares(shares, over, frame) {
   const total = shares.reduce((n, w) => n + Number(w.units_done || 0), 0);
   const rows = [...shares].sort((a, b) => Number(b.units_done) - Number(a.units_done)).map((w) => {
     const pct = total ? 100 * Number(w.units_done || 0) / total : 0;
@@ -171,10 +171,13 @@ function drawShares(shares) {
   $("shares").querySelector("tbody").replaceChildren(...rows);
   $("shares-wrap").hidden = rows.length === 0;
   $("no-shares").hidden = rows.length > 0;
+  $("no-shares").textContent = !over ? "No unit of it rendered yet."
+    : "It is over: the master keeps the workers' shares only while a job runs" +
+      (frame ? "." : " (its log's last line names them).");
 }
 
 // The log, oldest first, kept scrolled to its newest line unless the reader scrolled up.
-function drawLog(lines, leftOut) {
+function drawLog(lines, leftOut, frame) {
   const box = $("job-log");
   const last = lines[lines.length - 1];
   const key = lines.length + "/" + leftOut + "/" + (last ? last.unix_ms + last.text : "");
@@ -189,7 +192,11 @@ function drawLog(lines, leftOut) {
       el("span", { class: "log-text" }, l.text || ""));
   });
   if (leftOut > 0) items.unshift(el("li", { class: "log-more" }, leftOut + " earlier lines left out"));
-  if (!items.length) items.push(el("li", { class: "log-more" }, "nothing logged yet"));
+  if (!items.length) {
+    // A sequence's frames log only what is out of the ordinary; their times say the rest.
+    items.push(el("li", { class: "log-more" }, frame
+      ? "nothing out of the ordinary: a frame logs its failures and errors only" : "nothing logged yet"));
+  }
   box.replaceChildren(...items);
   $("log-count").textContent = lines.length ? "(" + (lines.length + leftOut) + " lines)" : "";
   if (atEnd) box.scrollTop = box.scrollHeight;

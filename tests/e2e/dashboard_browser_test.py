@@ -19,7 +19,8 @@ dashboard_browser_views.py.)
 
 Usage: dashboard_browser_test.py BUILD_DIR SOURCE_DIR
 With RAYFARM_SCREENSHOTS=DIR set, the whole page at 1024 and 1600 px is saved to
-DIR/dashboard-1024.png and DIR/dashboard-1600.png (docs/images/ keeps them).
+DIR/dashboard-1024.png and DIR/dashboard-1600.png, and a sequence with a frame's view open to
+DIR/dashboard-sequence.png (docs/images/ keeps them).
 """
 import json
 import os

@@ -4,11 +4,12 @@ what each worker rendered of it and its log (/api/jobs/ID/detail); a sequence's 
 selected for its own view; a worker drained, enabled, disabled and enabled again from the page, by
 its key's owner, and no buttons for a key that may not.
 """
+import os
 import re
 import time
 
 from dashboard_browser_util import (api_status, attribute, check, click, click_then_confirm,
-                                    text, wait_for)
+                                    text, viewport, wait_for)
 
 CLOCK = re.compile(r"\d\d:\d\d:\d\d")
 YEAR = time.strftime("%Y")
@@ -155,6 +156,16 @@ def check_sequence(d, seq, frames):
     status, body = api_status(d, "GET", f"/api/jobs/{frame}/detail")
     check(status == 200, f"the frame's detail: HTTP {status}")
     wait_for(d, "the frame's log", lambda d: count(d, "#job-log li.log-line") == len(body["log"]))
+    shots = os.environ.get("RAYFARM_SCREENSHOTS")
+    if shots:  # the sequence with one frame's view open, for docs/farm.md
+        size = d.execute_script("return [window.innerWidth, window.innerHeight];")
+        viewport(d, 1280, 1200)
+        time.sleep(1.5)  # the contact sheet of the three frames, redrawn at this width
+        d.execute_script("document.getElementById('detail').scrollIntoView();")
+        time.sleep(0.3)
+        os.makedirs(shots, exist_ok=True)
+        d.save_screenshot(os.path.join(shots, "dashboard-sequence.png"))
+        viewport(d, *size)
     click(d, "#frame-close")
     wait_for(d, "the whole sequence's view again", lambda d: attribute(d, "#job-detail", "data-job") == seq
              and not d.find_element("id", "frame-head").is_displayed())
