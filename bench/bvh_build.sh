@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Samples per second on scenes that tell the BVH's two builds apart (worker/embree/build_choice.h:
+# Samples per second on scenes that tell the BVH's two builds apart (renderer/embree/build_choice.h:
 # one tree over every triangle, or a tree per geometry under one over those): the bundled Cornell
 # box and blocks (walls that are geometries of their own), and three generated rooms, the Cornell
 # walls with

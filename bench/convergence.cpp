@@ -35,7 +35,7 @@
 #include "common/report/plot.h"
 #include "common/scene/motion.h"
 #include "common/scene/parser.h"
-#include "worker/renderer.h"
+#include "renderer/renderer.h"
 
 namespace fs = std::filesystem;
 using namespace rayfarm;

@@ -18,7 +18,7 @@
 #include <fmt/format.h>
 
 #include "common/util/log.h"
-#include "worker/renderer.h"
+#include "renderer/renderer.h"
 
 namespace {
 
@@ -40,7 +40,7 @@ void quad(Scene& s, Vec3 c, Vec3 e1, Vec3 e2, uint32_t material) {
   s.meshes.push_back(mesh);
 }
 
-/// The closed room of tests/worker/stability_scenes.h (room_with_light), light side `side`; a
+/// The closed room of tests/renderer/stability_scenes.h (room_with_light), light side `side`; a
 /// sphere of radius `sphere` at (0, 0.7, 0) instead of the square when sphere > 0.
 Scene room(float side, float le, uint32_t size, float sphere = 0.f) {
   Scene s;

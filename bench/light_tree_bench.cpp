@@ -1,4 +1,4 @@
-// Light selection by power against the light tree (worker/lights/light_selection.h) at equal
+// Light selection by power against the light tree (renderer/lights/light_selection.h) at equal
 // time: renders SCENE with each strategy at the same spp, alternating, ROUNDS times, and prints
 // per strategy the median time, the median relMSE against a reference (the tree's, at many
 // samples, its own noise subtracted) and their product, relMSE x time, whose inverse is the
@@ -22,9 +22,9 @@
 #include "common/scene/motion.h"
 #include "common/scene/parser.h"
 #include "common/util/log.h"
-#include "worker/lights/light_tree.h"
-#include "worker/renderer.h"
-#include "worker/samplers/rng.h"
+#include "renderer/lights/light_tree.h"
+#include "renderer/renderer.h"
+#include "renderer/samplers/rng.h"
 
 namespace {
 

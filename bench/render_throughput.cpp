@@ -12,7 +12,7 @@
 
 #include "common/scene/motion.h"
 #include "common/scene/parser.h"
-#include "worker/renderer.h"
+#include "renderer/renderer.h"
 
 int main(int argc, char** argv) {
   CLI::App app{"render_throughput: samples/s and rays/s of rayfarm's renderer"};

@@ -16,7 +16,7 @@
 #include "common/protocol/convert.h"
 #include "common/scene/motion.h"
 #include "common/scene/parser.h"
-#include "worker/renderer.h"
+#include "renderer/renderer.h"
 
 namespace {
 

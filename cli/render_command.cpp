@@ -24,7 +24,7 @@
 #include "common/scene/motion.h"
 #include "common/scene/parser.h"
 #include "common/util/log.h"
-#include "worker/renderer.h"
+#include "renderer/renderer.h"
 
 namespace rayfarm::cli {
 namespace {

@@ -709,7 +709,7 @@ def main():
         "cycles_max_bounces": bounces,
         "max_bounces_rule": "Cycles bounces = our max_depth - 1 (ours counts the camera ray's hit "
                             "as the first scattering vertex; Cycles' 0 bounces is direct light)",
-        "pixel_filter": "box of width 1 pixel (ours: uniform jitter in the pixel, worker/camera.h)",
+        "pixel_filter": "box of width 1 pixel (ours: uniform jitter in the pixel, renderer/camera.h)",
         "emission": "Emission shader strength 1, colour = our emission radiance; front face only "
                     "(Mix Shader on Geometry.Backfacing) unless two_sided",
         "diffuse": "Diffuse BSDF roughness 0 (Lambert), colour = our albedo",

@@ -7,7 +7,7 @@
    name (x.h and x.cpp) are one node, so that x.cpp including y.h while y.cpp includes x.h is a
    cycle, even though no header includes itself. Only project includes ("folder/file.h", resolved
    from the repository root or the including file's folder) count.
-2. No source file of the programs (common/, master/, worker/, cli/) is longer than N lines
+2. No source file of the programs (common/, renderer/, master/, worker/, cli/) is longer than N lines
    (default 500). Tests, benchmarks and fuzzers are not held to it.
 
 Prints each cycle (as a chain of modules) and each long file, and exits 1 when there is any,
@@ -22,7 +22,7 @@ import subprocess
 import sys
 import tempfile
 
-SOURCE_DIRS = ("common", "master", "worker", "cli")
+SOURCE_DIRS = ("common", "renderer", "master", "worker", "cli")
 CHECKED_DIRS = SOURCE_DIRS + ("proto", "tests", "bench", "fuzz")
 EXTENSIONS = (".h", ".hpp", ".cpp", ".cc")
 INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"', re.MULTILINE)

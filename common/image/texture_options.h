@@ -1,7 +1,7 @@
 #pragma once
 // How a texture is looked up, as a scene states it (docs/textures.md): the colour space of its
 // samples, its filter, wrap modes, UV transform and UV origin. The scene describes textures with
-// these; the worker's textures (worker/textures/) apply them.
+// these; the worker's textures (renderer/textures/) apply them.
 #include <array>
 #include <optional>
 

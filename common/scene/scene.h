@@ -46,7 +46,7 @@ struct FilmSize {
 
 // ---- materials: one parameter struct per kind (docs/scene-format.md) ----
 // Adding a kind: its struct here, one line in MaterialKind, its reader in parser.cpp, and its
-// BSDF in worker/bsdfs/ (one header, one line in the worker's Bsdf).
+// BSDF in renderer/bsdfs/ (one header, one line in the worker's Bsdf).
 
 /// Lambertian reflection.
 struct DiffuseMaterial {
@@ -128,7 +128,7 @@ struct ThinDielectricMaterial {
   static constexpr auto textured() { return std::make_tuple(&ThinDielectricMaterial::tint); }
 };
 
-class RoughCoatTable;  // worker/bsdfs/rough_coat.h
+class RoughCoatTable;  // renderer/bsdfs/rough_coat.h
 
 /// A diffuse base under a smooth (alpha 0) or rough (GGX or Beckmann) dielectric coating.
 struct PlasticMaterial {
@@ -139,7 +139,7 @@ struct PlasticMaterial {
   bool nonlinear = false;     ///< internal reflections darken and saturate the base's colour
   MicrofacetType distribution = MicrofacetType::kGgx;
   /// What a rough coating lets through to the base, tabulated by the worker when it prepares
-  /// the scene (worker/bsdfs/rough_coat.h); null until then, and for a smooth coating.
+  /// the scene (renderer/bsdfs/rough_coat.h); null until then, and for a smooth coating.
   const RoughCoatTable* coat_table = nullptr;
   static constexpr auto textured() {
     return std::make_tuple(&PlasticMaterial::diffuse_reflectance, &PlasticMaterial::alpha);
@@ -311,7 +311,7 @@ const char* integrator_name(IntegratorType type);
 /// Parses an integrator name; nullopt when unknown.
 std::optional<IntegratorType> parse_integrator(const std::string& name);
 
-/// Where a sample's random numbers come from (worker/samplers/path_sampler.h).
+/// Where a sample's random numbers come from (renderer/samplers/path_sampler.h).
 enum class SamplerType : uint8_t {
   kIndependent,  ///< one hashed random stream per sample
   kSobol,        ///< Owen-scrambled Sobol' points per group of dimensions, then the stream
@@ -328,7 +328,7 @@ enum class RouletteType : uint8_t {
   /// times eta^2 for each refraction it went through).
   kThroughput,
   /// As kThroughput, survival the fourth root of that (throughput_survival(),
-  /// worker/integrators/path_integrator.h): dim paths are spared at first.
+  /// renderer/integrators/path_integrator.h): dim paths are spared at first.
   kRoot,
 };
 /// "update", "throughput" or "root".

@@ -61,7 +61,7 @@ inline constexpr size_t kMaxSplitMeshes = 65536;
 /// coordinates and tangents), its origin `<origin> (object NAME)` with its (quoted) name from
 /// `names`, or `<origin> (object N)` (N from 1) without one. The mesh itself when `starts` is empty or
 /// holds kMaxMeshObjects or more. Apart, each object gets a tree of its own in the BVH where
-/// objects keep to their own space (worker/embree/build_choice.h).
+/// objects keep to their own space (renderer/embree/build_choice.h).
 std::vector<TriangleMesh> split_objects(TriangleMesh&& mesh, const std::vector<uint32_t>& starts,
                                         const std::vector<std::string>& names = {});
 /// split_objects() of a file's mesh by its objects.

@@ -1,7 +1,7 @@
 #pragma once
 // Textures as the scene describes them, and material parameters that are either a constant or a
 // texture (docs/scene-format.md, "Textures"). The worker turns the descriptions into lookups
-// (worker/textures/).
+// (renderer/textures/).
 #include <cassert>
 #include <cstdint>
 #include <filesystem>

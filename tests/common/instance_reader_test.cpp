@@ -178,7 +178,7 @@ TEST(InstanceReader, FlatteningEmissiveInstancesOnly) {
 }
 
 // Every material works in a group: cut-outs, normal and bump maps and anisotropic roughness are
-// read in the group's space (tests/worker/instance_surface_test.cpp renders them).
+// read in the group's space (tests/renderer/instance_surface_test.cpp renders them).
 TEST(InstanceReader, GroupsWithSurfaceFeaturesAccepted) {
   const char* materials[] = {
       R"({"type": "diffuse", "opacity": 0.2})",

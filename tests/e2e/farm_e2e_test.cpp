@@ -26,7 +26,7 @@
 #include "common/protocol/convert.h"
 #include "common/scene/parser.h"
 #include "tests/e2e/farm_fixture.h"
-#include "worker/renderer.h"
+#include "renderer/renderer.h"
 
 namespace rayfarm::test {
 namespace {
