@@ -12,6 +12,9 @@ namespace rayfarm::cli {
 
 std::string worker_state(const wire::WorkerInfo& w) {
   if (w.control() == "disabled") return "disabled";
+  // The master says "drained" once it holds no units (of any job, also those this key may not
+  // see); an older master says "draining" throughout.
+  if (w.control() == "drained") return "drained";
   if (w.control() == "draining") return w.units().empty() ? "drained" : "draining";
   return w.units().empty() ? "idle" : "busy";
 }

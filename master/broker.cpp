@@ -202,7 +202,11 @@ void Broker::register_worker(const net::PeerId& peer, const wire::Hello& hello,
                            "this is the worker endpoint; clients connect to the client endpoint"));
     return;
   }
-  if (workers_.count(peer)) {
+  // A connection that says hello again keeps a drain or disable it was given, whatever name it
+  // gives now.
+  WorkerControl before = WorkerControl::kEnabled;
+  if (auto known = workers_.find(peer); known != workers_.end()) {
+    before = known->second.control;
     jobs_.release_worker(peer);  // a worker that starts over holds nothing any more
   } else {
     metrics().workers_joined.add();
@@ -214,7 +218,8 @@ void Broker::register_worker(const net::PeerId& peer, const wire::Hello& hello,
   w.build = protocol::printable(hello.build());
   // A worker drained or disabled keeps it when it reconnects under the same key and name.
   const auto remembered = controls_.find(std::make_pair(w.key_name, w.name));
-  w.control = remembered == controls_.end() ? WorkerControl::kEnabled : remembered->second;
+  w.control = std::max(
+      before, remembered == controls_.end() ? WorkerControl::kEnabled : remembered->second);
   heard_from(w);
   w.wants = 0;
   peer_log(PeerLog::kHello, "worker", peer, key_name, spdlog::level::info,

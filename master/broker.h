@@ -76,7 +76,7 @@ class Broker {
  private:
   using Clock = std::chrono::steady_clock;
   /// How a worker takes part in the farm (ChangeWorker): draining and disabled workers get no
-  /// units; a disabled one's were taken back.
+  /// units; a disabled one's were taken back. Ordered: the later, the stricter.
   enum class WorkerControl { kEnabled, kDraining, kDisabled };
   struct Worker {
     std::string name;

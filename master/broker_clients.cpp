@@ -406,9 +406,12 @@ wire::WorkerInfo Broker::worker_info(const net::PeerId& peer, const Worker& w,
                                                                    : 0.0);
     info->set_last_seen_seconds(std::chrono::duration<double>(now - w.heard).count());
     info->set_build(w.build);
-    info->set_control(w.control == WorkerControl::kEnabled    ? "enabled"
-                      : w.control == WorkerControl::kDraining ? "draining"
-                                                              : "disabled");
+    // "drained" from every unit it holds, also those of jobs this user may not see: a worker
+    // still rendering another key's units is not ready to be shut down.
+    info->set_control(w.control == WorkerControl::kEnabled ? "enabled"
+                      : w.control == WorkerControl::kDisabled
+                          ? "disabled"
+                          : (jobs_.units_of(peer).empty() ? "drained" : "draining"));
   }
   return out;
 }

@@ -109,8 +109,17 @@ RequestAnswer Broker::change_worker(const wire::ChangeWorker& request, const std
   const std::string by = JobManager::requester(user ? *user : std::string());
   size_t requeued = 0;
   if (w.control == WorkerControl::kDisabled) {
-    requeued = jobs_.release_worker(peer, "its worker was disabled by " + by);
-    changed = requeued > 0;  // others may take them
+    // The reply counts the units of the jobs this user sees; the log line all of them.
+    for (const std::string& unit : jobs_.units_of(peer)) {
+      const std::string* job_owner = jobs_.owner_of(unit.substr(0, unit.find('/')));
+      if (job_owner && rights_.may_see(*job_owner, user)) ++requeued;
+    }
+    const size_t all = jobs_.release_worker(peer, "its worker was disabled by " + by);
+    changed = all > 0;  // others may take them
+    if (all != requeued) {
+      log()->info("{}: {} of its units belong to jobs that {} may not see", worker_label(peer),
+                  all - requeued, by);
+    }
   }
   if (w.control == WorkerControl::kEnabled && before != WorkerControl::kEnabled) changed = true;
   // Remembered by key and name, so that the worker keeps it when it reconnects.
@@ -119,6 +128,9 @@ RequestAnswer Broker::change_worker(const wire::ChangeWorker& request, const std
     controls_.erase(remembered);
   } else if (controls_.size() < kRememberedControls || controls_.count(remembered)) {
     controls_[remembered] = w.control;
+  } else {
+    log()->warn("{} is {} but not remembered ({} workers are): if it reconnects, it is enabled",
+                worker_label(peer), control_verb(control), kRememberedControls);
   }
   log()->info("{} {} by {}{}", worker_label(peer), control_verb(control), by,
               requeued

@@ -465,6 +465,7 @@ std::string JobManager::admit_one(const JobSpec& spec, std::optional<Image> refe
     job.record.paused = false;
     job.record.error = std::string("the master cannot hold the job: ") + e.what();
     job.record.stop_reason = stop_reason_name(StopReason::kFailed);
+    job.record.finished_unix_ms = wall_ms();
     log_jobs()->error("job {}: {}", spec.id, job.record.error);
     const std::string error = job.record.error;
     auto [it, inserted] = jobs_.emplace(spec.id, std::move(job));
@@ -482,13 +483,7 @@ std::string JobManager::admit_one(const JobSpec& spec, std::optional<Image> refe
       grid.pass_count(), spec.pass_spp, grid.size(), bundle_files, human_bytes(bundle_bytes),
       hash.substr(0, 12), spec.has_reference ? "; error measured against its reference image" : "");
   for (const auto& w : warnings) log_jobs()->warn("job {}: {}", spec.id, w);
-  note(job.record, "info",
-       fmt::format("accepted{}: scene {}, {}x{}, {}, {}; {} units",
-                   job.record.paused ? " paused" : "", spec.scene_path, spec.film.width,
-                   spec.film.height, describe_stop(spec.stop, spec.settings.spp),
-                   integrator_name(spec.settings.integrator), grid.size()),
-       /*routine=*/true);
-  for (const auto& w : warnings) note(job.record, "warning", "the scene: " + w);
+  note_accepted(job.record, grid.size(), describe_stop(spec.stop, spec.settings.spp), warnings);
   const std::string id = spec.id;
   jobs_.emplace(id, std::move(job));
   return id;

@@ -21,8 +21,31 @@ constexpr size_t kDetailUnits = 200;
 }  // namespace
 
 void JobManager::note(JobRecord& record, const char* level, std::string text, bool routine) {
-  if (routine && !record.spec.sequence.empty()) return;
-  record.log.add(wall_ms(), level, std::move(text));
+  const bool frame = !record.spec.sequence.empty();
+  if (routine && frame) return;
+  record.log.add(wall_ms(), level, std::move(text),
+                 frame ? JobLog::kMaxFrameLines : JobLog::kMaxLines,
+                 frame ? JobLog::kMaxFrameText : JobLog::kMaxText);
+}
+
+void JobManager::note_accepted(JobRecord& record, uint64_t units, const std::string& stop,
+                               const std::vector<std::string>& warnings) {
+  const JobSpec& spec = record.spec;
+  note(record, "info",
+       fmt::format("accepted{}: scene {}, {}x{}, {}, {}; {} units", record.paused ? " paused" : "",
+                   spec.scene_path, spec.film.width, spec.film.height, stop,
+                   integrator_name(spec.settings.integrator), units),
+       /*routine=*/true);
+  // The scene's warnings, the first few: the rest stay in the master's log.
+  constexpr size_t kWarningsLogged = 8;
+  for (size_t i = 0; i < warnings.size() && i < kWarningsLogged; ++i) {
+    note(record, "warning", "the scene: " + warnings[i]);
+  }
+  if (warnings.size() > kWarningsLogged) {
+    note(record, "warning",
+         fmt::format("the scene: {} more warnings (the master's log has them)",
+                     warnings.size() - kWarningsLogged));
+  }
 }
 
 std::string JobManager::requester(const std::string& by) {
@@ -96,7 +119,9 @@ std::optional<wire::JobDetail> JobManager::detail(const std::string& id,
   // Handed out before, not merged, waiting again: failed, or taken back from a worker.
   std::vector<uint64_t> waiting;
   for (const auto& [unit, open] : book.open()) {
-    if (!leased.count(unit) && !a.merger.merged(unit)) waiting.push_back(unit);
+    if (!leased.count(unit) && !scheduler_.is_leased(UnitRef{id, unit}) && !a.merger.merged(unit)) {
+      waiting.push_back(unit);
+    }
   }
   std::sort(waiting.begin(), waiting.end());
   for (const uint64_t unit : waiting) {

@@ -200,6 +200,7 @@ bool JobManager::save(Job& job) {
   if (job.record.unreadable) return true;  // its job.json stays as it is, for a look
   try {
     store_.save_record(job.record);
+    job.log_saved = job.record.log.version;
   } catch (const std::exception& e) {
     job.record_unsaved = true;
     storage_failed(job, std::string("cannot save the job's record: ") + e.what());

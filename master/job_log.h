@@ -20,24 +20,90 @@ struct JobLogLine {
 struct JobLog {
   static constexpr size_t kMaxLines = 40;
   static constexpr size_t kMaxText = 600;
+  /// A sequence's frame keeps less: a sequence may have 100,000 of them.
+  static constexpr size_t kMaxFrameLines = 6;
+  static constexpr size_t kMaxFrameText = 200;
 
   std::vector<JobLogLine> lines;  ///< oldest first
   uint32_t left_out = 0;          ///< earlier lines dropped
 
-  void add(int64_t unix_ms, std::string level, std::string text) {
-    if (text.size() > kMaxText) {
-      // Cut on a character's first byte, so that the line stays UTF-8 (job.json, the wire).
-      size_t cut = kMaxText - 3;
+  /// Adds a line, keeping the latest `max_lines` of at most `max_text` bytes each. The text is
+  /// made safe first: a byte that is not part of well-formed UTF-8, and a control character,
+  /// becomes '?' (job.json and the wire hold UTF-8 only; a terminal takes no escapes from here).
+  void add(int64_t unix_ms, std::string level, std::string text, size_t max_lines = kMaxLines,
+           size_t max_text = kMaxText) {
+    text = clean(text);
+    if (text.size() > max_text) {
+      // Cut on a character's first byte, so that the line stays UTF-8.
+      size_t cut = max_text - 3;
       while (cut > 0 && (static_cast<unsigned char>(text[cut]) & 0xC0) == 0x80) --cut;
       text = text.substr(0, cut) + "...";
     }
-    if (lines.size() >= kMaxLines) {
+    while (!lines.empty() && lines.size() >= max_lines) {
       lines.erase(lines.begin());
       ++left_out;
     }
-    lines.push_back(JobLogLine{unix_ms, std::move(level), std::move(text)});
+    lines.push_back(JobLogLine{unix_ms, clean(level), std::move(text)});
+    ++version;
   }
-  bool operator==(const JobLog&) const = default;
+  /// Counts add(): a record whose log changed since it was saved is saved again.
+  uint64_t version = 0;
+
+  bool operator==(const JobLog& other) const {
+    return lines == other.lines && left_out == other.left_out;
+  }
+
+  /// `text` with every byte outside well-formed UTF-8, and every control character, as '?'.
+  static std::string clean(const std::string& text) {
+    std::string out;
+    out.reserve(text.size());
+    for (size_t i = 0; i < text.size();) {
+      const auto c = static_cast<unsigned char>(text[i]);
+      if (c < 0x20 || c == 0x7F) {
+        out += '?';
+        ++i;
+        continue;
+      }
+      if (c < 0x80) {
+        out += static_cast<char>(c);
+        ++i;
+        continue;
+      }
+      // The length of the sequence its first byte announces, and the range of its second byte
+      // (no overlong forms, no surrogates, nothing past U+10FFFF).
+      size_t n = 0;
+      unsigned char lo = 0x80, hi = 0xBF;
+      if (c >= 0xC2 && c <= 0xDF)
+        n = 2;
+      else if (c == 0xE0)
+        n = 3, lo = 0xA0;
+      else if (c >= 0xE1 && c <= 0xEC)
+        n = 3;
+      else if (c == 0xED)
+        n = 3, hi = 0x9F;
+      else if (c >= 0xEE && c <= 0xEF)
+        n = 3;
+      else if (c == 0xF0)
+        n = 4, lo = 0x90;
+      else if (c >= 0xF1 && c <= 0xF3)
+        n = 4;
+      else if (c == 0xF4)
+        n = 4, hi = 0x8F;
+      bool ok = n > 0 && i + n <= text.size();
+      for (size_t k = 1; ok && k < n; ++k) {
+        const auto b = static_cast<unsigned char>(text[i + k]);
+        ok = k == 1 ? b >= lo && b <= hi : (b & 0xC0) == 0x80;
+      }
+      if (!ok) {
+        out += '?';
+        ++i;
+        continue;
+      }
+      out.append(text, i, n);
+      i += n;
+    }
+    return out;
+  }
 };
 
 }  // namespace rayfarm::master

@@ -123,7 +123,8 @@ bool JobManager::on_unit_failed(const WorkerId& worker, const wire::UnitFailed& 
   if (it == jobs_.end() || !it->second.active) return false;
   Job& job = it->second;
   const UnitRef ref{failed.job_id(), failed.unit_id()};
-  const std::string reason = protocol::printable(failed.reason(), 500);
+  std::string reason = protocol::printable(failed.reason(), 500);
+  if (reason.empty()) reason = "(no reason given)";
   if (!scheduler_.holds(ref, worker)) {
     log_jobs()->debug("job {} unit {}: failure report from {} ignored: it does not hold the unit",
                       ref.job, ref.unit, name_of(worker));
@@ -286,7 +287,7 @@ void JobManager::remove_job(const std::string& id) {
 }
 
 wire::JobState JobManager::retry(const std::string& id, const std::string& by) {
-  if (sequence_frames(id)) return retry_sequence(id);
+  if (sequence_frames(id)) return retry_sequence(id, by);
   auto it = jobs_.find(id);
   if (it == jobs_.end()) throw JobRejected("unknown job '" + id + "'");
   Job& job = it->second;
@@ -375,8 +376,7 @@ void JobManager::tick_job(const std::string& id, Job& job, Clock::time_point now
         job.storage_error.clear();
         if (!a) checkpoints_.forget(id, store_.job_dir(id));
         log_jobs()->info("job {}: its record is on disk again", id);
-        note(job.record, "info", "its record is on disk again");
-        save(job);
+        note(job.record, "info", "its record is on disk again");  // saved with the next
       }
     } else {
       // An image or checkpoint failure: cleared once a later write succeeds.

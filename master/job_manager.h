@@ -224,6 +224,7 @@ class JobManager {
     // Storage: `storage_error` says why the job's image, checkpoint or record cannot be written
     // now ("" when all is well); it is tried again at storage_retry.
     bool record_unsaved = false;  // the job's record could not be saved: retried
+    uint64_t log_saved = 0;       // record.log.version when the record was last saved
     std::string storage_error;
     Clock::time_point storage_retry;
     std::chrono::milliseconds storage_backoff{0};
@@ -300,8 +301,8 @@ class JobManager {
   void remove_sequence(const std::string& id);
   /// change() of one job, frames included.
   const JobRecord* change_one(const std::string& id, std::optional<int32_t> priority,
-                              std::optional<bool> paused);
-  wire::JobState retry_sequence(const std::string& id);
+                              std::optional<bool> paused, const std::string& by = {});
+  wire::JobState retry_sequence(const std::string& id, const std::string& by);
   /// Removes a finished job and its folder (remove() has checked it may go).
   void remove_job(const std::string& id);
   /// The bundle of `hash` was served from folder `gone`, which is removed: serve it from another
@@ -331,7 +332,8 @@ class JobManager {
   /// false when it has none (it starts from the beginning). Logs what it used and what it could
   /// not.
   bool resume(Job& job);
-  /// Queues a checkpoint of the job's merged state.
+  /// Queues a checkpoint of the job's merged state; saves its record too when its log has lines
+  /// the record on disk lacks (a failed unit's, a worker's), so that a restart keeps them.
   void checkpoint(Job& job);
   /// Counts a failure of `worker` on `unit`; blocks the worker or fails the job past the limits.
   void note_failure(Job& job, const WorkerId& worker, const std::string& key, uint64_t unit,
@@ -365,6 +367,10 @@ class JobManager {
   /// started, done) is left out of a sequence's frames: their times say as much, and a sequence
   /// may have 100,000 of them.
   static void note(JobRecord& record, const char* level, std::string text, bool routine = false);
+  /// The log's first lines: the job accepted (`units` of work, stopping by `stop`), and the
+  /// scene's warnings.
+  static void note_accepted(JobRecord& record, uint64_t units, const std::string& stop,
+                            const std::vector<std::string>& warnings);
   /// The wall clock in Unix milliseconds.
   static int64_t wall_ms();
   /// Seconds of rendering: the record's once the job is over.

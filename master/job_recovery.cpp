@@ -75,6 +75,8 @@ size_t JobManager::recover() {
         job.record.state = wire::JOB_FAILED;
         job.record.paused = false;
         job.record.error = "the job's bundle is missing from the data dir";
+        job.record.finished_unix_ms = wall_ms();
+        note(job.record, "error", "failed when the master started: " + job.record.error);
         log_jobs()->error("job {}: {}; marked failed", id, job.record.error);
         save(job);
       } else {
@@ -219,6 +221,7 @@ void JobManager::checkpoint(Job& job) {
   job.active->checkpoint_seconds = std::chrono::duration<double>(Clock::now() - start).count();
   job.active->checkpoint_due = false;
   job.active->last_checkpoint = Clock::now();
+  if (job.record.log.version != job.log_saved && !job.record_unsaved) save(job);
 }
 
 size_t JobManager::shutdown() {

@@ -273,7 +273,7 @@ uint64_t JobManager::retry_count(const std::string& id) const {
   return n;
 }
 
-wire::JobState JobManager::retry_sequence(const std::string& id) {
+wire::JobState JobManager::retry_sequence(const std::string& id, const std::string& by) {
   Sequence& q = sequences_.at(id);
   if (q.cancelled) {
     throw JobRejected(fmt::format(
@@ -292,7 +292,7 @@ wire::JobState JobManager::retry_sequence(const std::string& id) {
       if (it == jobs_.end() || it->second.record.unreadable) continue;
       const wire::JobState s = it->second.record.state;
       if (s == wire::JOB_FAILED || s == wire::JOB_CANCELLED) {
-        retry(f);
+        retry(f, by);
         ++retried;
       }
     }

@@ -20,24 +20,11 @@ const JobRecord* JobManager::change(const std::string& id, std::optional<int32_t
         fmt::format("job {} is frame {} of sequence {}: give the sequence its priority", id,
                     spec.frame.value_or(0), spec.sequence));
   }
-  const int32_t priority_before = it->second.record.priority;
-  const bool paused_before = it->second.record.paused;
-  const JobRecord* r = change_one(id, priority, paused);
-  if (r != nullptr && (r->priority != priority_before || r->paused != paused_before)) {
-    std::string what;
-    if (r->priority != priority_before) {
-      what = fmt::format("priority {} (was {})", r->priority, priority_before);
-    }
-    if (r->paused != paused_before)
-      what += (what.empty() ? "" : ", ") + std::string(r->paused ? "paused" : "resumed");
-    note(it->second.record, "info", what + " by " + requester(by));
-    save(it->second);
-  }
-  return r;
+  return change_one(id, priority, paused, by);
 }
 
 const JobRecord* JobManager::change_one(const std::string& id, std::optional<int32_t> priority,
-                                        std::optional<bool> paused) {
+                                        std::optional<bool> paused, const std::string& by) {
   auto it = jobs_.find(id);
   if (it == jobs_.end()) return nullptr;
   Job& job = it->second;
@@ -57,12 +44,16 @@ const JobRecord* JobManager::change_one(const std::string& id, std::optional<int
                                   kMaxPriority));
   }
   const auto now = Clock::now();
+  // The job's log says what changed and who asked (a frame's, when its sequence changes, not).
+  std::string what;
   if (priority && *priority != r.priority) {
+    what = fmt::format("priority {} (was {})", *priority, r.priority);
     log_jobs()->info("job {}: priority {} (was {})", id, *priority, r.priority);
     r.priority = *priority;
     scheduler_.set_priority(id, r.priority);
   }
   if (paused && *paused != r.paused) {
+    what += (what.empty() ? "" : ", ") + std::string(*paused ? "paused" : "resumed");
     r.paused = *paused;
     scheduler_.set_paused(id, r.paused);
     Sequence* q = sequence_of(r.spec);
@@ -81,6 +72,7 @@ const JobRecord* JobManager::change_one(const std::string& id, std::optional<int
                           counts.leased == 1 ? "" : "s", counts.leased == 1 ? "es" : "")
             : std::string());
   }
+  if (!what.empty()) note(r, "info", what + " by " + requester(by), /*routine=*/true);
   save(job);  // a failure is noted on the job and retried; the change holds meanwhile
   return &r;
 }

@@ -402,6 +402,11 @@ Scheduler::Counts Scheduler::counts(const std::string& job) const {
   return c;
 }
 
+bool Scheduler::is_leased(const UnitRef& unit) const {
+  auto it = jobs_.find(unit.job);
+  return it != jobs_.end() && it->second.leased.count(unit.unit) != 0;
+}
+
 std::vector<Scheduler::Holding> Scheduler::holdings(const std::string& job, size_t max) const {
   std::vector<Holding> out;
   auto it = jobs_.find(job);

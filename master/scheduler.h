@@ -163,6 +163,8 @@ class Scheduler {
   /// The units of `worker`'s lease that includes `unit` (one, or every unit of a run), ascending;
   /// empty when `worker` does not hold `unit`.
   std::vector<uint64_t> lease_of(const UnitRef& unit, const WorkerId& worker) const;
+  /// Whether some worker holds a lease of `unit` now.
+  bool is_leased(const UnitRef& unit) const;
   /// Whether `worker` holds a lease of `unit` now.
   bool holds(const UnitRef& unit, const WorkerId& worker) const;
   /// Some unit of some job that is not paused waits for a lease.

@@ -11,6 +11,8 @@
 #include <string>
 #include <unordered_map>
 
+#include "master/job_log.h"
+
 namespace rayfarm::master {
 
 class UnitBook {
@@ -33,6 +35,7 @@ class UnitBook {
   /// Not merged yet: times handed out and the latest failure.
   struct Open {
     uint32_t leases = 0;
+    bool failed = false;
     std::string error;
   };
 
@@ -49,8 +52,9 @@ class UnitBook {
   /// `worker` failed `unit`, saying `why` (its own words, made printable by the caller).
   void failed(uint64_t unit, const std::string& worker, const std::string& why) {
     Open& o = open_[unit];
-    if (o.error.empty()) ++failed_;
-    o.error = why.substr(0, kErrorChars);
+    if (!o.failed) ++failed_;
+    o.failed = true;
+    o.error = why.empty() ? "(no reason given)" : JobLog::clean(why.substr(0, kErrorChars));
     if (Share* s = share(worker)) ++s->failures;
   }
   /// `units` units from `first` on (a run: every `stride`-th) were merged from `worker`'s result.

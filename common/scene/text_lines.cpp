@@ -1,4 +1,5 @@
 #include "common/scene/text_lines.h"
+#include <algorithm>
 
 #include <charconv>
 #include <cmath>
@@ -51,8 +52,13 @@ size_t invalid_utf8_at(std::string_view s) {
 /// Quotes a name taken from a file, shortened so that a message stays readable.
 std::string in_quotes(std::string_view name) {
   std::string out = "\"";
-  out.append(name.substr(0, kMaxNameInMessage));
-  if (name.size() > kMaxNameInMessage) out += "...";
+  // Cut on a character's first byte: a message must stay UTF-8 (the wire, JSON).
+  size_t cut = std::min(name.size(), kMaxNameInMessage);
+  while (cut > 0 && cut < name.size() && (static_cast<unsigned char>(name[cut]) & 0xC0) == 0x80) {
+    --cut;
+  }
+  out.append(name.substr(0, cut));
+  if (name.size() > cut) out += "...";
   out += '"';
   return out;
 }

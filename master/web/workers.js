@@ -6,8 +6,9 @@
 
 function workerState(w) {
   const units = (w.units || []).length;
-  if (w.control === "disabled") return "disabled";
-  if (w.control === "draining") return units ? "draining" : "drained";
+  if (w.control === 'disabled' || w.control === 'drained') return w.control;
+  // The master says "drained" once the worker holds no unit of any job, also of jobs hidden here.
+  if (w.control === 'draining') return 'draining';
   return units ? "busy" : "idle";
 }
 
@@ -29,7 +30,9 @@ function workerButtons(w) {
     "data-name": w.name, "data-units": (w.units || []).length, title: label + " worker " + w.name }, label);
   const out = [];
   if (control === "enabled") out.push(button("drain", "Drain"));
-  if (control === "enabled" || control === "draining") out.push(button("disable", "Disable", true));
+  if (control === 'enabled' || control === 'draining' || control === 'drained') {
+    out.push(button('disable', 'Disable', true));
+  }
   if (control !== "enabled") out.push(button("enable", "Enable"));
   return out;
 }

@@ -192,10 +192,15 @@ TEST_F(CliTest, EveryExitCodeIsTheOneDocsCliMdGives) {
       {{"render", scene.string(), "-o", out, "--max-depth", "abc"}, 2, "--max-depth"},
       {{"render", scene.string(), "-o", out, "-D", "x=1"}, 2, "-D"},
       {{"submit", scene.string(), "-o", out}, 2, "--wait"},
-      {{"compare", (dir() / "missing.exr").string(), (dir() / "other.exr").string()}, 1,
+      {{"compare", (dir() / "missing.exr").string(), (dir() / "other.exr").string()},
+       1,
        "missing.exr"},
-      {{"render", (dir() / "no-such-scene.json").string(), "-o", out, "--spp", "1"}, 1,
+      {{"render", (dir() / "no-such-scene.json").string(), "-o", out, "--spp", "1"},
+       1,
        "no-such-scene.json"},
+      {{"status", "--detail"}, 2, "--detail"},
+      {{"drain"}, 2, "worker"},
+      {{"enable", "w1", "--nonsense"}, 2, "--nonsense"},
   };
   for (const Case& c : cases) {
     const RunResult r = cli(c.args, false);

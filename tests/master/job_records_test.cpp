@@ -482,6 +482,49 @@ TEST_F(JobRecordsTest, AJobsTimesAndLogSurviveARestartAndARetryAndTheLogStaysBou
   EXPECT_TRUE(has(bounded->log(), "info", "resumed by key 'bob'"));
 }
 
+TEST(JobLogTest, TextIsMadeUtf8AndFreeOfControlsBeforeItIsKept) {
+  JobLog log;
+  // Broken and overlong sequences, a surrogate, a lone continuation byte, a cut character,
+  // escapes and a NUL: each bad byte a '?'; well-formed characters (2, 3 and 4 bytes) kept.
+  log.add(1, "warning",
+          std::string("a\xff"
+                      "b\xc0\xaf"
+                      "c\xed\xa0\x80"
+                      "d\x80"
+                      "e\x1b[31m"
+                      "f") +
+              '\0' + "g\xc3\xa9h\xe2\x82\xaci\xf0\x9f\x8e\xa8j\xe2\x82");
+  ASSERT_EQ(log.lines.size(), 1u);
+  EXPECT_EQ(log.lines[0].text, "a?b??c???d?e?[31mf?g\xc3\xa9h\xe2\x82\xaci\xf0\x9f\x8e\xa8j??");
+  // Such a record is saved and read back (JSON takes UTF-8 only).
+  TempDir dir;
+  JobStore store(dir.path() / "data");
+  JobRecord r = sample_record(store.allocate_id(), wire::JOB_RUNNING);
+  r.log = log;
+  EXPECT_NO_THROW(store.save_record(r));
+  const auto loaded = store.load_records();
+  ASSERT_EQ(loaded.size(), 1u);
+  EXPECT_EQ(loaded[0].log, log);
+}
+
+TEST_F(JobRecordsTest, ALogLineOfARunningJobOutlivesARestart) {
+  const std::string id = jobs.submit(furnace(8, 16, 4));
+  const auto unit = jobs.next_unit("w1");
+  ASSERT_TRUE(unit);
+  wire::UnitFailed failed;
+  failed.set_job_id(id);
+  failed.set_unit_id(unit->unit_id());
+  failed.set_reason("the GPU fell off the bus");
+  ASSERT_TRUE(jobs.on_unit_failed("w1", failed));
+  jobs.shutdown();  // the master stops while the job runs
+  JobManager restarted(store);
+  restarted.recover();
+  const auto log = restarted.detail(id, 1)->log();
+  EXPECT_TRUE(std::any_of(log.begin(), log.end(), [](const wire::JobLogLine& l) {
+    return l.text().find("the GPU fell off the bus") != std::string::npos;
+  })) << restarted.detail(id, 1)->DebugString();
+}
+
 TEST(JobStoreRecords, AMalformedLogMakesTheRecordUnreadableNamingIt) {
   TempDir dir;
   JobStore store(dir.path() / "data");

@@ -1089,10 +1089,20 @@ TEST_F(BrokerTrustTest, AWorkerIsDrainedDisabledAndEnabledByItsOwnKeyOrAnAdminOn
     EXPECT_EQ(again.as<wire::WorkUnit>()->unit_id(), first.as<wire::WorkUnit>()->unit_id());
     ASSERT_TRUE(other.send(protocol::encode(wire::Goodbye{})));
   }
-  // A worker that says hello again under the same name and key stays disabled.
+  // A worker that says hello again stays disabled: under the same name and key, and on the same
+  // connection under another name.
   ASSERT_TRUE(ask(worker, hello(wire::ROLE_WORKER)).as<wire::Welcome>());
   ASSERT_TRUE(worker.send(protocol::encode(wire::WorkRequest{})));
   EXPECT_FALSE(next(worker, std::chrono::milliseconds{400})) << "a disabled worker got work";
+  {
+    wire::Hello renamed = hello(wire::ROLE_WORKER);
+    renamed.set_name("renamed");
+    ASSERT_TRUE(ask(worker, renamed).as<wire::Welcome>());
+    ASSERT_TRUE(worker.send(protocol::encode(wire::WorkRequest{})));
+    EXPECT_FALSE(next(worker, std::chrono::milliseconds{400})) << "a renamed worker got work";
+    ASSERT_TRUE(ask(worker, hello(wire::ROLE_WORKER)).as<wire::Welcome>());  // "test" again
+    ASSERT_TRUE(worker.send(protocol::encode(wire::WorkRequest{})));
+  }
 
   // Enabled by its own key: its waiting request is answered at once.
   const auto enabled = ask(owner, worker_control(wid, wire::ChangeWorker::ENABLE));
