@@ -282,7 +282,7 @@ std::string Renderer::plan() const {
   const LightSet& lights = impl_->lights;
   const size_t area = lights.area_light_count(), point = lights.point_light_count();
   const size_t delta = point + lights.spot_light_count() + lights.directional_light_count();
-  if (lights.empty()) {
+  if (lights.empty() && lights.environment() == nullptr) {
     out += "; no lights, no light sampling";
   } else {
     out += "; " + std::to_string(area) + " emitters, " + std::to_string(point) + " point, " +
@@ -305,11 +305,22 @@ std::string Renderer::plan() const {
     if (p.integrator == IntegratorType::kMis && !p.weight_emission && p.sample_lights) {
       out += " (no MIS weights: no area lights or environment)";
     }
+    if (p.sample_lights && !lights.always_sampled().empty()) {
+      out += "; " + std::to_string(lights.always_sampled().size()) +
+             " directional sampled at every vertex";
+    }
     if (const EnvironmentLight* env = lights.environment()) {
-      out += "; environment " + std::to_string(env->width()) + "x" + std::to_string(env->height()) +
-             (p.sample_lights ? ", sampled by luminance x sin(theta)" +
-                                    std::string(p.weight_emission ? ", MIS-weighted" : "")
-                              : ", found by escaping rays only");
+      if (lights.environment_unsampled()) {
+        out +=
+            "; constant environment, found by escaping rays (BSDF sampling draws it as well "
+            "as light sampling could)";
+      } else {
+        out += "; environment " + std::to_string(env->width()) + "x" +
+               std::to_string(env->height()) +
+               (p.sample_lights ? ", sampled by luminance x sin(theta)" +
+                                      std::string(p.weight_emission ? ", MIS-weighted" : "")
+                                : ", found by escaping rays only");
+      }
     }
   }
   std::set<std::string> kinds;

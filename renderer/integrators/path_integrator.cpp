@@ -26,6 +26,7 @@ PathIntegratorFor<BsdfT>::PathIntegratorFor(const SceneData& data, const LightSe
   plan_.weight_emission =
       plan_.sample_lights && settings.integrator == IntegratorType::kMis && hittable;
   plan_.emitters_reachable = hittable || !is_black(background_);
+  plan_.escapes_count = !is_black(background_) || lights.environment_unsampled();
   plan_.light_tree = lights.selection().uses_tree();
   plan_.surface = data.uses_surface();
   plan_.plain = data.plain();
@@ -74,34 +75,51 @@ Vec3 PathIntegratorFor<BsdfT>::sample_light(const SurfaceHit& hit, const Vec3& s
                                             const Frame& frame, const BsdfT& bsdf,
                                             const std::array<uint32_t, 3>& u,
                                             const TargetCones* cones, uint64_t& rays) const {
+  // What one light sample brings: its shadow ray, and its MIS weight against the BSDF.
+  const auto shade = [&](const LightSample& ls) __attribute__((always_inline))->Vec3 {
+    const Vec3 wi_local = frame.to_local(ls.wi);
+    if (!same_sides(hit, flat, wo, ls.wi, wo_local, wi_local)) return Vec3(0.f);
+    if (!(wi_local.z > 0.f) && (data_.surface_needs(hit.material) & kShadingSided))
+      return Vec3(0.f);
+    const Vec3 f = bsdf.eval(wo_local, wi_local);
+    if (is_black(f)) return Vec3(0.f);
+    // Shadow ray from the offset origin to the (offset) light point, or without end to a light
+    // at infinity.
+    const Vec3 origin =
+        offset_ray_origin(hit.p, hit.p_error, leaving_side(hit, flat, ls.wi, wi_local.z));
+    ++rays;
+    Ray shadow = ls.infinite ? Ray{origin, ls.wi} : Ray{origin, ls.target - origin, 0.f, 1.f};
+    shadow.time = hit.time;
+    if (data_.bvh().occluded(shadow)) return Vec3(0.f);
+    float w = 1.f;
+    if (!ls.delta && plan_.weight_emission) {
+      // Against the density with which the vertex draws its next direction: the BSDF's, or its
+      // mixture with the specular targets' cones.
+      float bsdf_pdf = bsdf.pdf(wo_local, wi_local);
+      if (cones)
+        bsdf_pdf = (1.f - SpecularTargets::kShare) * bsdf_pdf +
+                   SpecularTargets::kShare * cones->pdf(ls.wi);
+      w = power_heuristic(ls.pdf, bsdf_pdf);
+    }
+    return f * ls.radiance * (w / ls.pdf);
+  };
+  Vec3 sum(0.f);
+  // One light chosen among those that take turns, from the vertex's numbers.
   LightSample ls;
-  if (!lights_.sample(hit.p, select_n, SelectionNumber{u[0]}, sobol::to_unit_float(u[1]),
-                      sobol::to_unit_float(u[2]), ls))
-    return Vec3(0.f);
-  const Vec3 wi_local = frame.to_local(ls.wi);
-  if (!same_sides(hit, flat, wo, ls.wi, wo_local, wi_local)) return Vec3(0.f);
-  if (!(wi_local.z > 0.f) && (data_.surface_needs(hit.material) & kShadingSided)) return Vec3(0.f);
-  const Vec3 f = bsdf.eval(wo_local, wi_local);
-  if (is_black(f)) return Vec3(0.f);
-  // Shadow ray from the offset origin to the (offset) light point, or without end to a light at
-  // infinity.
-  const Vec3 origin =
-      offset_ray_origin(hit.p, hit.p_error, leaving_side(hit, flat, ls.wi, wi_local.z));
-  ++rays;
-  Ray shadow = ls.infinite ? Ray{origin, ls.wi} : Ray{origin, ls.target - origin, 0.f, 1.f};
-  shadow.time = hit.time;
-  if (data_.bvh().occluded(shadow)) return Vec3(0.f);
-  float w = 1.f;
-  if (!ls.delta && plan_.weight_emission) {
-    // Against the density with which the vertex draws its next direction: the BSDF's, or its
-    // mixture with the specular targets' cones.
-    float bsdf_pdf = bsdf.pdf(wo_local, wi_local);
-    if (cones)
-      bsdf_pdf = (1.f - SpecularTargets::kShare) * bsdf_pdf +
-                 SpecularTargets::kShare * cones->pdf(ls.wi);
-    w = power_heuristic(ls.pdf, bsdf_pdf);
+  if (lights_.sample(hit.p, select_n, SelectionNumber{u[0]}, sobol::to_unit_float(u[1]),
+                     sobol::to_unit_float(u[2]), ls)) {
+    sum += shade(ls);
   }
-  return f * ls.radiance * (w / ls.pdf);
+  // Each light sampled at every vertex (a sun): no numbers, no choice.
+  for (const auto& light : lights_.always_sampled()) {
+    LightSample always;
+    const bool sampled = visit_chain(
+        light, [&](const auto& l) __attribute__((always_inline)) {
+          return l.sample(hit.p, 1.f, 0.f, 0.f, always);
+        });
+    if (sampled) sum += shade(always);
+  }
+  return sum;
 }
 
 template <class BsdfT>
@@ -284,7 +302,7 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, PathSampler& sampler, PathStats& s
     const bool last_ray_useless =
         !plan_.emitters_reachable ||
         (!specular_bounce && plan_.sample_lights && !plan_.weight_emission && !plan_.light_tree &&
-         is_black(background_));  // NEE: diffuse-bounce emitter and environment hits not counted
+         !plan_.escapes_count);  // NEE: diffuse-bounce emitter and environment hits not counted
     if (depth + 1 == plan_.max_depth && last_ray_useless) {
       truncate(beta);
       break;

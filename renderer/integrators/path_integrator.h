@@ -26,6 +26,9 @@ struct IntegratorPlan {
   bool light_numbers = true;
   bool weight_emission = false;   ///< MIS weights on emitters hit by BSDF rays
   bool emitters_reachable = false;  ///< area lights or a background that BSDF rays can find
+  /// Rays that escape count what they find in full under NEE too: a background colour, or an
+  /// environment that light sampling leaves to them (a constant one, light_set.h).
+  bool escapes_count = false;
   uint32_t max_depth = 0;           ///< kUnlimitedDepth: no cap
   RouletteType roulette = RouletteType::kRoot;
   uint32_t roulette_depth = 0;

@@ -33,6 +33,7 @@ std::optional<EnvironmentLight> EnvironmentLight::make(const Scene& scene, doubl
   EnvironmentLight env;
   if (map.file.empty()) {
     env.width_ = 1, env.height_ = kConstantRows;
+    env.constant_ = true;
     env.radiance_.assign(kConstantRows, map.scale);
   } else {
     if (!map.image) return std::nullopt;  // loaded to be checked only

@@ -29,6 +29,9 @@ class EnvironmentLight {
   /// Power for light selection: what the environment sends through the scene's bounding disc
   /// from every direction, pi r^2 times the integral of luminance over the sphere.
   double power() const { return power_; }
+  /// The same radiance from every direction (a "constant" light): BSDF sampling draws it
+  /// exactly as well as it draws anything, so light sampling leaves it out (light_set.h).
+  bool constant() const { return constant_; }
   uint32_t width() const { return width_; }
   uint32_t height() const { return height_; }
 
@@ -66,6 +69,7 @@ class EnvironmentLight {
   std::array<float, 9> to_world_{};  // row-major rotation, world from map
   double power_ = 0.0;
   bool bilinear_ = false;  // EnvironmentMap::bilinear
+  bool constant_ = false;
 };
 
 }  // namespace rayfarm

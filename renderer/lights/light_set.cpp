@@ -85,15 +85,23 @@ LightSet::LightSet(SceneData& data, LightChoice choice) {
     }
   }
   const double radius = scene_radius(scene);
+  std::vector<Light> directional;
   for (uint32_t i = 0; i < scene.directional_lights.size(); ++i) {
     if (auto light = DeltaDirectionalLight::make(scene, i, radius)) {
-      lights_.emplace_back(*light);
+      directional.emplace_back(*light);
       ++directional_count_;
     }
   }
+  // A few suns: each sampled at every vertex. Many: chosen like the rest.
+  auto& into = directional.size() <= kAlwaysSampled ? always_ : lights_;
+  into.insert(into.end(), directional.begin(), directional.end());
   if (auto env = EnvironmentLight::make(scene, radius)) {
-    environment_ = static_cast<int32_t>(lights_.size());
-    lights_.emplace_back(std::move(*env));
+    if (env->constant()) {
+      unsampled_environment_ = std::move(*env);
+    } else {
+      environment_ = static_cast<int32_t>(lights_.size());
+      lights_.emplace_back(std::move(*env));
+    }
   }
   std::vector<double> powers;
   std::vector<std::optional<LightBounds>> bounds;

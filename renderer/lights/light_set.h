@@ -1,8 +1,14 @@
 #pragma once
 // Every light of a scene, one type per kind (emissive triangles and spheres, point, spot and
-// directional lights, the environment), and the choice of one light per shading point
-// (light_selection.h: by power, or through a light tree).
+// directional lights, the environment), and how light sampling serves them at a shading point:
+// - directional lights (a sun), up to kAlwaysSampled of them, are each sampled at every vertex:
+//   one shadow ray each, no choice, so that a sun never loses its samples to the other lights;
+// - a constant environment (a uniform sky) is not light-sampled at all: BSDF sampling draws it
+//   as well as anything can, and rays that escape count it in full;
+// - every other light is one light chosen per vertex (light_selection.h: by power, or through a
+//   light tree), its sample weighted by MIS against BSDF sampling.
 #include <cstdint>
+#include <optional>
 #include <type_traits>
 #include <variant>
 #include <vector>
@@ -34,8 +40,15 @@ class LightSet {
   /// `choice`: how a shading point chooses among them.
   explicit LightSet(SceneData& data, LightChoice choice = LightChoice::kAuto);
 
-  bool empty() const { return lights_.empty(); }
+  /// Directional lights beyond this many are chosen with the others instead.
+  static constexpr size_t kAlwaysSampled = 8;
+
+  /// No light that light sampling serves (chosen, or always sampled).
+  bool empty() const { return lights_.empty() && always_.empty(); }
+  /// The lights that a vertex chooses one of; sample() draws from them.
   size_t size() const { return lights_.size(); }
+  /// The lights sampled at every vertex, each with probability 1 (directional lights).
+  const std::vector<Light>& always_sampled() const { return always_; }
   /// Emissive triangles and spheres.
   size_t area_light_count() const { return area_count_; }
   size_t point_light_count() const { return point_count_; }
@@ -43,8 +56,12 @@ class LightSet {
   size_t directional_light_count() const { return directional_count_; }
   /// The environment, or null when the scene has none (or it emits nothing).
   const EnvironmentLight* environment() const {
+    if (unsampled_environment_) return &*unsampled_environment_;
     return environment_ < 0 ? nullptr : &std::get<EnvironmentLight>(lights_[environment_]);
   }
+  /// Whether the environment is there but left to BSDF sampling (a constant one): escaped rays
+  /// count it with weight 1.
+  bool environment_unsampled() const { return unsampled_environment_.has_value(); }
   /// Density with which sample() draws the escaping unit direction `dir` from the environment,
   /// selection included; 0 without one.
   float environment_pdf(const Vec3& dir) const {
@@ -52,7 +69,7 @@ class LightSet {
     if (env == nullptr) return 0.f;
     return selection_.infinite_probability(environment_) * env->pdf_direction(dir);
   }
-  /// Index of the environment among the lights, or -1.
+  /// Index of the environment among the chosen lights, or -1 (none, or not light-sampled).
   int32_t environment_index() const { return environment_; }
 
   /// Chooses a light for the shading point `ref` with geometric normal `ref_n` (or the zero
@@ -75,6 +92,7 @@ class LightSet {
   /// (the kind says so with `kReadsNumbers = false`: point, spot and directional lights): the
   /// sample is then the same whatever the numbers.
   bool reads_numbers() const {
+    if (lights_.empty()) return false;  // only lights sampled always, which read none
     if (lights_.size() != 1 || selection_.uses_tree()) return true;
     return visit_chain(lights_.front(), [](const auto& light) {
       using L = std::decay_t<decltype(light)>;
@@ -104,7 +122,9 @@ class LightSet {
   }
 
  private:
-  std::vector<Light> lights_;
+  std::vector<Light> lights_;  // chosen one per vertex
+  std::vector<Light> always_;  // sampled at every vertex
+  std::optional<EnvironmentLight> unsampled_environment_;
   LightSelection selection_;
   size_t area_count_ = 0, point_count_ = 0, spot_count_ = 0, directional_count_ = 0;
   int32_t environment_ = -1;

@@ -382,13 +382,44 @@ TEST(DirectionalLightTest, IrradianceIsIrradianceTimesCosine) {
     EXPECT_NEAR(e.mean, 0.5 / kPiD * 4.0 * std::cos(a), 1e-4) << integrator_name(type);
   }
   const Lights l(std::move(s));
+  // A sun is sampled at every vertex, never chosen among the other lights.
+  EXPECT_EQ(l.set.size(), 0u);
+  ASSERT_EQ(l.set.always_sampled().size(), 1u);
   LightSample ls;
-  ASSERT_TRUE(l.set.sample(Vec3(0.3f, 0.f, 0.2f), Vec3(0.f), SelectionNumber::from_float(0.3f),
-                           0.1f, 0.9f, ls));
+  ASSERT_TRUE(std::get<DeltaDirectionalLight>(l.set.always_sampled()[0])
+                  .sample(Vec3(0.3f, 0.f, 0.2f), 1.f, 0.1f, 0.9f, ls));
   EXPECT_TRUE(ls.delta);
   EXPECT_TRUE(ls.infinite);
   EXPECT_NEAR(ls.wi.x, -std::sin(a), 1e-6);
   EXPECT_EQ(ls.radiance, Vec3(2.f, 4.f, 1.f));
+}
+
+// A product shot's lighting: a sun and a uniform sky over an open diffuse quad. Each vertex
+// samples the sun and leaves the sky to its BSDF ray, which finds it with weight 1: every sample
+// is the exact answer, albedo x sky + albedo / pi x irradiance x cos. (When the sun and the sky
+// took turns for one light sample, half the samples missed the sun: noise on an easy image.)
+TEST(DirectionalLightTest, ASunAndAUniformSkyOverAnOpenSurfaceAreExactAtEverySample) {
+  Scene s = quad_scene(0.5f);
+  const double a = 35.0 * kPiD / 180.0;
+  s.directional_lights.push_back(
+      {Vec3(float(std::sin(a)), float(-std::cos(a)), 0.f), Vec3(2.f, 4.f, 1.f)});
+  EnvironmentMap sky;
+  sky.scale = Vec3(0.5f, 2.f, 1.f);
+  s.environment = sky;
+  const double expected = 0.5 * 2.0 + 0.5 / kPiD * 4.0 * std::cos(a);  // green
+  for (const IntegratorType type : {IntegratorType::kNee, IntegratorType::kMis}) {
+    RenderSettings settings = s.render;
+    settings.integrator = type;
+    settings.spp = 64;
+    settings.roulette_depth = 8;  // no roulette at the one bounce
+    const testing::Estimate e = testing::image_estimate(s, settings);
+    EXPECT_NEAR(e.mean, expected, 1e-5 * expected) << integrator_name(type);
+    EXPECT_LE(e.standard_error, 1e-6 * expected) << integrator_name(type) << ": noise";
+  }
+  const Lights l(std::move(s));
+  EXPECT_TRUE(l.set.environment_unsampled());
+  EXPECT_EQ(l.set.environment_index(), -1);
+  EXPECT_EQ(l.set.environment_pdf(Vec3(0.f, 1.f, 0.f)), 0.f);
 }
 
 }  // namespace
