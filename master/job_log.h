@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "common/util/utf8.h"
+
 namespace rayfarm::master {
 
 struct JobLogLine {
@@ -59,48 +61,14 @@ struct JobLog {
     out.reserve(text.size());
     for (size_t i = 0; i < text.size();) {
       const auto c = static_cast<unsigned char>(text[i]);
-      if (c < 0x20 || c == 0x7F) {
+      const size_t length = utf8_length_at(text, i);
+      if (length == 0 || c < 0x20 || c == 0x7F) {
         out += '?';
         ++i;
         continue;
       }
-      if (c < 0x80) {
-        out += static_cast<char>(c);
-        ++i;
-        continue;
-      }
-      // The length of the sequence its first byte announces, and the range of its second byte
-      // (no overlong forms, no surrogates, nothing past U+10FFFF).
-      size_t n = 0;
-      unsigned char lo = 0x80, hi = 0xBF;
-      if (c >= 0xC2 && c <= 0xDF)
-        n = 2;
-      else if (c == 0xE0)
-        n = 3, lo = 0xA0;
-      else if (c >= 0xE1 && c <= 0xEC)
-        n = 3;
-      else if (c == 0xED)
-        n = 3, hi = 0x9F;
-      else if (c >= 0xEE && c <= 0xEF)
-        n = 3;
-      else if (c == 0xF0)
-        n = 4, lo = 0x90;
-      else if (c >= 0xF1 && c <= 0xF3)
-        n = 4;
-      else if (c == 0xF4)
-        n = 4, hi = 0x8F;
-      bool ok = n > 0 && i + n <= text.size();
-      for (size_t k = 1; ok && k < n; ++k) {
-        const auto b = static_cast<unsigned char>(text[i + k]);
-        ok = k == 1 ? b >= lo && b <= hi : (b & 0xC0) == 0x80;
-      }
-      if (!ok) {
-        out += '?';
-        ++i;
-        continue;
-      }
-      out.append(text, i, n);
-      i += n;
+      out.append(text, i, length);
+      i += length;
     }
     return out;
   }

@@ -9,6 +9,8 @@
 #include <string>
 
 #include "common/scene/parser.h"
+#include "common/scene/text_lines.h"
+#include "common/util/utf8.h"
 #include "tests/support/temp_dir.h"
 
 namespace rayfarm {
@@ -262,6 +264,15 @@ TEST(HostileObj, IndicesOutOfRange) {
   expect_obj_error(tri + "vt 0 0\nf 1/1 2/2 3/1\n", 5, "texture coordinate index 2 is out of range");
   expect_obj_error(tri + "f 1 2 +3\n", 4, "malformed vertex index \"+3\"");
   expect_obj_error(tri + "f 1 2 3.0\n", 4, "malformed vertex index");
+}
+
+TEST(HostileObj, ANameCutShortInAMessageStaysUtf8) {
+  // 59 bytes, then a two-byte character across the cut at 60: the cut moves before it.
+  const std::string name = std::string(59, 'a') + "\xc3\xa9" + "tail";
+  const std::string quoted = scene_text::in_quotes(name);
+  EXPECT_EQ(quoted, "\"" + std::string(59, 'a') + "...\"");
+  EXPECT_EQ(invalid_utf8_at(quoted), std::string_view::npos);
+  EXPECT_EQ(scene_text::in_quotes("short \xc3\xa9"), "\"short \xc3\xa9\"");
 }
 
 TEST(HostileObj, BytesThatAreNotUtf8) {
