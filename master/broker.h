@@ -8,7 +8,7 @@
 // socket only the keys of the workers' allow-list and on the client socket only those of the
 // clients' list. The client socket's requests are handled in broker_clients.cpp; submissions are
 // checked on a thread of their own (submission_queue.h).
-// Submissions are checked against the limits (limits.h) before their scene is loaded.
+// Submissions are checked against the limits (peer_limits.h) before their scene is loaded.
 #include <atomic>
 #include <chrono>
 #include <filesystem>

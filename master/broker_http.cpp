@@ -6,7 +6,7 @@
 #include "common/protocol/codec.h"
 #include "common/util/log.h"
 #include "master/broker.h"
-#include "master/limits.h"
+#include "master/peer_limits.h"
 
 namespace rayfarm::master {
 namespace protocol = rayfarm::protocol;

@@ -107,7 +107,7 @@ class JobManager {
   /// Validates a submission for `owner` (the submitting client key's name) and stores it in the
   /// data dir: the slow part of accepting a job (unpacking, loading the scene, reading the
   /// reference, writing and syncing files). Touches nothing but the store: safe on another thread
-  /// than the rest. `check` (the master's limits, scene_check() in limits.h) runs once the scene's
+  /// than the rest. `check` (the master's limits, scene_check() in peer_limits.h) runs once the scene's
   /// film and render settings are read, before any mesh is loaded. Throws JobRejected naming the
   /// cause.
   PreparedJob prepare(const wire::SubmitJob& request, const std::string& owner,

@@ -10,7 +10,7 @@
 #include "common/net/keys.h"
 #include "common/protocol/heartbeat.h"
 #include "master/job_manager.h"
-#include "master/limits.h"
+#include "master/peer_limits.h"
 
 namespace rayfarm::master {
 

@@ -16,7 +16,7 @@
 
 #include "common/net/socket.h"
 #include "master/job_manager.h"
-#include "master/limits.h"
+#include "master/peer_limits.h"
 #include "proto/rayfarm.pb.h"
 
 namespace rayfarm::master {

@@ -2,7 +2,7 @@
 
 #include <algorithm>
 
-#include "master/limits.h"
+#include "master/peer_limits.h"
 
 namespace rayfarm::master {
 

@@ -11,7 +11,7 @@
 #include "common/bundle/bundle.h"
 #include "common/protocol/convert.h"
 #include "master/job_manager.h"
-#include "master/limits.h"
+#include "master/peer_limits.h"
 #include "tests/master/job_requests.h"
 #include "tests/support/temp_dir.h"
 

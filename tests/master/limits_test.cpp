@@ -6,7 +6,7 @@
 
 #include "common/bundle/bundle.h"
 #include "common/protocol/convert.h"
-#include "master/limits.h"
+#include "master/peer_limits.h"
 #include "tests/support/temp_dir.h"
 
 namespace rayfarm::master {

@@ -1,4 +1,4 @@
-#include "master/limits.h"
+#include "master/peer_limits.h"
 
 #include <algorithm>
 
