@@ -391,7 +391,8 @@ wire::WorkerInfo Broker::worker_info(const net::PeerId& peer, const Worker& w,
     info->set_name(w.name);
     info->set_key_name(protocol::printable(w.key_name));
     info->set_threads(w.threads);
-    for (const std::string& unit : jobs_.units_of(peer)) {
+    const std::vector<std::string> held = jobs_.units_of(peer);
+    for (const std::string& unit : held) {
       // A unit names its job ("JOB/UNIT"): for a client, only those of the jobs it may see,
       // as the HTTP endpoint shows them.
       if (user) {
@@ -411,7 +412,7 @@ wire::WorkerInfo Broker::worker_info(const net::PeerId& peer, const Worker& w,
     info->set_control(w.control == WorkerControl::kEnabled ? "enabled"
                       : w.control == WorkerControl::kDisabled
                           ? "disabled"
-                          : (jobs_.units_of(peer).empty() ? "drained" : "draining"));
+                          : (held.empty() ? "drained" : "draining"));
   }
   return out;
 }

@@ -3,7 +3,6 @@
 // (job_log.h).
 #include <algorithm>
 #include <map>
-#include <set>
 
 #include "common/protocol/codec.h"
 #include "common/protocol/convert.h"
@@ -94,9 +93,7 @@ std::optional<wire::JobDetail> JobManager::detail(const std::string& id,
     Clock::time_point since;
   };
   std::map<uint64_t, Row> leases;  // by lease serial
-  std::set<uint64_t> leased;
   for (const Scheduler::Holding& h : scheduler_.holdings(id, kDetailUnits * 4)) {
-    leased.insert(h.unit);
     auto [row, inserted] = leases.try_emplace(h.lease, Row{h.unit, 0, h.worker, h.since});
     row->second.first = std::min(row->second.first, h.unit);
     ++row->second.count;
@@ -119,7 +116,7 @@ std::optional<wire::JobDetail> JobManager::detail(const std::string& id,
   // Handed out before, not merged, waiting again: failed, or taken back from a worker.
   std::vector<uint64_t> waiting;
   for (const auto& [unit, open] : book.open()) {
-    if (!leased.count(unit) && !scheduler_.is_leased(UnitRef{id, unit}) && !a.merger.merged(unit)) {
+    if (!scheduler_.is_leased(UnitRef{id, unit}) && !a.merger.merged(unit)) {
       waiting.push_back(unit);
     }
   }
