@@ -343,8 +343,11 @@ int32_t Materials::texture(int index, int uv_set, const tinygltf::ExtensionMap& 
     options.transform.scale = pair("scale", 1.f);
     const double r = ext_number(src_, x, "rotation", 0.0, at);
     if (!(std::fabs(r) <= 1e3)) src_.fail(at + "/rotation", "must lie in [-1000, 1000] radians");
-    // The extension's rotation matrix is [cos -sin; sin cos]; UvTransform's turns the other way.
-    options.transform.rotation = static_cast<float>(-r);
+    // The extension turns the UVs counter-clockwise as drawn on the image (v down): u' = cos r u +
+    // sin r v, v' = -sin r u + cos r v, UvTransform's own matrix. The extension's GLSL listing has
+    // the transpose (a known erratum, KhronosGroup/glTF#1563); its sample model and viewers follow
+    // the text, and so does rayfarm.
+    options.transform.rotation = static_cast<float>(r);
     // The exact values, not a rounded print: transforms differing in the seventh digit are
     // different textures.
     auto exact = [](double v) {

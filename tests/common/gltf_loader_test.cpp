@@ -235,7 +235,9 @@ TEST(Gltf, TexturesWithSamplersAndTransforms) {
   EXPECT_EQ(colour.options.filter, TextureFilter::nearest);
   EXPECT_EQ(colour.options.wrap_u, TextureWrap::clamp);
   EXPECT_EQ(colour.options.wrap_v, TextureWrap::mirror);
-  EXPECT_FLOAT_EQ(colour.options.transform.rotation, -0.25f);
+  // The extension's rotation is UvTransform's, unchanged (not the transposed GLSL listing):
+  // UvTransform.FollowsKhrTextureTransform maps the extension's own worked example with it.
+  EXPECT_FLOAT_EQ(colour.options.transform.rotation, 0.25f);
   EXPECT_FLOAT_EQ(colour.options.transform.scale[1], 3.f);
   ASSERT_TRUE(colour.image);
   EXPECT_EQ(colour.image->width, 2u);
