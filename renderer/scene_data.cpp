@@ -82,7 +82,10 @@ SceneData::SceneData(const Scene& scene) : scene_(scene) {
   const auto none = [](const std::vector<uint8_t>& v) {
     return std::none_of(v.begin(), v.end(), [](uint8_t x) { return x != 0; });
   };
-  plain_ = !uses_uv_ && !uses_surface_ && none(interpolates_) && none(group_interpolates_);
+  const bool vertex_colours = std::any_of(scene_.materials.begin(), scene_.materials.end(),
+                                          [](const Material& m) { return m.vertex_colours; });
+  plain_ = !uses_uv_ && !uses_surface_ && !vertex_colours && none(interpolates_) &&
+           none(group_interpolates_);
   // A moving mesh interpolates its own posed attributes (resolve_moving()).
   for (size_t m = 0; m < mesh_motion_.size(); ++m)
     if (mesh_motion_[m] >= 0) interpolates_[m] = 0;

@@ -154,6 +154,9 @@ class SceneData {
   uint8_t surface_needs(uint32_t material) const { return surface_needs_[material]; }
   /// Derivatives and tangents at a resolved hit.
   TangentFrame tangent_frame(const RayHit& hit, const SurfaceHit& s) const;
+  /// The hit mesh's vertex colour interpolated at the hit (TriangleMesh::colours); 1 where the
+  /// mesh has none, and on spheres.
+  Vec3 vertex_colour(const RayHit& hit) const;
   /// Whether the candidate hit (geom, prim, barycentrics u v, point p) is there: false where its
   /// material's opacity falls below its cutoff (or, partial coverage, with probability 1 - alpha).
   bool covered(uint32_t geom, uint32_t prim, float u, float v, const Vec3& p,

@@ -250,4 +250,17 @@ TangentFrame SceneData::tangent_frame(const RayHit& hit, const SurfaceHit& s) co
   return f;
 }
 
+Vec3 SceneData::vertex_colour(const RayHit& hit) const {
+  if (hit.geom == kSphereGeometry) return Vec3(1.f);
+  const TriangleMesh& mesh = hit.inst != kNoInstance
+                                 ? scene_.groups[instances_[hit.inst].group].meshes[hit.geom]
+                                 : scene_.meshes[hit.geom];
+  if (mesh.colours.empty()) return Vec3(1.f);
+  const uint32_t* idx = &mesh.indices[3 * size_t(hit.prim)];
+  // Barycentrics may stray a rounding below zero: no colour channel goes negative.
+  return max(mesh.colours[idx[0]] * (1.f - hit.u - hit.v) + mesh.colours[idx[1]] * hit.u +
+                 mesh.colours[idx[2]] * hit.v,
+             Vec3(0.f));
+}
+
 }  // namespace rayfarm

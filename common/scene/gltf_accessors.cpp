@@ -65,7 +65,19 @@ struct View {
   int component_type = 0;
   int components = 0;
   bool normalized = false;
+  /// A sparse accessor's substitutions: for element i, its row in `values` (kNotSubstituted
+  /// where the base element stands); empty when the accessor is not sparse.
+  std::vector<uint32_t> sparse_row;
+  const uint8_t* values = nullptr;  ///< tightly packed elements of the same type
 };
+constexpr uint32_t kNotSubstituted = UINT32_MAX;
+
+/// Element i's first byte, or null where it is zero (no buffer view, no substitution).
+const uint8_t* element(const View& v, size_t i) {
+  if (!v.sparse_row.empty() && v.sparse_row[i] != kNotSubstituted)
+    return v.values + size_t{v.sparse_row[i]} * v.size * static_cast<size_t>(v.components);
+  return v.data == nullptr ? nullptr : v.data + i * v.stride;
+}
 
 std::string accessor_name(int index) { return "accessors[" + std::to_string(index) + "]"; }
 
@@ -100,10 +112,55 @@ const uint8_t* view_span(const Source& src, int index, const std::string& where,
   return data.data() + view.byteOffset;
 }
 
+/// Reads a sparse accessor's indices and values into `v` (whose type and count are set), each
+/// checked against its buffer view and the accessor's count.
+void read_sparse(const Source& src, const tinygltf::Accessor& a, const std::string& name, View& v) {
+  const std::string at = name + "/sparse";
+  const auto count = static_cast<size_t>(std::max(a.sparse.count, 0));
+  if (a.sparse.count < 1 || count > v.count)
+    src.fail(at + "/count", std::to_string(a.sparse.count) + " must lie in [1, " +
+                                std::to_string(v.count) + "], the accessor's count");
+  // Both arrays are tightly packed in their buffer views, after their offsets.
+  auto packed = [&](int view, int offset, size_t element_bytes, const std::string& what) {
+    size_t length = 0;
+    const uint8_t* base = view_span(src, view, at + "/" + what, length);
+    if (offset < 0 || static_cast<size_t>(offset) > length ||
+        count > (length - static_cast<size_t>(offset)) / element_bytes) {
+      src.fail(at + "/" + what, std::to_string(count) + " elements of " +
+                                    std::to_string(element_bytes) + " bytes do not fit in " +
+                                    "bufferViews[" + std::to_string(view) + "] after byte " +
+                                    std::to_string(offset));
+    }
+    return base + offset;
+  };
+  const int index_type = a.sparse.indices.componentType;
+  const size_t index_size = index_type == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE    ? 1
+                            : index_type == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT ? 2
+                            : index_type == TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT   ? 4
+                                                                                   : 0;
+  if (index_size == 0)
+    src.fail(at + "/indices/componentType", "must be an unsigned byte, short or int");
+  const uint8_t* indices =
+      packed(a.sparse.indices.bufferView, a.sparse.indices.byteOffset, index_size, "indices");
+  v.values = packed(a.sparse.values.bufferView, a.sparse.values.byteOffset,
+                    v.size * static_cast<size_t>(v.components), "values");
+  v.sparse_row.assign(v.count, kNotSubstituted);
+  uint64_t previous = 0;
+  for (size_t k = 0; k < count; ++k) {
+    uint32_t index = 0;
+    std::memcpy(&index, indices + k * index_size, index_size);  // little-endian
+    if (index >= v.count || (k > 0 && index <= previous))
+      src.fail(at + "/indices", "index " + std::to_string(k) + " is " + std::to_string(index) +
+                                    ": indices must increase and stay below the count " +
+                                    std::to_string(v.count));
+    previous = index;
+    v.sparse_row[index] = static_cast<uint32_t>(k);
+  }
+}
+
 View checked_view(const Source& src, int index, const std::string& where) {
   const tinygltf::Accessor& a = accessor_at(src, index, where);
   const std::string name = accessor_name(index);
-  if (a.sparse.isSparse) src.fail(name, "sparse accessors are not supported");
   View v;
   v.component_type = a.componentType;
   v.size = component_bytes(a.componentType);
@@ -119,7 +176,8 @@ View checked_view(const Source& src, int index, const std::string& where) {
   v.normalized = a.normalized;
   const size_t element = v.size * static_cast<size_t>(v.components);
   v.stride = element;
-  if (a.bufferView < 0) return v;  // all zeros, as the specification says
+  if (a.sparse.isSparse) read_sparse(src, a, name, v);
+  if (a.bufferView < 0) return v;  // all zeros but the substitutions, as the specification says
   size_t length = 0;
   const uint8_t* base = view_span(src, a.bufferView, name, length);
   const auto& bv = src.model->bufferViews[static_cast<size_t>(a.bufferView)];
@@ -146,8 +204,9 @@ View checked_view(const Source& src, int index, const std::string& where) {
 
 /// Component c of element i as a float: normalized integers to [0, 1] or [-1, 1].
 float component(const View& v, size_t i, int c) {
-  if (v.data == nullptr) return 0.f;
-  const uint8_t* p = v.data + i * v.stride + static_cast<size_t>(c) * v.size;
+  const uint8_t* first = element(v, i);
+  if (first == nullptr) return 0.f;
+  const uint8_t* p = first + static_cast<size_t>(c) * v.size;
   switch (v.component_type) {
     case TINYGLTF_COMPONENT_TYPE_FLOAT: {
       float f;
@@ -227,6 +286,27 @@ std::vector<Vec4> read_vec4(const Source& src, int accessor, const std::string& 
   return out;
 }
 
+std::vector<Vec3> read_colours(const Source& src, int accessor, size_t vertex_count,
+                               const std::string& where, bool& alpha) {
+  const tinygltf::Accessor& a = accessor_at(src, accessor, where);
+  if (a.count != vertex_count)
+    src.fail(where, std::to_string(a.count) + " elements, but POSITION has " +
+                        std::to_string(vertex_count));
+  if (a.type != TINYGLTF_TYPE_VEC3 && a.type != TINYGLTF_TYPE_VEC4)
+    src.fail(where, "must be a VEC3 or VEC4 accessor");
+  const int components = a.type == TINYGLTF_TYPE_VEC4 ? 4 : 3;
+  const std::vector<float> f = read_floats(src, accessor, components, where);
+  const auto unit = [](float v) { return std::clamp(v, 0.f, 1.f); };
+  std::vector<Vec3> out(vertex_count);
+  alpha = false;
+  for (size_t i = 0; i < vertex_count; ++i) {
+    const float* c = &f[i * size_t(components)];
+    out[i] = Vec3(unit(c[0]), unit(c[1]), unit(c[2]));
+    alpha |= components == 4 && c[3] < 1.f;
+  }
+  return out;
+}
+
 std::vector<uint32_t> read_indices(const Source& src, int accessor, size_t vertex_count,
                                    const std::string& where) {
   const View v = checked_view(src, accessor, where);
@@ -240,8 +320,7 @@ std::vector<uint32_t> read_indices(const Source& src, int accessor, size_t verte
   std::vector<uint32_t> out(v.count);
   for (size_t i = 0; i < v.count; ++i) {
     uint32_t index = 0;
-    if (v.data != nullptr) {
-      const uint8_t* p = v.data + i * v.stride;
+    if (const uint8_t* p = element(v, i); p != nullptr) {
       if (v.size == 1) {
         index = *p;
       } else if (v.size == 2) {

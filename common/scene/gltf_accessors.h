@@ -32,6 +32,10 @@ std::vector<float> read_floats(const Source& src, int accessor, int components,
 std::vector<Vec3> read_vec3(const Source& src, int accessor, const std::string& where);
 std::vector<Vec2> read_vec2(const Source& src, int accessor, const std::string& where);
 std::vector<Vec4> read_vec4(const Source& src, int accessor, const std::string& where);
+/// A COLOR_0 accessor (VEC3 or VEC4, floats or normalized integers) of `vertex_count` elements,
+/// linear RGB clamped to [0, 1]; `alpha` tells whether some element's alpha is below 1.
+std::vector<Vec3> read_colours(const Source& src, int accessor, size_t vertex_count,
+                               const std::string& where, bool& alpha);
 /// An index accessor (unsigned byte, short or int scalars), each below `vertex_count`.
 std::vector<uint32_t> read_indices(const Source& src, int accessor, size_t vertex_count,
                                    const std::string& where);

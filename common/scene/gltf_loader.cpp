@@ -7,6 +7,9 @@
 #include <cctype>
 #include <cstring>
 #include <set>
+#include <string_view>
+
+#include <nlohmann/json.hpp>
 
 #include "common/limits.h"
 #include "common/scene/gltf_accessors.h"
@@ -159,13 +162,28 @@ std::pair<size_t, size_t> glb_json_chunk(const std::string& data, const std::str
 }
 
 const std::set<std::string>& supported_extensions() {
-  static const std::set<std::string> names{"KHR_lights_punctual",
-                                           "KHR_materials_ior",
-                                           "KHR_materials_transmission",
-                                           "KHR_materials_volume",
-                                           "KHR_materials_emissive_strength",
-                                           "KHR_texture_transform"};
+  static const std::set<std::string> names{
+      "KHR_lights_punctual",        "KHR_mesh_quantization", "KHR_materials_ior",
+      "KHR_materials_transmission", "KHR_materials_volume",  "KHR_materials_emissive_strength",
+      "KHR_texture_transform"};
   return names;
+}
+
+/// The first extension in the JSON's extensionsRequired that rayfarm does not support, or "".
+/// Read before tinygltf parses the file: a compressed mesh (Draco, meshopt) has accessors without
+/// buffer views that tinygltf refuses with its own words, before the extension could be named.
+std::string first_unsupported_required(const char* text, size_t size) {
+  // Most files require nothing: they are not parsed twice.
+  if (std::string_view(text, size).find("extensionsRequired") == std::string_view::npos) return {};
+  const nlohmann::json doc = nlohmann::json::parse(text, text + size, nullptr, false);
+  if (!doc.is_object()) return {};  // not JSON: tinygltf says why
+  const auto it = doc.find("extensionsRequired");
+  if (it == doc.end() || !it->is_array()) return {};
+  for (const nlohmann::json& name : *it) {
+    if (name.is_string() && !supported_extensions().count(name.get<std::string>()))
+      return name.get<std::string>();
+  }
+  return {};
 }
 
 void check_extensions(const gltf::Source& src) {
@@ -208,11 +226,13 @@ GltfResult load_gltf(const fs::path& folder, const fs::path& relative, const Glt
   std::transform(ext.begin(), ext.end(), ext.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   const bool binary = ext == ".glb";
-  if (binary) {
-    const auto [at, length] = glb_json_chunk(data, display);
-    check_nesting(data.data() + at, length, display);
-  } else {
-    check_nesting(data.data(), data.size(), display);
+  const auto [json_at, json_length] =
+      binary ? glb_json_chunk(data, display) : std::pair<size_t, size_t>{0, data.size()};
+  check_nesting(data.data() + json_at, json_length, display);
+  if (const std::string name = first_unsupported_required(data.data() + json_at, json_length);
+      !name.empty()) {
+    throw SceneError(display + ": extensionsRequired: the file requires extension " +
+                     printable(name) + ", which rayfarm does not support");
   }
   if (data.size() > UINT32_MAX) throw SceneError(display + ": larger than 4 GiB");
 

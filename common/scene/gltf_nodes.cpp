@@ -1,5 +1,6 @@
 #include "common/scene/gltf_nodes.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "common/limits.h"
@@ -58,10 +59,15 @@ class NodeReader {
         if (!child[i]) roots.push_back(static_cast<int>(i));
       }
     }
+    by_index_ = camera_by_index();
     for (int root : roots) visit(root, Transform(), "scene", 0);
     for (const Placement& p : placements_) place(p);
-    if (!options_.camera.empty() && !result_.has_camera)
-      throw SceneError(src_.display + ": no camera named \"" + options_.camera + "\"");
+    if (!options_.camera.empty() && !result_.has_camera) {
+      throw SceneError(src_.display + ": no camera named \"" + options_.camera +
+                       "\" placed by the scene's nodes (a camera's name, its node's name, or its " +
+                       "index in cameras: the file has " + std::to_string(model_.cameras.size()) +
+                       ", numbered from 0)");
+    }
     return result_;
   }
 
@@ -289,6 +295,18 @@ class NodeReader {
         }
       }
     }
+    if (auto it = prim.attributes.find("COLOR_0"); it != prim.attributes.end() && !replaced) {
+      // It multiplies the base colour of the material, which from now on reads vertex colours.
+      bool alpha = false;
+      out.colours = read_colours(src_, it->second, n, at + "/attributes/COLOR_0", alpha);
+      Material& m = scene_.materials[material];
+      m.vertex_colours = true;
+      if (alpha && (m.has_alpha() || m.alpha_blend) && !warned_vertex_alpha_) {
+        warned_vertex_alpha_ = true;
+        src_.warn(at + "/attributes/COLOR_0",
+                  "the vertex colours' alpha is not read: coverage is the material's alone");
+      }
+    }
     if (mat.uses_uv() || replaced) {
       const std::string set = "TEXCOORD_" + std::to_string(materials_.texcoord(prim.material));
       if (auto it = prim.attributes.find(set); it != prim.attributes.end()) {
@@ -321,13 +339,28 @@ class NodeReader {
     return out;
   }
 
+  /// Whether --camera (gltf.camera) gives an index into the file's cameras: digits that name no
+  /// camera or camera node (a name wins, so that a camera named "2" stays reachable).
+  bool camera_by_index() const {
+    const std::string& c = options_.camera;
+    if (c.empty() || c.size() > 9 ||
+        !std::all_of(c.begin(), c.end(), [](char ch) { return ch >= '0' && ch <= '9'; }))
+      return false;
+    for (const tinygltf::Camera& cam : model_.cameras)
+      if (cam.name == c) return false;
+    for (const tinygltf::Node& n : model_.nodes)
+      if (n.camera >= 0 && n.name == c) return false;
+    return true;
+  }
+
   void consider_camera(const tinygltf::Node& node, const Transform& world,
                        const std::string& where) {
     if (static_cast<size_t>(node.camera) >= model_.cameras.size())
       src_.fail(where + "/camera", "camera " + std::to_string(node.camera) + " does not exist");
     const tinygltf::Camera& cam = model_.cameras[static_cast<size_t>(node.camera)];
     if (result_.has_camera) return;
-    if (!options_.camera.empty() && options_.camera != cam.name && options_.camera != node.name)
+    if (!options_.camera.empty() && options_.camera != cam.name && options_.camera != node.name &&
+        !(by_index_ && options_.camera == std::to_string(node.camera)))
       return;
     const std::string at = "cameras[" + std::to_string(node.camera) + "]";
     Camera c;
@@ -439,6 +472,8 @@ class NodeReader {
   std::vector<MadeGroup> made_;
   const size_t first_group_ = scene_.groups.size();  // groups already in the scene
   bool warned_skin_ = false, warned_morph_ = false;
+  bool by_index_ = false;  // camera_by_index(), found once
+  bool warned_vertex_alpha_ = false;
   GltfResult result_;
 };
 

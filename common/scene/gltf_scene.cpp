@@ -21,25 +21,36 @@ FilmSize default_gltf_film(double aspect) {
   return {width, 540};
 }
 
-namespace {
-
-/// A camera for a glTF file that has none: looking down -z at the middle of its meshes' bounds,
-/// from far enough that they fit the view.
-Camera default_camera(const Scene& scene) {
+Camera default_view(const Scene& scene) {
   WideVec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
   extend_bounds(scene, lo, hi);
+  for (const Sphere& s : scene.spheres) {  // a JSON scene's own spheres are framed too
+    const WideVec3 c = wide(s.center);
+    lo = {std::min(lo.x, c.x - s.radius), std::min(lo.y, c.y - s.radius),
+          std::min(lo.z, c.z - s.radius)};
+    hi = {std::max(hi.x, c.x + s.radius), std::max(hi.y, c.y + s.radius),
+          std::max(hi.z, c.z + s.radius)};
+  }
   Camera c;
-  if (!(lo.x <= hi.x)) return c;  // no meshes: whatever lights there are, seen from the origin
+  if (!(lo.x <= hi.x)) return c;  // no shapes: whatever lights there are, seen from the origin
   const WideVec3 mid{(lo.x + hi.x) / 2, (lo.y + hi.y) / 2, (lo.z + hi.z) / 2};
   const double radius = std::max(length(hi - lo) / 2, 1e-6);
   const double distance = radius / std::sin(c.fov_y_deg * 3.14159265358979323846 / 360.0);
-  c.eye = Vec3(float(mid.x), float(mid.y), float(std::min(mid.z + distance, kMaxCoordinate)));
+  // From the front (+z), 30 degrees to the right and 25 degrees above: a flat model lying in any
+  // of the three axis planes is seen at an angle, never edge-on.
+  const double to_rad = 3.14159265358979323846 / 180.0;
+  const double azimuth = 30.0 * to_rad, elevation = 25.0 * to_rad;
+  const WideVec3 dir{std::sin(azimuth) * std::cos(elevation), std::sin(elevation),
+                     std::cos(azimuth) * std::cos(elevation)};
+  auto coordinate = [](double v) {
+    return float(std::clamp(v, -double(kMaxCoordinate), double(kMaxCoordinate)));
+  };
+  c.eye = Vec3(coordinate(mid.x + distance * dir.x), coordinate(mid.y + distance * dir.y),
+               coordinate(mid.z + distance * dir.z));
   c.look_at = Vec3(float(mid.x), float(mid.y), float(mid.z));
   if (c.eye == c.look_at) c.look_at.z -= 1.f;
   return c;
 }
-
-}  // namespace
 
 namespace {
 
@@ -66,9 +77,9 @@ Scene load_gltf_frame(const fs::path& file, const SceneCheck& check, SceneImages
     if (auto refusal = check(scene.film, scene.render)) throw SceneRefused(*refusal);
   }
   if (!result.has_camera) {
-    scene.camera = default_camera(scene);
+    scene.camera = default_view(scene);
     scene.default_camera = true;
-    scene.warnings.push_back(file.string() + kDefaultGltfCameraWarning);
+    scene.warnings.push_back(file.string() + ": the file has no camera" + kDefaultViewWarning);
   }
   return scene;
 }

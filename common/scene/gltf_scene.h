@@ -16,10 +16,17 @@ namespace rayfarm {
 /// (16:9 when it says none).
 FilmSize default_gltf_film(double aspect);
 
-/// The end of the warning a glTF file without a camera gets: the default camera it gets
-/// instead is placed from its meshes' bounds at each frame (and kept still within a shutter).
-inline constexpr const char* kDefaultGltfCameraWarning =
-    ": the file has no camera; a default one looks down -z at the middle of the meshes";
+/// The end of the warning a scene without a camera gets (default_view()): the default camera is
+/// placed from the meshes' bounds at each frame (and kept still within a shutter).
+inline constexpr const char* kDefaultViewWarning =
+    "; a default one frames the meshes from the front (+z), 30 degrees to the right (+x) and 25 "
+    "degrees above (+y)";
+
+/// A camera for a scene that has none (a glTF file without one, or a JSON scene naming such a
+/// file without a "camera"): the default perspective camera looking at the middle of the
+/// bounds of its meshes and spheres from kDefaultViewWarning's direction, far enough that the
+/// bounding sphere fits the view.
+Camera default_view(const Scene& scene);
 
 /// The glTF file `file` as a scene, at `frame` of its animation (frame 1, time 0, when nullopt;
 /// kGltfFps frames a second). Throws SceneError (SceneRefused when `check` refuses its film).

@@ -13,6 +13,7 @@
 #include "common/limits.h"
 #include "common/math/wide.h"
 #include "common/scene/animation.h"
+#include "common/scene/camera_reader.h"
 #include "common/scene/instances.h"
 #include "common/scene/json_reader.h"
 #include "common/scene/light_reader.h"
@@ -76,13 +77,21 @@ class SceneReader {
         }
       }
     }
-    if (auto n = root.find("camera"); n || !has_camera) read_camera(root.require("camera"));
+    // A glTF file's camera, else the scene's "camera"; with neither, a glTF scene gets the view a
+    // direct render of the file gets (once every shape is read, below).
+    if (auto n = root.find("camera"); n || !gltf)
+      scene_.camera = read_camera(root.require("camera"));
     if (auto n = root.find("textures")) textures_.read(*n, scene_.textures, scene_.referenced);
     if (auto n = root.find("materials")) read_materials(*n);
     if (auto n = root.find("groups")) read_groups(*n);
     if (auto n = root.find("shapes")) read_shapes(*n);
     if (auto n = root.find("lights")) read_lights(*n, folder_, images_, scene_);
     if (auto n = root.find("background")) scene_.background = read_radiance(*n);
+    if (gltf && !has_camera && !root.find("camera")) {
+      scene_.camera = default_view(scene_);
+      scene_.default_camera = true;
+      root.warn(std::string("no \"camera\", and the glTF file has none") + kDefaultViewWarning);
+    }
   }
 
  private:
@@ -92,51 +101,6 @@ class SceneReader {
       n.fail("scene format " + std::to_string(format) + " is newer than format " +
              std::to_string(kSceneFormatVersion) + ", the newest this build reads");
     }
-  }
-
-  void read_camera(const Node& n) {
-    Camera& c = scene_.camera;
-    if (auto type = n.find("type")) {
-      const std::string kind = read_string(*type);
-      if (kind == "orthographic") {
-        c.projection = Camera::Projection::kOrthographic;
-      } else if (kind != "perspective") {
-        type->fail("unknown camera type " + as_written(type->json()) +
-                   "; expected \"perspective\" or \"orthographic\"");
-      }
-    }
-    c.eye = read_point(n.require("eye"));
-    c.look_at = read_point(n.require("look_at"));
-    if (auto up = n.find("up")) c.up = read_point(*up);
-    if (c.projection == Camera::Projection::kOrthographic) {
-      n.allow_keys({"type", "eye", "look_at", "up", "view_height"});
-      const Node height = n.require("view_height");
-      c.view_height = read_length(height);
-      if (!(c.view_height > 0.f))
-        height.fail("view_height is too small to represent (below ~1e-38)");
-      check_view(n, c);
-      return;
-    }
-    n.allow_keys({"type", "eye", "look_at", "up", "fov_y", "aperture_radius", "focus_distance"});
-    const Node fov = n.require("fov_y");
-    c.fov_y_deg = read_float(fov);
-    if (!(c.fov_y_deg > 0.f && c.fov_y_deg < 180.f)) fov.fail("fov_y must lie in (0, 180) degrees");
-    if (auto a = n.find("aperture_radius")) {
-      (void)read_non_negative(*a);
-      c.aperture_radius = read_coordinate(*a);
-    }
-    if (auto f = n.find("focus_distance")) c.focus_distance = read_length(*f);
-    check_view(n, c);
-  }
-
-  static void check_view(const Node& n, const Camera& c) {
-    const Vec3 forward = c.look_at - c.eye;
-    const double distance = length(wide(forward));
-    if (distance == 0.0) n.child("look_at").fail("look_at equals eye: no view direction");
-    const double up = length(wide(c.up));
-    if (up != 0.0 && cross_length(forward, c.up) > 1e-6 * distance * up) return;
-    if (auto given = n.find("up")) given->fail("up is zero or parallel to the view direction");
-    n.fail("the default up [0, 1, 0] is parallel to the view direction; give \"up\"");
   }
 
   void read_film(const Node& n) {
@@ -488,7 +452,9 @@ Scene load_scene_at(const fs::path& file, const SceneCheck& check, SceneImages i
 Scene load_scene(const fs::path& file, const SceneCheck& check, SceneImages images,
                  const GltfOptions& gltf, const fs::path& scene_root,
                  std::optional<int64_t> frame) {
-  return load_scene_at(file, check, images, gltf, scene_root, frame, 0.0);
+  Scene scene = load_scene_at(file, check, images, gltf, scene_root, frame, 0.0);
+  if (!has_light(scene)) scene.warnings.push_back(file.string() + kNoLightWarning);
+  return scene;
 }
 
 Scene load_scene_pose(const fs::path& file, const GltfOptions& gltf, const fs::path& scene_root,

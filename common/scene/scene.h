@@ -45,8 +45,8 @@ struct FilmSize {
 };
 
 // ---- materials: one parameter struct per kind (docs/scene-format.md) ----
-// Adding a kind: its struct here, one line in MaterialKind, its reader in parser.cpp, and its
-// BSDF in renderer/bsdfs/ (one header, one line in the worker's Bsdf).
+// Adding a kind: its struct here, one line in MaterialKind, its reader in material_reader.cpp, and
+// its BSDF in renderer/bsdfs/ (one header, one line in the worker's Bsdf).
 
 /// Lambertian reflection.
 struct DiffuseMaterial {
@@ -194,6 +194,9 @@ struct Material {
   TexturedRgb emission{Vec3(0.f)};  ///< emitted radiance; non-zero makes an area light
   bool two_sided = false;           ///< emission leaves both sides
   bool textured = false;  ///< some BSDF parameter reads a texture (set by the scene's reader)
+  /// The kind's colours (its TexturedRgb parameters: glTF's base colour) are multiplied by the
+  /// hit mesh's interpolated TriangleMesh::colours, as glTF's COLOR_0 asks.
+  bool vertex_colours = false;
   /// The BSDF scatters nothing from behind (the side against the geometric normal); opaque
   /// kinds only. Off: every opaque kind reflects on both sides alike.
   bool one_sided = false;
@@ -235,6 +238,9 @@ struct TriangleMesh {
   /// Tangents per vertex, or empty (then derived from the texture coordinates): xyz a unit
   /// tangent, w = +-1 the handedness, the bitangent being w * cross(normal, tangent).
   std::vector<Vec4> tangents;
+  /// Linear RGB per vertex (glTF COLOR_0), or empty: multiplies the colour of a material with
+  /// Material::vertex_colours (1 where a mesh has none).
+  std::vector<Vec3> colours;
   std::vector<uint32_t> indices;    ///< 3 per triangle, into positions (and normals, uvs)
   std::vector<uint32_t> materials;  ///< 1 per triangle, into Scene::materials
   std::string origin;               ///< where it came from, for messages ("box.obj", "shapes[3]")
@@ -400,6 +406,14 @@ struct Scene {
   /// placed anew at each frame, and kept still within a shutter rather than chasing the meshes.
   bool default_camera = false;
 };
+
+/// Whether anything in the scene can light it: a light, an environment or background that is not
+/// black, or an emissive material on some shape. Without one, every image is black.
+bool has_light(const Scene& scene);
+/// The end of the warning a scene without light gets (after its file's name).
+inline constexpr const char* kNoLightWarning =
+    ": the scene has no light (no light, emissive surface, environment or background): every "
+    "image of it is black; add a light, or an \"environment\" or \"background\" in a JSON scene";
 
 /// Releases the decoded texture images a loaded scene holds, once a renderer has taken its copy.
 inline void drop_images(Scene& scene) {

@@ -230,9 +230,11 @@ Vec3 PathIntegratorFor<BsdfT>::trace(Ray ray, PathSampler& sampler, PathStats& s
       shading_sided = (data_.surface_needs(hit.material) & kShadingSided) != 0;
       if (shading_sided && !(wo_local.z > 0.f)) break;  // seen from below its shading horizon
     }
-    const BsdfT bsdf = !kPlain && material.textured
-                           ? BsdfT(material, TextureLookup(&data_.textures(), hit.uv))
-                           : BsdfT(material);
+    const BsdfT bsdf =
+        kPlain || !(material.textured || material.vertex_colours) ? BsdfT(material)
+        : material.vertex_colours
+            ? BsdfT(material, TextureLookup(&data_.textures(), hit.uv, data_.vertex_colour(rh)))
+            : BsdfT(material, TextureLookup(&data_.textures(), hit.uv));
     // The side from which light selection takes light: wo's (geometric) side where the BSDF
     // only reflects (same_sides() rejects the other side), every side where it may transmit.
     const Vec3 select_n = plan_.light_tree && bsdf.reflects_only()

@@ -16,14 +16,20 @@ class TextureLookup {
   /// For constant parameters only.
   TextureLookup() = default;
   TextureLookup(const TextureSet* set, Vec2 uv) : set_(set), uv_(uv) {}
+  /// With a vertex colour that multiplies every reflectance (Material::vertex_colours).
+  TextureLookup(const TextureSet* set, Vec2 uv, const Vec3& tint)
+      : set_(set), uv_(uv), tint_(tint), tinted_(true) {}
   /// Whether this lookup reads textures (else every parameter must be a constant).
   bool has_textures() const { return set_ != nullptr; }
 
-  /// A reflectance: the texture's RGB clamped to [0, 1], times the factor.
+  /// A reflectance: the texture's RGB clamped to [0, 1], times the factor (and the tint).
   Vec3 reflectance(const TexturedRgb& p) const {
-    if (p.texture < 0) return p.value;
-    const Vec4 t = lookup(p.texture);
-    return p.value * Vec3(clamp01(t[0]), clamp01(t[1]), clamp01(t[2]));
+    Vec3 out = p.value;
+    if (p.texture >= 0) {
+      const Vec4 t = lookup(p.texture);
+      out = out * Vec3(clamp01(t[0]), clamp01(t[1]), clamp01(t[2]));
+    }
+    return tinted_ ? out * tint_ : out;
   }
   /// A radiance: the texture's RGB, unbounded above (negative and NaN texels read 0), times the
   /// factor.
@@ -69,6 +75,8 @@ class TextureLookup {
 
   const TextureSet* set_ = nullptr;
   Vec2 uv_;
+  Vec3 tint_{1.f};
+  bool tinted_ = false;
 };
 
 }  // namespace rayfarm

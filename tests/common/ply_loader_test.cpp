@@ -148,6 +148,7 @@ std::string scene_json(const std::string& mesh_keys) {
   return R"({"camera": {"eye": [0, 0, -5], "look_at": [0, 0, 0], "fov_y": 40},
   "film": {"width": 8, "height": 8},
   "materials": {"red": {"type": "diffuse", "albedo": [0.5, 0.1, 0.1]}},
+  "lights": [{"type": "point", "position": [0, 0, -4], "intensity": [1, 1, 1]}],
   "shapes": [{"type": "mesh", )" +
          mesh_keys + "}]}";
 }
