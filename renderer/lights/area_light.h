@@ -4,6 +4,7 @@
 #include <cmath>
 #include <vector>
 
+#include "renderer/lights/emission_footprint.h"
 #include "renderer/lights/light_sample.h"
 #include "renderer/scene_data.h"
 
@@ -14,6 +15,8 @@ namespace rayfarm {
 struct EmissionTextures {
   const TextureSet* textures = nullptr;
   std::vector<Vec3> mean_radiance;  ///< per material; empty: every emission is a constant
+  /// Where image textures emit, per triangle (emission_footprint.h); null: the means above.
+  const EmissionFootprints* footprints = nullptr;
 };
 
 /// The radiance that stands for m's emission in a light's power.

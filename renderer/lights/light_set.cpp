@@ -39,7 +39,8 @@ double scene_radius(const Scene& scene) {
 LightSet::LightSet(SceneData& data, LightChoice choice) {
   const Scene& scene = data.scene();
   // Textured emission: its power from the texture's mean, computed once per material.
-  EmissionTextures emission{&data.textures(), {}};
+  const EmissionFootprints footprints(scene, data.textures());
+  EmissionTextures emission{&data.textures(), {}, &footprints};
   for (const Material& m : scene.materials) {
     Vec3 mean = m.emission.value;
     if (m.emission.is_textured()) {
@@ -57,9 +58,11 @@ LightSet::LightSet(SceneData& data, LightChoice choice) {
     ++area_count_;
   };
   for (uint32_t m = 0; m < scene.meshes.size(); ++m) {
-    for (uint32_t t = 0; t < scene.meshes[m].triangle_count(); ++t) {
-      if (auto light = TexturedTriangleLight::make(scene, m, t, emission)) {
-        add_area(*light);
+    const TriangleMesh& mesh = scene.meshes[m];
+    for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
+      // A textured emitter is a textured light or none (its black triangles), never a plain one.
+      if (scene.materials[mesh.materials[t]].emission.is_textured()) {
+        if (auto light = TexturedTriangleLight::make(scene, m, t, emission)) add_area(*light);
       } else if (auto plain = TriangleLight::make(scene, m, t, &emission)) {
         add_area(*plain);
       }

@@ -20,16 +20,24 @@ class TexturedTriangleLight {
     const TriangleMesh& m = scene.meshes[mesh];
     const Material& mat = scene.materials[m.materials[tri]];
     if (!mat.emission.is_textured()) return std::nullopt;
+    // The mesh's texture coordinates, else the barycentrics (u, v) of corners 1 and 2.
+    Vec2 uv[3] = {{0.f, 0.f}, {1.f, 0.f}, {0.f, 1.f}};
+    if (!m.uvs.empty())
+      for (int i = 0; i < 3; ++i) uv[i] = m.uvs[m.indices[3 * tri + i]];
+    // A triangle whose texels are all black emits exactly nothing: no light (a BSDF ray that
+    // finds it adds zero either way). The others weigh what their own texels emit.
+    std::optional<TexelFootprint> footprint;
+    if (tex.footprints != nullptr) footprint = tex.footprints->find(mat.emission.texture, uv);
+    if (footprint && footprint->black) return std::nullopt;
     auto base = TriangleLight::make(scene, mesh, tri, &tex);
     if (!base) return std::nullopt;
-    TexturedTriangleLight light(*base, tex.textures, mat.emission);
-    // The mesh's texture coordinates, else the barycentrics (u, v) of corners 1 and 2.
-    if (!m.uvs.empty()) {
-      for (int i = 0; i < 3; ++i) light.uv_[i] = m.uvs[m.indices[3 * tri + i]];
-    } else {
-      light.uv_[1] = {1.f, 0.f};
-      light.uv_[2] = {0.f, 1.f};
+    if (footprint) {
+      // Any emission keeps a share of the selection, however dim its texels read.
+      const double mean = std::max(footprint->mean_luminance, 1e-9);
+      base->set_power_luminance(double(luminance(mat.emission.value)) * mean);
     }
+    TexturedTriangleLight light(*base, tex.textures, mat.emission);
+    for (int i = 0; i < 3; ++i) light.uv_[i] = uv[i];
     return light;
   }
 

@@ -51,6 +51,11 @@ class TriangleLight {
 
   /// Emitted power (luminance); in double: luminance x area x pi overflows float for huge ones.
   double power() const { return power_; }
+  /// Sets the power from the mean luminance of the emitted radiance over the triangle (a
+  /// textured emitter's, which the material's mean does not tell).
+  void set_power_luminance(double mean) {
+    power_ = mean * area_d_ * kPi * (two_sided_ ? 2.0 : 1.0);
+  }
   /// Where the light tree (light_tree.h) finds it: the triangle's box, its normal, a hemisphere
   /// of emission on one side or both.
   LightBounds bounds() const {
