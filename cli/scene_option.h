@@ -1,6 +1,7 @@
 #pragma once
-// --camera, --scene-root and -D: how `rayfarm render` and `rayfarm submit` read a scene file
-// (docs/gltf.md for cameras, docs/mitsuba.md for Mitsuba XML's root and $name parameters).
+// --camera, --environment, --scene-root and -D: how `rayfarm render` and `rayfarm submit` read a
+// scene file (docs/gltf.md for cameras, docs/mitsuba.md for Mitsuba XML's root and $name
+// parameters).
 #include <cstdint>
 #include <filesystem>
 #include <optional>
@@ -21,6 +22,7 @@ namespace rayfarm::cli {
 struct SceneArgs {
   std::string scene;
   std::string camera;
+  std::string environment;  ///< --environment: "uniform" or an image file
   std::string root;
   std::vector<std::string> defines;
 
@@ -52,7 +54,12 @@ struct SceneArgs {
       throw CLI::ValidationError(
           "--camera chooses among a glTF file's cameras; a JSON scene names "
           "its glTF camera in \"gltf\" (docs/gltf.md)");
-    if (is_list() && (!camera.empty() || is_mitsuba_path(scene)))
+    if (!environment.empty() && !is_gltf_path(scene))
+      throw CLI::ValidationError(
+          "--environment lights a glTF file; a JSON scene adds a \"constant\" or "
+          "\"environment\" light to its \"lights\" (docs/scene-format.md)");
+    if (!environment.empty()) (void)gltf_environment();
+    if (is_list() && (!camera.empty() || !environment.empty() || is_mitsuba_path(scene)))
       throw CLI::ValidationError(scene +
                                   ": a list of scene files, one per frame, holds JSON scenes "
                                   "(or glTF files rendered through their own cameras)");
@@ -60,6 +67,23 @@ struct SceneArgs {
       throw CLI::ValidationError("--scene-root and -D apply to Mitsuba XML scenes (.xml), not to " +
                                  scene);
     if (is_mitsuba_path(scene)) (void)parameters();
+  }
+
+  /// --environment as GltfOptions::environment: "uniform", or the image's path relative to the
+  /// glTF file's folder, which must hold it (the image travels with the file to the farm).
+  std::string gltf_environment() const {
+    if (environment.empty() || environment == "uniform") return environment;
+    namespace fs = std::filesystem;
+    const fs::path folder = fs::path(scene).parent_path();
+    const fs::path relative = fs::weakly_canonical(environment)
+                                  .lexically_relative(fs::weakly_canonical(
+                                      folder.empty() ? fs::current_path() : fs::absolute(folder)));
+    const std::string text = relative.generic_string();
+    if (text.empty() || text == "." || text.rfind("..", 0) == 0)
+      throw CLI::ValidationError("--environment " + environment +
+                                 ": the image must lie in the glTF file's folder or below it (it "
+                                 "travels with the file); or give \"uniform\"");
+    return text;
   }
 
   /// A list of scene files, one still scene per frame: the file name holds a frame pattern
@@ -100,6 +124,7 @@ struct SceneArgs {
     }
     GltfOptions gltf;
     gltf.camera = camera;
+    gltf.environment = gltf_environment();
     return load_scene(scene, {}, images, gltf, {}, at);
   }
 
@@ -109,6 +134,7 @@ struct SceneArgs {
     if (is_list() || is_mitsuba_path(scene)) return;
     GltfOptions gltf;
     gltf.camera = camera;
+    gltf.environment = gltf_environment();
     rayfarm::add_motion(s, settings, gltf);
   }
 
@@ -120,7 +146,9 @@ struct SceneArgs {
                                   "(--frames A-B[:STEP] or --frame N)");
     }
     if (is_mitsuba_path(scene)) return pack_mitsuba_scene(scene, root, parameters());
-    return camera.empty() ? pack_scene(scene) : pack_gltf_scene(scene, camera);
+    return camera.empty() && environment.empty()
+               ? pack_scene(scene)
+               : pack_gltf_scene(scene, camera, gltf_environment());
   }
 };
 
@@ -135,8 +163,11 @@ inline void check_uncropped(const Scene& scene) {
 
 inline void add_scene_options(CLI::App* cmd, SceneArgs& args) {
   cmd->add_option("--camera", args.camera,
-                  "glTF scenes: the camera (its or its node's name) to render through; default: "
-                  "the first in the scene");
+                  "glTF scenes: the camera (its or its node's name, or its index) to render "
+                  "through; default: the first in the scene");
+  cmd->add_option("--environment", args.environment,
+                  "glTF scenes: light the file from every direction, \"uniform\" (radiance 1) "
+                  "or an equirectangular image (.hdr, .exr) in the file's folder");
   cmd->add_option("--scene-root", args.root,
                   "Mitsuba XML scenes: the folder the scene may read files from (default: the "
                   "scene's own folder)");

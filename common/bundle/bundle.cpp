@@ -255,26 +255,33 @@ PackedScene pack_scene(const fs::path& scene_file, const fs::path& scene_root) {
                      load_scene(scene_file, {}, SceneImages::kCheckOnly, {}, scene_root));
 }
 
-PackedScene pack_gltf_scene(const fs::path& gltf_file, const std::string& camera) {
+PackedScene pack_gltf_scene(const fs::path& gltf_file, const std::string& camera,
+                            const std::string& environment) {
   GltfOptions options;
   options.camera = camera;
-  // The camera exists; an animated file keeps its frames in the wrapper (below).
+  options.environment = environment;
+  // The camera and the environment's image exist; an animated file keeps its frames in the
+  // wrapper (below). The bundle holds what this scene read: the file, its buffers and images,
+  // the environment's image.
   const Scene scene = load_scene(gltf_file, {}, SceneImages::kCheckOnly, options);
-  PackedScene packed = pack_scene(gltf_file);
-  std::string name;  // the camera's name as a JSON string
-  for (const unsigned char c : camera) {
-    if (c == '"' || c == '\\') {
-      name += '\\';
-      name += static_cast<char>(c);
-    } else if (c < 0x20) {
-      static const char* hex = "0123456789abcdef";
-      name += "\\u00";
-      name += hex[c >> 4];
-      name += hex[c & 15];
-    } else {
-      name += static_cast<char>(c);
+  PackedScene packed = pack_loaded(gltf_file, scene);
+  const auto quoted = [](const std::string& text) {  // as a JSON string
+    std::string out = "\"";
+    for (const unsigned char c : text) {
+      if (c == '"' || c == '\\') {
+        out += '\\';
+        out += static_cast<char>(c);
+      } else if (c < 0x20) {
+        static const char* hex = "0123456789abcdef";
+        out += "\\u00";
+        out += hex[c >> 4];
+        out += hex[c & 15];
+      } else {
+        out += static_cast<char>(c);
+      }
     }
-  }
+    return out + "\"";
+  };
   const fs::path gltf(packed.scene_path);
   // Posed as the file rendered directly: an animated file over its own frames (kGltfFps from
   // frame 1), any other at time 0 (an animation of one key still poses its nodes).
@@ -283,9 +290,16 @@ PackedScene pack_gltf_scene(const fs::path& gltf_file, const std::string& camera
                             ", " + std::to_string(scene.animation->last) +
                             "], \"fps\": " + std::to_string(int(kGltfFps)) + "}"
                       : "";
-  const std::string json = "{\"gltf\": {\"file\": \"" + gltf.filename().generic_string() +
-                           "\", \"camera\": \"" + name + "\"" +
-                           (scene.animation ? "" : ", \"time\": 0") + "}" + animation + "}\n";
+  // The environment as the JSON scene's light that says the same (gltf_scene.cpp reads it so).
+  const std::string lights =
+      environment.empty() ? ""
+      : environment == "uniform"
+          ? ", \"lights\": [{\"type\": \"constant\", \"radiance\": [1, 1, 1]}]"
+          : ", \"lights\": [{\"type\": \"environment\", \"file\": " + quoted(environment) + "}]";
+  const std::string json = "{\"gltf\": {\"file\": " + quoted(gltf.filename().generic_string()) +
+                           (camera.empty() ? "" : ", \"camera\": " + quoted(camera)) +
+                           (scene.animation ? "" : ", \"time\": 0") + "}" + animation + lights +
+                           "}\n";
   add_wrapper(packed, (gltf.parent_path() / gltf.filename()).generic_string(), ".camera.json",
               json);
   return packed;

@@ -74,9 +74,12 @@ PackedScene pack_scene(const std::filesystem::path& scene_file,
 /// file.
 PackedScene pack_scene_list(const std::filesystem::path& pattern,
                             const std::vector<std::filesystem::path>& files);
-/// pack_scene() of a glTF file rendered through the camera named `camera`: the bundle's scene is
-/// then a JSON file beside the glTF that names both (docs/gltf.md).
-PackedScene pack_gltf_scene(const std::filesystem::path& gltf_file, const std::string& camera);
+/// pack_scene() of a glTF file rendered through the camera named `camera` (empty: its first)
+/// and lit by `environment` (GltfOptions::environment; empty: its own lights): the bundle's scene
+/// is then a JSON file beside the glTF that names the file, the camera and the light
+/// (docs/gltf.md).
+PackedScene pack_gltf_scene(const std::filesystem::path& gltf_file, const std::string& camera,
+                            const std::string& environment = "");
 
 /// pack_scene() of a Mitsuba XML scene read under `root` with the $name values `parameters`:
 /// when there are any, the bundle's scene is an XML file beside it that sets them as <default>s

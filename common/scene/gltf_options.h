@@ -17,6 +17,10 @@ struct GltfOptions {
   /// The time in seconds at which the file's animations pose its nodes; nullopt: the nodes as
   /// written.
   std::optional<double> time;
+  /// Light for a file rendered directly (`--environment`): "uniform" (a constant radiance of 1
+  /// from every direction), an image file relative to the glTF file's folder (an environment
+  /// map, as a JSON scene's "environment" light), or empty: the file's own lights alone.
+  std::string environment;
 };
 
 /// What load_gltf() found besides what it added to the scene.

@@ -10,6 +10,8 @@
 #include "common/scene/animation.h"
 #include "common/scene/gltf_loader.h"
 #include "common/scene/instances.h"
+#include "common/scene/json_reader.h"
+#include "common/scene/light_reader.h"
 
 namespace rayfarm {
 namespace fs = std::filesystem;
@@ -54,6 +56,17 @@ Camera default_view(const Scene& scene) {
 
 namespace {
 
+/// GltfOptions::environment as the JSON scene's light that says the same, read as one.
+void add_environment(const fs::path& file, const std::string& environment, SceneImages images,
+                     Scene& scene) {
+  using scene_json::Json;
+  const Json lights = environment == "uniform"
+                          ? Json::array({{{"type", "constant"}, {"radiance", {1, 1, 1}}}})
+                          : Json::array({{{"type", "environment"}, {"file", environment}}});
+  const scene_json::Context context{file.string() + " --environment", &scene.warnings};
+  read_lights(scene_json::Node(lights, context, ""), file.parent_path(), images, scene);
+}
+
 Scene load_gltf_frame(const fs::path& file, const SceneCheck& check, SceneImages images,
                       GltfOptions options, std::optional<int64_t> frame, double frame_offset) {
   Scene scene;
@@ -76,6 +89,7 @@ Scene load_gltf_frame(const fs::path& file, const SceneCheck& check, SceneImages
   if (check) {
     if (auto refusal = check(scene.film, scene.render)) throw SceneRefused(*refusal);
   }
+  if (!options.environment.empty()) add_environment(file, options.environment, images, scene);
   if (!result.has_camera) {
     scene.camera = default_view(scene);
     scene.default_camera = true;

@@ -413,7 +413,8 @@ bool has_light(const Scene& scene);
 /// The end of the warning a scene without light gets (after its file's name).
 inline constexpr const char* kNoLightWarning =
     ": the scene has no light (no light, emissive surface, environment or background): every "
-    "image of it is black; add a light, or an \"environment\" or \"background\" in a JSON scene";
+    "image of it is black; add a light (a glTF file: --environment uniform), or an \"environment\" "
+    "or \"background\" in a JSON scene";
 
 /// Releases the decoded texture images a loaded scene holds, once a renderer has taken its copy.
 inline void drop_images(Scene& scene) {

@@ -9,8 +9,10 @@
 #include <string>
 #include <vector>
 
+#include "common/bundle/bundle.h"
 #include "common/scene/parser.h"
 #include "tests/support/gltf_builder.h"
+#include "tests/support/image_writers.h"
 #include "tests/support/temp_dir.h"
 
 namespace rayfarm {
@@ -238,6 +240,53 @@ TEST(GltfConformance, AFileWithoutLightIsWarnedAbout) {
   const auto json = dir.write(
       "sky.json", R"({"gltf": {"file": "dark2.glb"}, "lights": [{"type": "constant", "radiance": [1, 1, 1]}]})");
   EXPECT_FALSE(has_warning(load_scene(json), "has no light"));
+}
+
+// --environment (GltfOptions::environment) lights a file that has no light: a uniform sky, or an
+// image in the file's folder that the farm's bundle carries with the file.
+TEST(GltfConformance, AnEnvironmentLightsAFileAndTravelsWithIt) {
+  GltfBuilder b = lit_quad();
+  b.doc["nodes"].erase(2);  // no light of its own
+  TempDir dir;
+  const auto glb = dir.write("model/dark.glb", b.glb());
+  GltfOptions options;
+  options.environment = "uniform";
+  const Scene uniform = load_scene(glb, {}, SceneImages::kKeep, options);
+  ASSERT_TRUE(uniform.environment.has_value());
+  EXPECT_TRUE(uniform.environment->file.empty());
+  EXPECT_EQ(uniform.environment->scale, Vec3(1.f));
+  EXPECT_FALSE(has_warning(uniform, "has no light"));
+
+  const testing::Bytes exr =
+      testing::encode_exr(std::vector<float>(8 * 4 * 3, 0.5f), 8, 4, {"R", "G", "B"}, false);
+  dir.write("model/sky/studio.exr", std::string(exr.begin(), exr.end()));
+  options.environment = "sky/studio.exr";
+  const Scene mapped = load_scene(glb, {}, SceneImages::kKeep, options);
+  ASSERT_TRUE(mapped.environment.has_value());
+  EXPECT_EQ(mapped.environment->file, "sky/studio.exr");
+  ASSERT_TRUE(mapped.environment->image);
+  EXPECT_EQ(mapped.environment->image->width, 8u);
+
+  // Packed for the farm: the image travels, and the bundle's scene says the same.
+  const PackedScene packed = pack_gltf_scene(glb, "", "sky/studio.exr");
+  std::vector<std::string> paths;
+  for (const auto& f : packed.bundle.files) paths.push_back(f.path);
+  EXPECT_EQ(paths,
+            (std::vector<std::string>{"dark.glb", "dark.glb.camera.json", "sky/studio.exr"}));
+  const auto unpacked = unpack_bundle(packed.bundle, dir.path() / "cache", packed.hash);
+  const Scene farm = load_scene(unpacked / packed.scene_path);
+  ASSERT_TRUE(farm.environment.has_value());
+  EXPECT_EQ(farm.environment->file, "sky/studio.exr");
+  EXPECT_EQ(farm.camera.eye, mapped.camera.eye);
+
+  // A missing image is the scene's error, naming it.
+  options.environment = "sky/none.exr";
+  try {
+    load_scene(glb, {}, SceneImages::kKeep, options);
+    ADD_FAILURE() << "a missing environment image was accepted";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("none.exr"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

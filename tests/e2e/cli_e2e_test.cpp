@@ -319,6 +319,61 @@ TEST_F(CliTest, AGlbRendersThroughTheNamedCameraLocallyAndOnTheFarmAlike) {
   EXPECT_TRUE(bit_identical(dir() / "farm.exr", far));
 }
 
+// A glTF file without light renders black with a warning that says so; --environment uniform
+// lights it, locally and on the farm alike, and is a usage error where it does not apply.
+TEST_F(CliTest, AGlbWithoutLightIsWarnedAboutAndLitByEnvironment) {
+  testing::GltfBuilder b;
+  const int grey =
+      b.push("materials", {{"pbrMetallicRoughness", {{"baseColorFactor", {0.5, 0.5, 0.5, 1}}}}});
+  b.push("nodes", {{"mesh", b.add_quad(grey)}, {"translation", {-0.5, -0.5, 0}}});
+  b.push("cameras", {{"type", "perspective"}, {"perspective", {{"yfov", 0.5}, {"znear", 0.1}}}});
+  b.push("nodes", {{"camera", 0}, {"translation", {0, 0, 3}}});
+  const fs::path glb = dir() / "dark" / "quad.glb";
+  fs::create_directories(glb.parent_path());
+  std::ofstream(glb, std::ios::binary) << b.glb();
+  const std::vector<std::string> settings{"--spp", "4", "--res", "16x16"};
+
+  const RunResult dark = cli(
+      {"render", glb.string(), "-o", (dir() / "dark.exr").string(), "--spp", "4", "--res", "16x16"},
+      false);
+  ASSERT_EQ(dark.code, 0) << dark.err;
+  EXPECT_NE(dark.err.find("the scene has no light"), std::string::npos) << dark.err;
+
+  std::vector<std::string> lit_settings = settings;
+  lit_settings.insert(lit_settings.end(), {"--environment", "uniform"});
+  const RunResult lit = cli({"render", glb.string(), "-o", (dir() / "lit.exr").string(), "--spp",
+                             "4", "--res", "16x16", "--environment", "uniform"},
+                            false);
+  ASSERT_EQ(lit.code, 0) << lit.err;
+  EXPECT_EQ(lit.err.find("the scene has no light"), std::string::npos) << lit.err;
+  const fs::path local = local_render(glb, lit_settings);
+  EXPECT_FALSE(bit_identical(local, dir() / "dark.exr"));
+
+  // Not a glTF file, or an image outside the file's folder: usage errors.
+  const RunResult json = cli(
+      {"render", (fs::path(RAYFARM_SOURCE_DIR) / "scenes" / "cornell-box" / "scene.json").string(),
+       "-o", (dir() / "x.exr").string(), "--environment", "uniform"},
+      false);
+  EXPECT_EQ(json.code, 2) << json.err;
+  EXPECT_NE(json.err.find("--environment lights a glTF file"), std::string::npos) << json.err;
+  std::ofstream(dir() / "outside.hdr") << "not read";
+  const RunResult outside = cli({"render", glb.string(), "-o", (dir() / "x.exr").string(),
+                                 "--environment", (dir() / "outside.hdr").string()},
+                                false);
+  EXPECT_EQ(outside.code, 2) << outside.err;
+  EXPECT_NE(outside.err.find("must lie in the glTF file's folder"), std::string::npos)
+      << outside.err;
+
+  start_master();
+  start_worker();
+  std::vector<std::string> args{"submit", glb.string(), "--wait", "-o",
+                                (dir() / "farm.exr").string()};
+  args.insert(args.end(), lit_settings.begin(), lit_settings.end());
+  const RunResult r = cli(args);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(bit_identical(dir() / "farm.exr", local));
+}
+
 TEST_F(CliTest, AMitsubaSceneReadsItsRootAndParametersLocallyAndOnTheFarmAlike) {
   // A Mitsuba scene in scenes/box/ that reads its mesh from ../../common through <path>, and takes
   // its sample count and the light's colour from $name parameters.
