@@ -16,6 +16,7 @@
 #include "common/scene/mitsuba_loader.h"
 #include "common/scene/motion.h"
 #include "common/scene/parser.h"
+#include "common/util/utf8.h"
 
 namespace rayfarm::cli {
 
@@ -79,10 +80,15 @@ struct SceneArgs {
                                   .lexically_relative(fs::weakly_canonical(
                                       folder.empty() ? fs::current_path() : fs::absolute(folder)));
     const std::string text = relative.generic_string();
-    if (text.empty() || text == "." || text.rfind("..", 0) == 0)
+    if (text.empty() || text == "." || *relative.begin() == "..")
       throw CLI::ValidationError("--environment " + environment +
-                                 ": the image must lie in the glTF file's folder or below it (it "
-                                 "travels with the file); or give \"uniform\"");
+                                 ": the image must lie in the glTF file's folder (" +
+                                 (folder.empty() ? std::string(".") : folder.string()) +
+                                 ") or below it, as seen from here (it travels with the file); "
+                                 "or give \"uniform\"");
+    // The farm's scene names it in JSON, which holds UTF-8 only.
+    if (invalid_utf8_at(text) != std::string::npos)
+      throw CLI::ValidationError("--environment " + environment + ": the path is not UTF-8");
     return text;
   }
 
