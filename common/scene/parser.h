@@ -1,5 +1,6 @@
 #pragma once
-// Reads a JSON scene file (docs/scene-format.md) into a validated Scene.
+// Reads any scene file into a validated Scene: the entry point of every format (JSON,
+// docs/scene-format.md; glTF 2.0, docs/gltf.md; Mitsuba 3 XML, docs/mitsuba.md).
 #include <filesystem>
 #include <functional>
 #include <optional>
@@ -19,8 +20,8 @@ namespace rayfarm {
 /// itself. A ".xml" file is read as a Mitsuba 3 scene (docs/mitsuba.md), which may read files
 /// anywhere under `root` (empty: its own folder). An animated JSON scene (common/scene/animation.h)
 /// is read at `frame`, by default its first; asking a still scene for a frame, or an animated one
-/// for a frame outside its range, is a SceneError. Throws SceneError (SceneRefused when `check`
-/// refuses it).
+/// for a frame outside its range, is a SceneError. A scene without any light gets a warning
+/// (kNoLightWarning). Throws SceneError (SceneRefused when `check` refuses it).
 Scene load_scene(const std::filesystem::path& file, const SceneCheck& check = {},
                  SceneImages images = SceneImages::kKeep, const GltfOptions& gltf = {},
                  const std::filesystem::path& root = {},
