@@ -25,14 +25,7 @@ FilmSize default_gltf_film(double aspect) {
 
 Camera default_view(const Scene& scene) {
   WideVec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
-  extend_bounds(scene, lo, hi);
-  for (const Sphere& s : scene.spheres) {  // a JSON scene's own spheres are framed too
-    const WideVec3 c = wide(s.center);
-    lo = {std::min(lo.x, c.x - s.radius), std::min(lo.y, c.y - s.radius),
-          std::min(lo.z, c.z - s.radius)};
-    hi = {std::max(hi.x, c.x + s.radius), std::max(hi.y, c.y + s.radius),
-          std::max(hi.z, c.z + s.radius)};
-  }
+  extend_bounds(scene, lo, hi);  // meshes, spheres and placed groups
   Camera c;
   if (!(lo.x <= hi.x)) return c;  // no shapes: whatever lights there are, seen from the origin
   const WideVec3 mid{(lo.x + hi.x) / 2, (lo.y + hi.y) / 2, (lo.z + hi.z) / 2};

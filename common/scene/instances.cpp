@@ -20,12 +20,34 @@ uint64_t group_triangle_count(const MeshGroup& group) {
   return n;
 }
 
-bool group_emits(const Scene& scene, const MeshGroup& group) {
-  for (const TriangleMesh& m : group.meshes) {
+bool meshes_emit(const Scene& scene, const std::vector<TriangleMesh>& meshes) {
+  for (const TriangleMesh& m : meshes) {
     for (const uint32_t material : m.materials) {
       if (material < scene.materials.size() && scene.materials[material].is_emissive()) return true;
     }
   }
+  return false;
+}
+
+bool group_emits(const Scene& scene, const MeshGroup& group) {
+  return meshes_emit(scene, group.meshes);
+}
+
+bool has_light(const Scene& scene) {
+  if (!scene.point_lights.empty() || !scene.spot_lights.empty() ||
+      !scene.directional_lights.empty() || !is_black(scene.background) ||
+      (scene.environment && !is_black(scene.environment->scale)) ||
+      meshes_emit(scene, scene.meshes))
+    return true;
+  for (const Sphere& s : scene.spheres)
+    if (s.material < scene.materials.size() && scene.materials[s.material].is_emissive())
+      return true;
+  // A group lights the scene when some instance places it: each group looked at once.
+  std::vector<uint8_t> placed(scene.groups.size(), 0);
+  for (const Instance& instance : scene.instances)
+    if (instance.group < placed.size()) placed[instance.group] = 1;
+  for (size_t g = 0; g < placed.size(); ++g)
+    if (placed[g] && group_emits(scene, scene.groups[g])) return true;
   return false;
 }
 
@@ -75,6 +97,12 @@ bool box_placed_in_range(const WideVec3& lo, const WideVec3& hi, const Transform
 void extend_bounds(const Scene& scene, WideVec3& lo, WideVec3& hi) {
   for (const TriangleMesh& m : scene.meshes) {
     for (const Vec3& p : m.positions) extend(lo, hi, wide(p));
+  }
+  for (const Sphere& s : scene.spheres) {
+    const WideVec3 c = wide(s.center);
+    const double r = s.radius;
+    extend(lo, hi, {c.x - r, c.y - r, c.z - r});
+    extend(lo, hi, {c.x + r, c.y + r, c.z + r});
   }
   std::vector<std::pair<WideVec3, WideVec3>> boxes(scene.groups.size());
   for (size_t g = 0; g < scene.groups.size(); ++g)

@@ -14,8 +14,14 @@ Transform instance_transform(const Instance& instance);
 /// Triangles the group holds.
 uint64_t group_triangle_count(const MeshGroup& group);
 
+/// True when some triangle of `meshes` has an emissive material of `scene`.
+bool meshes_emit(const Scene& scene, const std::vector<TriangleMesh>& meshes);
 /// True when some triangle of the group has an emissive material of `scene`.
 bool group_emits(const Scene& scene, const MeshGroup& group);
+/// Whether anything in the scene can light it: a light, an environment or background that is not
+/// black, or an emissive material on a world mesh, a sphere or a placed group. Without one, every
+/// image is black (kNoLightWarning).
+bool has_light(const Scene& scene);
 
 /// What a scene's instances place in all, against kMaxInstancedTriangles and (instances of
 /// emissive groups, which workers copy into the world for light sampling: they cost memory per
@@ -51,8 +57,9 @@ void group_box(const MeshGroup& group, WideVec3& lo, WideVec3& hi);
 /// whose points are then read once.
 bool box_placed_in_range(const WideVec3& lo, const WideVec3& hi, const Transform& t);
 
-/// Extends the box [lo, hi] by the points of the scene's world meshes and of its instances (each
-/// by its group's bounding box, placed: a box that holds the placed points).
+/// Extends the box [lo, hi] by the points of the scene's world meshes, its spheres (their boxes)
+/// and its instances (each by its group's bounding box, placed: a box that holds the placed
+/// points).
 void extend_bounds(const Scene& scene, WideVec3& lo, WideVec3& hi);
 
 /// A world-space copy of `mesh` placed by `t`: positions moved, normals by the inverse

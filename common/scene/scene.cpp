@@ -1,7 +1,5 @@
 #include "common/scene/scene.h"
 
-#include <algorithm>
-
 namespace rayfarm {
 
 const char* integrator_name(IntegratorType type) {
@@ -57,31 +55,6 @@ std::optional<uint32_t> parse_depth(const std::string& text) {
   const uint64_t v = std::stoull(text);
   if (v > kMaxDepth) return std::nullopt;
   return static_cast<uint32_t>(v);
-}
-
-bool has_light(const Scene& scene) {
-  if (!scene.point_lights.empty() || !scene.spot_lights.empty() ||
-      !scene.directional_lights.empty() || !is_black(scene.background))
-    return true;
-  if (scene.environment && !is_black(scene.environment->scale)) return true;
-  auto emits = [&](uint32_t material) {
-    return material < scene.materials.size() && scene.materials[material].is_emissive();
-  };
-  auto mesh_emits = [&](const TriangleMesh& mesh) {
-    return std::any_of(mesh.materials.begin(), mesh.materials.end(), emits);
-  };
-  if (std::any_of(scene.meshes.begin(), scene.meshes.end(), mesh_emits)) return true;
-  for (const Sphere& s : scene.spheres)
-    if (emits(s.material)) return true;
-  // A group lights the scene when some instance places it: each group looked at once.
-  std::vector<uint8_t> placed(scene.groups.size(), 0);
-  for (const Instance& instance : scene.instances)
-    if (instance.group < placed.size()) placed[instance.group] = 1;
-  for (size_t g = 0; g < placed.size(); ++g) {
-    const std::vector<TriangleMesh>& meshes = scene.groups[g].meshes;
-    if (placed[g] && std::any_of(meshes.begin(), meshes.end(), mesh_emits)) return true;
-  }
-  return false;
 }
 
 }  // namespace rayfarm

@@ -407,10 +407,8 @@ struct Scene {
   bool default_camera = false;
 };
 
-/// Whether anything in the scene can light it: a light, an environment or background that is not
-/// black, or an emissive material on some shape. Without one, every image is black.
-bool has_light(const Scene& scene);
-/// The end of the warning a scene without light gets (after its file's name).
+/// The end of the warning a scene without light gets (after its file's name; has_light(),
+/// common/scene/instances.h).
 inline constexpr const char* kNoLightWarning =
     ": the scene has no light (no light, emissive surface, environment or background): every "
     "image of it is black; add a light (a glTF file: --environment uniform), or an \"environment\" "

@@ -13,23 +13,11 @@ namespace {
 /// Radius of a sphere around the centre of the geometry's bounding box that holds all of it;
 /// 1 for a scene without geometry (lights at infinity then still get a power).
 double scene_radius(const Scene& scene) {
-  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-  const auto grow = [&](const Vec3& p, double r) {
-    for (int i = 0; i < 3; ++i) {
-      lo[i] = std::min(lo[i], double(p[i]) - r);
-      hi[i] = std::max(hi[i], double(p[i]) + r);
-    }
-  };
   // Instances count by their placed groups' boxes: the lights' power follows the whole scene.
-  WideVec3 mesh_lo{INFINITY, INFINITY, INFINITY}, mesh_hi{-INFINITY, -INFINITY, -INFINITY};
-  extend_bounds(scene, mesh_lo, mesh_hi);
-  if (mesh_lo.x <= mesh_hi.x) {
-    lo[0] = mesh_lo.x, lo[1] = mesh_lo.y, lo[2] = mesh_lo.z;
-    hi[0] = mesh_hi.x, hi[1] = mesh_hi.y, hi[2] = mesh_hi.z;
-  }
-  for (const Sphere& s : scene.spheres) grow(s.center, s.radius);
-  if (!(hi[0] >= lo[0])) return 1.0;
-  const double dx = hi[0] - lo[0], dy = hi[1] - lo[1], dz = hi[2] - lo[2];
+  WideVec3 lo{INFINITY, INFINITY, INFINITY}, hi{-INFINITY, -INFINITY, -INFINITY};
+  extend_bounds(scene, lo, hi);
+  if (!(hi.x >= lo.x)) return 1.0;
+  const double dx = hi.x - lo.x, dy = hi.y - lo.y, dz = hi.z - lo.z;
   const double r = 0.5 * std::sqrt(dx * dx + dy * dy + dz * dz);
   return r > 0.0 && std::isfinite(r) ? r : 1.0;
 }

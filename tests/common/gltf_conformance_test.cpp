@@ -12,12 +12,14 @@
 #include "common/bundle/bundle.h"
 #include "common/scene/parser.h"
 #include "tests/support/gltf_builder.h"
+#include "tests/support/gltf_load_error.h"
 #include "tests/support/image_writers.h"
 #include "tests/support/temp_dir.h"
 
 namespace rayfarm {
 namespace {
 
+using testing::glb_error;
 using testing::GltfBuilder;
 using testing::TempDir;
 using Json = nlohmann::json;
@@ -43,16 +45,6 @@ GltfBuilder lit_quad() {
   b.push("nodes",
          {{"translation", {0.5, 0.5, 2}}, {"extensions", {{"KHR_lights_punctual", {{"light", 0}}}}}});
   return b;
-}
-
-std::string load_error(const GltfBuilder& b) {
-  TempDir dir;
-  try {
-    load_scene(dir.write("bad.glb", b.glb()));
-  } catch (const SceneError& e) {
-    return e.what();
-  }
-  return "";
 }
 
 bool has_warning(const Scene& scene, const std::string& part) {
@@ -93,7 +85,7 @@ TEST(GltfConformance, MalformedSparseAccessorsNameThePlace) {
         {"count", count},
         {"indices", {{"bufferView", add_ints<uint32_t>(b, indices)}, {"componentType", 5125}}},
         {"values", {{"bufferView", add_ints<float>(b, std::vector<float>(values, 0.f))}}}};
-    return load_error(b);
+    return glb_error(b);
   };
   EXPECT_NE(with_sparse({3, 1}, 2, 6).find("accessors[0]/sparse/indices: index 1 is 1: indices "
                                            "must increase"),
@@ -133,7 +125,7 @@ TEST(GltfConformance, ACompressedFileNamesItsExtension) {
         {"bufferView", 0}, {"attributes", {{"POSITION", 0}}}};
     b.doc["extensionsUsed"].push_back(extension);
     b.doc["extensionsRequired"] = {extension};
-    const std::string error = load_error(b);
+    const std::string error = glb_error(b);
     EXPECT_NE(error.find(std::string("extensionsRequired: the file requires extension ") +
                          extension + ", which rayfarm does not support"),
               std::string::npos)
@@ -164,10 +156,10 @@ TEST(GltfConformance, VertexColoursAreReadAsLinearRgb) {
 
   // A count that disagrees with POSITION, or a scalar accessor, names the place.
   b.doc["accessors"][colours]["count"] = 3;
-  EXPECT_NE(load_error(b).find("COLOR_0: 3 elements, but POSITION has 4"), std::string::npos);
+  EXPECT_NE(glb_error(b).find("COLOR_0: 3 elements, but POSITION has 4"), std::string::npos);
   b.doc["accessors"][colours]["count"] = 4;
   b.doc["accessors"][colours]["type"] = "SCALAR";
-  EXPECT_NE(load_error(b).find("COLOR_0: must be a VEC3 or VEC4 accessor"), std::string::npos);
+  EXPECT_NE(glb_error(b).find("COLOR_0: must be a VEC3 or VEC4 accessor"), std::string::npos);
 }
 
 TEST(GltfConformance, ACameraIsChosenByIndexWhenNoNameMatches) {

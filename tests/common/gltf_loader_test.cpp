@@ -10,12 +10,14 @@
 #include "common/limits.h"
 #include "common/scene/parser.h"
 #include "tests/support/gltf_builder.h"
+#include "tests/support/gltf_load_error.h"
 #include "tests/support/image_writers.h"
 #include "tests/support/temp_dir.h"
 
 namespace rayfarm {
 namespace {
 
+using testing::glb_error;
 using testing::GltfBuilder;
 using testing::TempDir;
 using Json = nlohmann::json;
@@ -341,16 +343,6 @@ TEST(Gltf, NormalEmissiveAndAlphaTexturesAndTangents) {
 }
 
 /// The message of the SceneError that loading `b` as a .glb throws ("" when none).
-std::string glb_error(const GltfBuilder& b) {
-  TempDir dir;
-  try {
-    load_scene(dir.write("bad.glb", b.glb()));
-  } catch (const SceneError& e) {
-    return e.what();
-  }
-  return "";
-}
-
 TEST(Gltf, MalformedFilesNameThePlace) {
   {
     GltfBuilder b = sample_scene();
