@@ -6,6 +6,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <cmath>
 #include <mutex>
 #include <set>
 #include <stdexcept>
@@ -19,6 +20,7 @@
 #include "renderer/camera.h"
 #include "renderer/integrators/path_integrator.h"
 #include "renderer/lights/light_set.h"
+#include "renderer/pixel_filter.h"
 #include "renderer/scene_data.h"
 
 namespace rayfarm {
@@ -58,6 +60,7 @@ struct Renderer::Impl {
   LightSet lights;
   AnyIntegrator integrator;
   CameraModel camera;
+  FilterSampler filter;
   MovingCamera moving_camera;  // empty unless the camera moves within the shutter
   bool timed = false;          // something moves: each sample draws its time
   mutable std::mutex stats_mutex;
@@ -70,6 +73,7 @@ struct Renderer::Impl {
         lights(data, choice),
         integrator(make_integrator(data, lights, s, kinds)),
         camera(scene.camera, scene.film),
+        filter(scene.filter, scene.film),
         moving_camera(scene.camera, scene.motion ? scene.motion->cameras : std::vector<Camera>{},
                       scene.film),
         timed(data.moves() || !moving_camera.empty()) {}
@@ -82,7 +86,14 @@ struct Renderer::Impl {
     for (uint32_t s = samples.begin; s < samples.end; ++s) {
       PathSampler sampler(settings.sampler, settings.seed, pixel, s);
       const std::array<float, 4> u = sampler.camera();
-      const float fx = static_cast<float>(x) + u[0], fy = static_cast<float>(y) + u[1];
+      float fx = static_cast<float>(x) + u[0], fy = static_cast<float>(y) + u[1];
+      float weight = 1.f;  // the filter's weight (renderer/pixel_filter.h)
+      if (!filter.pixel_box()) {
+        const FilterSampler::Offset ox = filter.sample_x(x, u[0]), oy = filter.sample_y(y, u[1]);
+        fx = ox.position;
+        fy = oy.position;
+        weight = ox.weight * oy.weight;
+      }
       Ray ray;
       if (!timed) {
         ray = camera.generate(fx, fy, u[2], u[3]);
@@ -102,8 +113,13 @@ struct Renderer::Impl {
       const float largest = max_component(l);
       const float scale =
           settings.clamp > 0.f && largest > settings.clamp ? settings.clamp / largest : 1.f;
+      const float factor = scale * weight;  // scale itself without a filter
+      if (weight != 1.f && max_component(abs(l)) * std::fabs(factor) > kMaxSampleValue) {
+        ++nonfinite;
+        continue;
+      }
       for (int c = 0; c < 3; ++c) {
-        const double v = l[c] * scale;
+        const double v = l[c] * factor;
         sum[c] += to_fixed(v);
         sum_sq[c] += to_fixed(v * v);
       }

@@ -102,6 +102,49 @@ double x_fov(Props& p, double aspect) {
   p.find("fov_axis")->fail("fov_axis must be x, y, diagonal, smaller or larger");
 }
 
+/// Mitsuba's scalar variants evaluate a filter from a table of this many steps
+/// (MI_FILTER_RESOLUTION): its references are rendered with that filter.
+constexpr uint32_t kMitsubaFilterSteps = 31;
+
+/// An <rfilter> with Mitsuba's defaults; null: the film names none (Mitsuba's Gaussian).
+PixelFilter read_rfilter(Context& ctx, const XmlElement* e) {
+  PixelFilter f;
+  f.type = FilterType::kGaussian;
+  f.radius = 4.f * f.stddev;
+  f.steps = kMitsubaFilterSteps;
+  if (e == nullptr) return f;
+  Props p(*e, ctx);
+  const std::string type = type_of(*e);
+  if (type == "box") {
+    f = PixelFilter{};  // each pixel's own samples, as Mitsuba's box
+  } else if (type == "tent") {
+    f.type = FilterType::kTent;
+    f.radius = static_cast<float>(p.number("radius", 1.0));
+    if (!(f.radius > 0.f && f.radius <= kMaxFilterRadius))
+      e->fail("a tent filter's radius must lie in (0, 8] pixels");
+  } else if (type == "gaussian") {
+    f.stddev = static_cast<float>(p.number("stddev", 0.5));
+    if (!(f.stddev > 0.f && f.stddev <= kMaxFilterRadius / 4.f))
+      e->fail("a gaussian filter's stddev must lie in (0, 2] pixels");
+    f.radius = 4.f * f.stddev;
+  } else if (type == "mitchell" || type == "catmullrom") {
+    f.type = FilterType::kMitchell;
+    f.radius = 2.f;
+    f.b = type == "catmullrom" ? 0.f : static_cast<float>(p.number("B", 1.0 / 3.0));
+    f.c = type == "catmullrom" ? 0.5f : static_cast<float>(p.number("C", 1.0 / 3.0));
+    if (!(f.b >= 0.f && f.b <= 1.f && f.c >= 0.f && f.c <= 1.f))
+      e->fail("a mitchell filter's B and C must lie in [0, 1]");
+  } else if (type == "lanczos") {
+    f.type = FilterType::kLanczos;
+    f.radius = static_cast<float>(p.integer("lobes", 3, 1, int64_t(kMaxFilterRadius)));
+  } else {
+    e->fail("the reconstruction filter \"" + printable(type, 32) +
+            "\" is not supported (box, tent, gaussian, mitchell, catmullrom and lanczos are)");
+  }
+  p.finish();
+  return f;
+}
+
 void read_film(Context& ctx, const XmlElement& e, Camera& camera) {
   Props p(e, ctx);
   if (type_of(e) != "hdrfilm")
@@ -114,15 +157,11 @@ void read_film(Context& ctx, const XmlElement& e, Camera& camera) {
                 ch = p.integer("crop_height", h - cy, 1, h - cy);
   if (cw * ch > kMaxFilmPixels) e.fail("the film has more pixels than the limit of 2^26");
   const auto filters = p.plugins("rfilter");
-  const std::string filter = filters.empty() ? "gaussian" : type_of(*filters[0]);
-  if (filter != "box") {
-    ctx.warn_once(
-        "rfilter", filters.empty() ? e : *filters[0],
-        "the reconstruction filter \"" + printable(filter, 32) +
-            "\" is not supported: rayfarm's box filter is used (each pixel's own samples)");
-  }
+  if (filters.size() > 1) e.fail("a film has one rfilter");
+  ctx.scene.filter = filters.empty() ? read_rfilter(ctx, nullptr) : read_rfilter(ctx, filters[0]);
+  ctx.scene.filter.sample_border = p.boolean("sample_border", false);
   p.finish({"pixel_format", "component_format", "file_format", "banner", "high_quality_edges",
-            "sample_border", "compensate"});
+            "compensate"});
   ctx.scene.film = {static_cast<uint32_t>(cw), static_cast<uint32_t>(ch)};
   if (cw != w || ch != h) {
     camera.full_width = static_cast<uint32_t>(w);

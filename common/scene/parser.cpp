@@ -14,6 +14,7 @@
 #include "common/math/wide.h"
 #include "common/scene/animation.h"
 #include "common/scene/camera_reader.h"
+#include "common/scene/film_reader.h"
 #include "common/scene/instances.h"
 #include "common/scene/json_reader.h"
 #include "common/scene/light_reader.h"
@@ -104,7 +105,7 @@ class SceneReader {
   }
 
   void read_film(const Node& n) {
-    n.allow_keys({"width", "height"});
+    n.allow_keys({"width", "height", "filter", "sample_border"});
     const int64_t width = read_integer(n.require("width"), 1, kMaxFilmSide);
     const int64_t height = read_integer(n.require("height"), 1, kMaxFilmSide);
     if (width * height > kMaxFilmPixels) {
@@ -113,6 +114,7 @@ class SceneReader {
              std::to_string(kMaxFilmPixels) + " (2^26)");
     }
     scene_.film = {static_cast<uint32_t>(width), static_cast<uint32_t>(height)};
+    scene_.filter = read_pixel_filter(n.find("filter"), n.find("sample_border"));
   }
 
   // ---- materials ----

@@ -18,6 +18,24 @@ std::optional<IntegratorType> parse_integrator(const std::string& name) {
   return std::nullopt;
 }
 
+const char* filter_name(FilterType type) {
+  switch (type) {
+    case FilterType::kBox:
+      return "box";
+    case FilterType::kTent:
+      return "tent";
+    case FilterType::kGaussian:
+      return "gaussian";
+    case FilterType::kMitchell:
+      return "mitchell";
+    case FilterType::kLanczos:
+      return "lanczos";
+    case FilterType::kBlackmanHarris:
+      return "blackman-harris";
+  }
+  return "unknown";
+}
+
 const char* sampler_name(SamplerType type) {
   return type == SamplerType::kSobol ? "sobol" : "independent";
 }

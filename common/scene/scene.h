@@ -44,6 +44,43 @@ struct FilmSize {
   uint32_t height = 0;
 };
 
+/// The pixel reconstruction filter (film.filter; docs/scene-format.md, "Film"). A pixel's value
+/// is the image seen through the filter centred on the pixel, normalised to integrate to one, in
+/// x and y alike (separable). Each sample's position is drawn from the filter and weighed so that
+/// the pixel's mean is exactly that: pixels stay independent of one another, so tiles, passes and
+/// the farm's bits are as with the box (renderer/pixel_filter.h).
+enum class FilterType : uint8_t {
+  kBox,             ///< 1 within radius
+  kTent,            ///< 1 - |x| / radius
+  kGaussian,        ///< exp(-x^2 / 2 stddev^2), less its value at radius = 4 stddev (Mitsuba's)
+  kMitchell,        ///< Mitchell-Netravali cubic (b, c), radius 2; Catmull-Rom is b 0, c 1/2
+  kLanczos,         ///< sinc(x) sinc(x / lobes), radius = lobes
+  kBlackmanHarris,  ///< the 4-term Blackman-Harris window over [-radius, radius] (Cycles')
+};
+
+/// Widest filter radius, in pixels.
+inline constexpr float kMaxFilterRadius = 8.f;
+
+struct PixelFilter {
+  FilterType type = FilterType::kBox;
+  float radius = 0.5f;                 ///< the support on each axis is [-radius, radius], in pixels
+  float stddev = 0.5f;                 ///< kGaussian (radius is 4 stddev)
+  float b = 1.f / 3.f, c = 1.f / 3.f;  ///< kMitchell
+  /// Samples may land beyond the image's edges (true), or the filter of a pixel near an edge is
+  /// cut at the edge and renormalised (false, Mitsuba's default: only the image is sampled).
+  bool sample_border = true;
+  /// 0: the filter as defined. n > 0: the filter as Mitsuba's scalar variants evaluate it, a
+  /// table of n steps over [0, radius] each holding the value at its inner end (n = 31), which
+  /// makes it a little wider (a Gaussian's standard deviation 0.512 instead of 0.499).
+  uint32_t steps = 0;
+
+  /// The box of the pixel's own area: each sample lands in its pixel with weight 1.
+  bool pixel_box() const { return type == FilterType::kBox && radius == 0.5f; }
+};
+
+/// "box", "tent", "gaussian", "mitchell", "lanczos", "blackman-harris".
+const char* filter_name(FilterType type);
+
 // ---- materials: one parameter struct per kind (docs/scene-format.md) ----
 // Adding a kind: its struct here, one line in MaterialKind, its reader in material_reader.cpp, and
 // its BSDF in renderer/bsdfs/ (one header, one line in the worker's Bsdf).
@@ -379,6 +416,7 @@ struct SceneMotion;  // common/scene/motion.h
 struct Scene {
   Camera camera;
   FilmSize film;
+  PixelFilter filter;  ///< the film's reconstruction filter
   std::vector<Material> materials;
   std::vector<TextureDesc> textures;  ///< what textured material parameters read
   std::vector<TriangleMesh> meshes;

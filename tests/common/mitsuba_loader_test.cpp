@@ -91,6 +91,61 @@ TEST_F(MitsubaLoader, SensorFilmAndSamplerBecomeTheCameraFilmAndSampleCount) {
   EXPECT_EQ(s.render.max_depth, kUnlimitedDepth);  // no integrator: Mitsuba's unlimited path tracer
 }
 
+// The reconstruction filter with Mitsuba's defaults: none named is its Gaussian (stddev 0.5,
+// radius 4 stddev), and only the image is sampled unless the film says sample_border.
+TEST_F(MitsubaLoader, FiltersHaveMitsubasDefaults) {
+  const auto filter = [&](const std::string& film) {
+    dir_.write("quad.obj", kQuad);
+    const std::string xml = R"(<scene version="3.0.0"><sensor type="perspective">
+      <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/>)" +
+                            film + "</film></sensor></scene>";
+    const Scene scene =
+        load_mitsuba_scene(dir_.write("f.xml", xml), {}, SceneImages::kCheckOnly, {}, {});
+    for (const std::string& w : scene.warnings) EXPECT_EQ(w.find("filter"), std::string::npos) << w;
+    return scene.filter;
+  };
+  const PixelFilter none = filter("");
+  EXPECT_EQ(none.type, FilterType::kGaussian);
+  EXPECT_EQ(none.stddev, 0.5f);
+  EXPECT_EQ(none.radius, 2.f);
+  EXPECT_FALSE(none.sample_border);
+  EXPECT_EQ(none.steps, 31u) << "tabulated as Mitsuba's scalar variants tabulate it";
+  EXPECT_TRUE(filter(R"(<rfilter type="box"/>)").pixel_box());
+  EXPECT_TRUE(filter(R"(<boolean name="sample_border" value="true"/>)").sample_border);
+  EXPECT_EQ(
+      filter(R"(<rfilter type="gaussian"><float name="stddev" value="0.25"/></rfilter>)").radius,
+      1.f);
+  const PixelFilter tent = filter(R"(<rfilter type="tent"/>)");
+  EXPECT_EQ(tent.type, FilterType::kTent);
+  EXPECT_EQ(tent.radius, 1.f);
+  EXPECT_EQ(filter(R"(<rfilter type="tent"><float name="radius" value="1.5"/></rfilter>)").radius,
+            1.5f);
+  const PixelFilter mitchell = filter(R"(<rfilter type="mitchell"/>)");
+  EXPECT_EQ(mitchell.type, FilterType::kMitchell);
+  EXPECT_EQ(mitchell.b, 1.f / 3.f);
+  EXPECT_EQ(mitchell.c, 1.f / 3.f);
+  EXPECT_EQ(mitchell.radius, 2.f);
+  const PixelFilter catmull = filter(R"(<rfilter type="catmullrom"/>)");
+  EXPECT_EQ(catmull.b, 0.f);
+  EXPECT_EQ(catmull.c, 0.5f);
+  const PixelFilter lanczos = filter(R"(<rfilter type="lanczos"/>)");
+  EXPECT_EQ(lanczos.type, FilterType::kLanczos);
+  EXPECT_EQ(lanczos.steps, 31u);
+  EXPECT_EQ(lanczos.radius, 3.f);
+  EXPECT_EQ(filter(R"(<rfilter type="lanczos"><integer name="lobes" value="2"/></rfilter>)").radius,
+            2.f);
+  const std::string film =
+      R"(<scene version="3.0.0"><sensor type="perspective"><film type="hdrfilm">)";
+  expect_error(film + R"(<rfilter type="sinc"/></film></sensor></scene>)",
+               {"s.xml:1:", "<rfilter type=\"sinc\">", "not supported", "lanczos"});
+  expect_error(film + R"(<rfilter type="tent"><float name="radius" value="0"/></rfilter>)"
+                      "</film></sensor></scene>",
+               {"radius must lie in (0, 8]"});
+  expect_error(film + R"(<rfilter type="box"><float name="radius" value="2"/></rfilter>)"
+                      "</film></sensor></scene>",
+               {"\"radius\""});
+}
+
 TEST_F(MitsubaLoader, DepthCountsSegmentsInMitsubaAndScatteringVerticesHere) {
   auto depth = [&](const std::string& integrator) {
     return load(integrator + "<shape type=\"sphere\"/>").render.max_depth;

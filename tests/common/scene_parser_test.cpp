@@ -592,6 +592,79 @@ TEST(SceneErrors, FilmTooLarge) {
   expect_scene_error(R"("film": {"width": 100000000000, "height": 1})", {"/film/width", "16384"});
 }
 
+/// The film's filter read from `film` (the film object's members after width and height).
+PixelFilter filter_of(const std::string& film) {
+  TempDir dir;
+  const fs::path file = dir.write("scene.json", R"({
+  "camera": {"eye": [0, 0, -5], "look_at": [0, 0, 0], "up": [0, 1, 0], "fov_y": 40},
+  "film": {"width": 16, "height": 16)" + film + R"(}
+})");
+  const Scene scene = load_scene(file);
+  EXPECT_TRUE(warnings(scene).empty()) << warnings_of(scene);
+  return scene.filter;
+}
+
+TEST(SceneParser, FilmFiltersByNameOrWithTheirParameters) {
+  EXPECT_TRUE(filter_of("").pixel_box()) << "no filter: each pixel's own box";
+  EXPECT_TRUE(filter_of("").sample_border);
+  const PixelFilter gaussian = filter_of(R"(, "filter": "gaussian")");
+  EXPECT_EQ(gaussian.type, FilterType::kGaussian);
+  EXPECT_EQ(gaussian.stddev, 0.5f);
+  EXPECT_EQ(gaussian.radius, 2.f) << "four standard deviations";
+  EXPECT_EQ(gaussian.steps, 0u) << "the filter as defined, not tabulated";
+  const PixelFilter narrow =
+      filter_of(R"(, "filter": {"type": "gaussian", "stddev": 0.25}, "sample_border": false)");
+  EXPECT_EQ(narrow.radius, 1.f);
+  EXPECT_FALSE(narrow.sample_border);
+  const PixelFilter tent = filter_of(R"(, "filter": {"type": "tent", "radius": 1.5})");
+  EXPECT_EQ(tent.type, FilterType::kTent);
+  EXPECT_EQ(tent.radius, 1.5f);
+  EXPECT_FALSE(filter_of(R"(, "filter": {"type": "box", "radius": 1})").pixel_box());
+  const PixelFilter mitchell = filter_of(R"(, "filter": {"type": "mitchell", "b": 0.5})");
+  EXPECT_EQ(mitchell.type, FilterType::kMitchell);
+  EXPECT_EQ(mitchell.b, 0.5f);
+  EXPECT_EQ(mitchell.c, 1.f / 3.f);
+  EXPECT_EQ(mitchell.radius, 2.f);
+  const PixelFilter catmull_rom = filter_of(R"(, "filter": "catmull-rom")");
+  EXPECT_EQ(catmull_rom.b, 0.f);
+  EXPECT_EQ(catmull_rom.c, 0.5f);
+  EXPECT_EQ(filter_of(R"(, "filter": "lanczos")").radius, 3.f);
+  EXPECT_EQ(filter_of(R"(, "filter": {"type": "lanczos", "lobes": 2})").radius, 2.f);
+  const PixelFilter bh = filter_of(R"(, "filter": "blackman-harris")");
+  EXPECT_EQ(bh.type, FilterType::kBlackmanHarris);
+  EXPECT_EQ(bh.radius, 0.75f) << "Cycles' width of 1.5 pixels";
+  EXPECT_EQ(filter_of(R"(, "filter": {"type": "blackman-harris", "width": 3})").radius, 1.5f);
+}
+
+TEST(SceneErrors, BadFilmFilters) {
+  const auto film = [](const std::string& members) {
+    return R"("film": {"width": 16, "height": 16, )" + members + "}";
+  };
+  expect_scene_error(film(R"("filter": "sinc")"),
+                     {"/film/filter", "unknown filter \"sinc\"", "gaussian"});
+  expect_scene_error(film(R"("filter": {"radius": 1})"), {"/film/filter", "missing key \"type\""});
+  expect_scene_error(film(R"("filter": {"type": "tent", "radius": 0})"),
+                     {"/film/filter/radius", "radius must lie in (0, 8]"});
+  expect_scene_error(film(R"("filter": {"type": "tent", "radius": 9})"),
+                     {"/film/filter/radius", "(0, 8]"});
+  expect_scene_error(film(R"("filter": {"type": "gaussian", "stddev": 3})"),
+                     {"/film/filter/stddev", "(0, 2]"});
+  expect_scene_error(film(R"("filter": {"type": "mitchell", "c": -1})"),
+                     {"/film/filter/c", "[0, 1]"});
+  expect_scene_error(film(R"("filter": {"type": "lanczos", "lobes": 0})"), {"/film/filter/lobes"});
+  expect_scene_error(film(R"("filter": 3)"), {"/film/filter", "expected a string"});
+  expect_scene_error(film(R"("filter": "box", "sample_border": "no")"), {"/film/sample_border"});
+  TempDir dir;  // Mitsuba's Gaussian has no radius of its own: a "radius" is an unknown key
+  const fs::path file = dir.write("scene.json", R"({
+  "camera": {"eye": [0, 0, -5], "look_at": [0, 0, 0], "up": [0, 1, 0], "fov_y": 40},
+  "film": {"width": 16, "height": 16, "filter": {"type": "gaussian", "radius": 3}}
+})");
+  const Scene scene = load_scene(file);
+  EXPECT_NE(warnings_of(scene).find("/film/filter/radius: unknown key"), std::string::npos)
+      << warnings_of(scene);
+  EXPECT_EQ(scene.filter.radius, 2.f);
+}
+
 TEST(SceneErrors, FormatTooNew) {
   expect_scene_error(R"("format": 2)", {"/format", "format 2", "format 1"});
 }
