@@ -55,15 +55,26 @@ void read_integrator(Context& ctx, const XmlElement& e, RenderSettings& r, int n
     p.finish({"emitter_samples", "bsdf_samples", "shading_samples"});
     return;
   }
-  if (type != "path" && type != "volpath" && type != "volpathmis") {
-    e.fail("the integrator \"" + printable(type, 40) + "\" is not supported (path and direct are)");
+  // Integrators that estimate the path tracer's image another way: rendered by rayfarm's path
+  // tracer, with their depths, and a warning.
+  const bool same_image = type == "ptracer" || type == "bdpt" || type == "prb" ||
+                          type == "prb_basic" || type == "prbvolpath";
+  if (type != "path" && type != "volpath" && type != "volpathmis" && !same_image) {
+    e.fail("the integrator \"" + printable(type, 40) +
+           "\" is not supported (path, volpath, volpathmis and direct are; ptracer, bdpt and prb "
+           "are rendered by the path tracer)");
   }
   const int64_t depth = p.integer("max_depth", -1, -1, INT32_MAX);
   // Mitsuba's roulette acts on the throughput from its rr_depth-th vertex on (counted from 1).
   const int64_t rr_depth = p.integer("rr_depth", 5, 1, INT32_MAX);
   if (p.boolean("hide_emitters", false))
     p.find("hide_emitters")->fail("hide_emitters is not supported");
-  p.finish();
+  p.finish({"samples_per_pass"});
+  if (same_image) {
+    ctx.warn_once(
+        "integrator", e,
+        "rendered by rayfarm's path tracer, which converges to the same image as \"" + type + "\"");
+  }
   if (depth == 0) e.fail("max_depth 0 renders nothing");
   r.max_depth = depth == -1 || depth - 1 > int64_t{kMaxDepth} ? kUnlimitedDepth
                                                               : static_cast<uint32_t>(depth - 1);
@@ -231,6 +242,35 @@ void read_sensor(Context& ctx, const XmlElement& e) {
 
 }  // namespace
 
+/// An image a spot or projector casts: `colour` (a texture in Mitsuba's own uv, or a constant)
+/// on the light's frame, which to_world must place without scaling or mirroring.
+SpotImage light_image(Context& ctx, const XmlElement& e, const Transform& t, const Colour& colour,
+                      double u_scale, double v_scale) {
+  if (std::fabs(t.uniform_scale() - 1.0) > 1e-5 || !(t.determinant() > 0.0))
+    e.fail("the to_world of a light that casts an image must be a rotation and a translation");
+  SpotImage image;
+  image.image = textured_rgb(ctx, colour, UvKind::kNative);
+  image.x_axis = to_vec(unit(t.vector({1, 0, 0})));
+  image.y_axis = to_vec(unit(t.vector({0, 1, 0})));
+  image.u_scale = static_cast<float>(u_scale);
+  image.v_scale = static_cast<float>(v_scale);
+  return image;
+}
+
+/// Width over height of a texture's image (1 for a procedural one, as Mitsuba's resolution()).
+double image_aspect(Context& ctx, const XmlElement& texture) {
+  if (type_of(texture) != "bitmap") return 1.0;
+  const int32_t index = texture_of(ctx, texture, UvKind::kNative, true);
+  const TextureDesc& desc = ctx.scene.textures[static_cast<size_t>(index)];
+  std::shared_ptr<const DecodedImage> image = desc.image;
+  if (image == nullptr) {  // loaded only to be checked: decode it once more for its size
+    const At at(texture, ctx.scene, "filename");
+    image = decode_scene_image(at.node, ctx.files.scene_dir, desc.file, SceneImages::kKeep,
+                               "texture image");
+  }
+  return double(image->width) / double(image->height);
+}
+
 void read_emitter(Context& ctx, const XmlElement& e) {
   Props p(e, ctx);
   const std::string type = type_of(e);
@@ -250,12 +290,42 @@ void read_emitter(Context& ctx, const XmlElement& e) {
     l.intensity = p.colour("intensity", Vec3(1.f), SpectrumRole::emission).value;
     l.cutoff_deg = static_cast<float>(p.number("cutoff_angle", 20.0));
     l.beam_width_deg = static_cast<float>(p.number("beam_width", l.cutoff_deg * 0.75));
-    if (p.find("texture") != nullptr) e.fail("a textured spot light is not supported");
+    const bool textured = p.has("texture");
+    const Colour texture = p.colour("texture", Vec3(1.f), SpectrumRole::unbounded);
     p.finish();
-    if (!(l.cutoff_deg > 0.f && l.cutoff_deg <= 90.f))
-      e.fail("cutoff_angle must lie in (0, 90] degrees");
+    if (!(l.cutoff_deg > 0.f && l.cutoff_deg < 90.f))
+      e.fail("cutoff_angle must lie in (0, 90) degrees");
     if (!(l.beam_width_deg >= 0.f && l.beam_width_deg <= l.cutoff_deg))
       e.fail("beam_width must lie in [0, cutoff_angle]");
+    if (textured) {
+      // Mitsuba's uv: 0.5 + 0.5 x / (z tan(cutoff)) on both axes of the light's frame.
+      const double scale = 0.5 / std::tan(radians(l.cutoff_deg));
+      l.image = light_image(ctx, e, t, texture, scale, scale);
+    }
+    scene.spot_lights.push_back(l);
+  } else if (type == "projector") {
+    // A perspective camera run backwards: the irradiance image (a texture, or a constant) lights
+    // the scene through the camera's frustum; intensity pi x scale x white (Mitsuba's D65) over
+    // cos^3, so that the image over pi is the radiance of a white diffuse plane facing it at
+    // distance 1 (image_spot_light.h).
+    const bool textured = p.has("irradiance");
+    const Colour irradiance = p.colour("irradiance", Vec3(1.f), SpectrumRole::unbounded);
+    const double scale = p.number("scale", 1.0);
+    if (!(scale >= 0.0)) e.fail("scale must not be negative");
+    const double aspect =
+        textured && irradiance.texture != nullptr ? image_aspect(ctx, *irradiance.texture) : 1.0;
+    const double tan_x = std::tan(0.5 * radians(x_fov(p, aspect)));
+    p.finish();
+    SpotLight l;
+    l.position = to_vec(t.point({0, 0, 0}));
+    l.direction = to_vec(unit(t.vector({0, 0, 1})));
+    l.intensity = static_cast<float>(kPi * scale) * kEmitterWhite;
+    // Mitsuba's sample space: u = 0.5 - 0.5 x / (z tan_x), v = 0.5 - 0.5 aspect y / (z tan_x).
+    l.image = light_image(ctx, e, t, irradiance, -0.5 / tan_x, -0.5 * aspect / tan_x);
+    l.image->projector = true;
+    // The cone through the frustum's corners, at full intensity within (for the light tree).
+    const double corner = std::atan(tan_x * std::sqrt(1.0 + 1.0 / (aspect * aspect)));
+    l.cutoff_deg = l.beam_width_deg = static_cast<float>(degrees(corner));
     scene.spot_lights.push_back(l);
   } else if (type == "directional") {
     DirectionalLight l;

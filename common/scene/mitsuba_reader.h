@@ -19,11 +19,17 @@
 
 namespace rayfarm::mitsuba {
 
-/// How a shape's texture coordinates relate to Mitsuba's: mesh files store (u, 1 - v_mitsuba)
-/// (Mitsuba flips v when it reads OBJ and PLY files), shapes that rayfarm builds store Mitsuba's
-/// own (u, v). Textures are looked up in Mitsuba's (u, v), so a material is converted once per
-/// kind of shape it is used on.
+/// How a shape's texture coordinates relate to Mitsuba's: a mesh file read with flip_tex_coords
+/// (Mitsuba's default for OBJ, not for PLY) stores (u, 1 - v_mitsuba); other mesh files and the
+/// shapes that rayfarm builds store Mitsuba's own (u, v). Textures are looked up in Mitsuba's
+/// (u, v), so a material is converted once per kind of shape it is used on.
 enum class UvKind : uint8_t { kMeshFile = 0, kNative = 1 };
+
+/// What Mitsuba 3's RGB variants make of its emitters' default spectrum, the D65 white point
+/// (scaled so that a constant emitter of radiance 1 has luminance 1): read from its render of a
+/// constant emitter (tests/data/mitsuba/.../test_constant_ref_rgb.exr, every background pixel).
+/// An emitter's number or one-valued spectrum is this white times the value.
+inline constexpr Vec3 kEmitterWhite{1.00108f, 0.99971f, 0.99970f};
 
 /// Everything the reader's parts share.
 struct Context {
@@ -37,8 +43,13 @@ struct Context {
   uint64_t decoded_bytes = 0;
   std::map<std::pair<const XmlElement*, UvKind>, int32_t> textures;
   std::map<std::pair<const XmlElement*, UvKind>, uint32_t> materials;
+  /// The spheres of each shapegroup (by group index), in the group's space: each instance places
+  /// a copy of them in the scene. The spheres of the group being read go to `group_spheres_open`.
+  std::map<uint32_t, std::vector<Sphere>> group_spheres;
+  std::vector<Sphere>* group_spheres_open = nullptr;
+  uint64_t instanced_spheres = 0;
 
-  /// Adds `what` to the scene's warnings once per `kind` (e.g. "rfilter gaussian").
+  /// Adds `what` to the scene's warnings once per `kind` (e.g. "sampler").
   void warn_once(const std::string& kind, const XmlElement& at, const std::string& what);
   /// The element a <ref id="..."> names (itself when it is not a ref).
   const XmlElement& deref(const XmlElement& e) const;

@@ -136,9 +136,14 @@ void read_shape(Context& ctx, const XmlElement& shape, std::vector<TriangleMesh>
     MeshGroup group;
     const std::string* id = shape.find("id");
     group.name = id != nullptr ? *id : shape.where();
+    std::vector<Sphere> spheres;
+    ctx.group_spheres_open = &spheres;
     for (const XmlElement* s : p.plugins("shape")) read_shape(ctx, *s, group.meshes, true, groups);
+    ctx.group_spheres_open = nullptr;
     p.finish();
-    groups[&shape] = static_cast<uint32_t>(ctx.scene.groups.size());
+    const auto index = static_cast<uint32_t>(ctx.scene.groups.size());
+    groups[&shape] = index;
+    if (!spheres.empty()) ctx.group_spheres[index] = std::move(spheres);
     ctx.scene.groups.push_back(std::move(group));
     return;
   }
@@ -152,6 +157,17 @@ void read_shape(Context& ctx, const XmlElement& shape, std::vector<TriangleMesh>
     const Transform t = p.transform("to_world");
     p.finish();
     if (ctx.scene.instances.size() >= kMaxInstances) shape.fail("too many instances");
+    // The group's spheres, placed as spheres of the scene (the instance must keep them round).
+    if (auto spheres = ctx.group_spheres.find(it->second); spheres != ctx.group_spheres.end()) {
+      ctx.instanced_spheres += spheres->second.size();
+      if (ctx.instanced_spheres > kMaxInstances)
+        shape.fail("instances place more than 2^20 spheres");
+      for (Sphere s : spheres->second) {
+        transform_sphere(s, t, at.node);
+        ctx.scene.spheres.push_back(s);
+      }
+    }
+    if (ctx.scene.groups[it->second].meshes.empty()) return;  // spheres only
     Instance inst;
     inst.group = it->second;
     for (int r = 0; r < 3; ++r) {
@@ -161,7 +177,6 @@ void read_shape(Context& ctx, const XmlElement& shape, std::vector<TriangleMesh>
     return;
   }
   if (type == "sphere") {
-    if (in_group) shape.fail("a sphere inside a shapegroup is not supported; use a mesh");
     Sphere s;
     const Transform t = p.transform("to_world");
     s.center = to_vec(p.point("center").value_or(WideVec3{0, 0, 0}));
@@ -171,7 +186,7 @@ void read_shape(Context& ctx, const XmlElement& shape, std::vector<TriangleMesh>
     s.material = shape_material(ctx, p, UvKind::kNative, in_group);
     p.finish();
     transform_sphere(s, t, at.node);
-    ctx.scene.spheres.push_back(s);
+    (in_group ? *ctx.group_spheres_open : ctx.scene.spheres).push_back(s);
     return;
   }
   TriangleMesh mesh;
@@ -189,7 +204,8 @@ void read_shape(Context& ctx, const XmlElement& shape, std::vector<TriangleMesh>
     for (std::string& w : mf.warnings) ctx.scene.warnings.push_back(std::move(w));
     mesh = std::move(mf.mesh);
     mesh.origin = rel.generic_string();
-    if (p.boolean("flip_tex_coords", true)) uv = UvKind::kMeshFile;
+    // Mitsuba flips an OBJ's v by default, not a PLY's.
+    if (p.boolean("flip_tex_coords", type == "obj")) uv = UvKind::kMeshFile;
     if (p.boolean("face_normals", false))
       mesh.normals.clear();
     else if (mesh.normals.empty())

@@ -10,16 +10,6 @@
 
 namespace rayfarm::mitsuba {
 
-namespace {
-
-/// What Mitsuba 3's RGB variants make of its emitters' default spectrum, the D65 white point
-/// (scaled so that a constant emitter of radiance 1 has luminance 1): read from its render of a
-/// constant emitter (tests/data/mitsuba/.../test_constant_ref_rgb.exr, every background pixel).
-/// An emitter's number or one-valued spectrum is this white times the value.
-constexpr Vec3 kEmitterWhite{1.00108f, 0.99971f, 0.99970f};
-
-}  // namespace
-
 void Context::warn_once(const std::string& kind, const XmlElement& at, const std::string& what) {
   if (!warned.insert(kind).second) return;
   scene.warnings.push_back(at.where() + ": " + what);
@@ -119,6 +109,17 @@ WideVec3 named_triple(const XmlElement& e, const char* key) {
   return {v[0], v[1], v[2]};
 }
 
+/// The up of a <lookat> that gives none (or a zero one), as Mitsuba picks it: the first vector
+/// of the orthonormal basis it builds around the view direction (Duff et al., "Building an
+/// Orthonormal Basis, Revisited", JCGT 2017). Looking along -z, up is +x.
+WideVec3 default_up(const WideVec3& dir) {
+  const double len = std::sqrt(dir.x * dir.x + dir.y * dir.y + dir.z * dir.z);
+  const WideVec3 n{dir.x / len, dir.y / len, dir.z / len};
+  const double sign = std::copysign(1.0, n.z);
+  const double a = -1.0 / (sign + n.z), b = n.x * n.y * a;
+  return {n.x * n.x * a * sign + 1.0, b * sign, -n.x * sign};
+}
+
 Transform operation(const XmlElement& op) {
   if (op.tag == "translate") return Transform::translate(triple(op, 0.0));
   if (op.tag == "scale") {
@@ -137,10 +138,11 @@ Transform operation(const XmlElement& op) {
   }
   if (op.tag == "lookat" || op.tag == "look_at") {
     const WideVec3 origin = named_triple(op, "origin"), target = named_triple(op, "target");
-    WideVec3 up{0, 1, 0};
-    if (op.find("up") != nullptr) up = named_triple(op, "up");
     const WideVec3 dir = target - origin;
     if (!(length(dir) > 0.0)) op.fail("origin and target are the same point");
+    WideVec3 up{0, 0, 0};
+    if (op.find("up") != nullptr) up = named_triple(op, "up");
+    if (up.x == 0.0 && up.y == 0.0 && up.z == 0.0) up = default_up(dir);
     if (!(length(cross(up, dir)) > 1e-9 * length(up) * length(dir)))
       op.fail("up is zero or parallel to the view direction");
     return Transform::look_at(origin, target, up);

@@ -317,12 +317,27 @@ struct PointLight {
 
 /// A point light emitting into a cone: full intensity (W/sr) within beam_width of the axis,
 /// falling linearly in angle to zero at cutoff (docs/scene-format.md, "Lights").
+/// An image a spot light casts (Mitsuba's textured `spot`, its `projector`): the light's
+/// intensity towards a direction is multiplied by the image at the direction's (u, v), found in
+/// the light's frame (x_axis, y_axis, and the spot's direction as z) as
+/// u = 0.5 + u_scale x / z, v = 0.5 + v_scale y / z (renderer/lights/image_spot_light.h).
+struct SpotImage {
+  TexturedRgb image{Vec3(1.f)};  ///< a texture (looked up at that (u, v)) or a constant
+  Vec3 x_axis{1.f, 0.f, 0.f}, y_axis{0.f, 1.f, 0.f};  ///< unit, orthogonal to the direction
+  float u_scale = 0.5f, v_scale = 0.5f;
+  /// A projector: it lights only the image's rectangle (u, v in [0, 1]), without the cone's
+  /// falloff, its intensity divided by cos^3 of the angle to the axis (so that a plane facing it
+  /// at distance 1 receives intensity x image, evenly).
+  bool projector = false;
+};
+
 struct SpotLight {
   Vec3 position;
   Vec3 direction{0.f, 0.f, 1.f};  ///< unit axis of the cone, away from the light
   Vec3 intensity;
   float cutoff_deg = 20.f;      ///< half-angle of the cone; no light beyond it
   float beam_width_deg = 15.f;  ///< half-angle of full intensity, <= cutoff_deg
+  std::optional<SpotImage> image;  ///< an image it casts; none: the plain spot
 };
 
 /// Parallel light from infinitely far away.

@@ -70,7 +70,13 @@ LightSet::LightSet(SceneData& data, LightChoice choice) {
     }
   }
   for (uint32_t i = 0; i < scene.spot_lights.size(); ++i) {
-    if (auto light = DeltaSpotLight::make(scene, i)) {
+    // A spot with an image is an image spot or none, never a plain one.
+    if (scene.spot_lights[i].image) {
+      if (auto light = ImageSpotLight::make(scene, i, &data.textures())) {
+        lights_.emplace_back(*light);
+        ++spot_count_;
+      }
+    } else if (auto light = DeltaSpotLight::make(scene, i)) {
       lights_.emplace_back(*light);
       ++spot_count_;
     }

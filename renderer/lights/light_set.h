@@ -1,6 +1,7 @@
 #pragma once
-// Every light of a scene, one type per kind (emissive triangles and spheres, point, spot and
-// directional lights, the environment), and how light sampling serves them at a shading point:
+// Every light of a scene, one type per kind (emissive triangles and spheres, point lights, spot
+// lights with and without a projected image, directional lights, the environment), and how light
+// sampling serves them at a shading point:
 // - directional lights (a sun), up to kAlwaysSampled of them, are each sampled at every vertex:
 //   one shadow ray each, no choice, so that a sun never loses its samples to the other lights;
 // - a constant environment (a uniform sky) is not light-sampled at all: BSDF sampling draws it
@@ -16,6 +17,7 @@
 #include "common/math/vec3.h"
 #include "renderer/lights/directional_light.h"
 #include "renderer/lights/environment_light.h"
+#include "renderer/lights/image_spot_light.h"
 #include "renderer/lights/light_sample.h"
 #include "renderer/lights/light_selection.h"
 #include "renderer/lights/point_light.h"
@@ -34,7 +36,7 @@ class LightSet {
   /// constructor (light_set.cpp).
   using Light = std::variant<TriangleLight, SphereLight, DeltaPointLight, DeltaSpotLight,
                              DeltaDirectionalLight, EnvironmentLight, TexturedTriangleLight,
-                             TexturedSphereLight>;
+                             TexturedSphereLight, ImageSpotLight>;
 
   /// Collects the lights of `data` and registers each emitter with data.set_light_index();
   /// `choice`: how a shading point chooses among them.

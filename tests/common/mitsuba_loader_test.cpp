@@ -9,6 +9,7 @@
 #include "common/bundle/bundle.h"
 #include "common/scene/mitsuba_loader.h"
 #include "common/scene/spectra.h"
+#include "tests/support/image_writers.h"
 #include "tests/support/temp_dir.h"
 
 namespace rayfarm {
@@ -161,8 +162,21 @@ TEST_F(MitsubaLoader, DepthCountsSegmentsInMitsubaAndScatteringVerticesHere) {
   expect_error(
       scene(R"(<integrator type="path"><integer name="max_depth" value="0"/></integrator>)"),
       {"s.xml:", "max_depth 0 renders nothing"});
-  expect_error(scene(R"(<integrator type="bdpt"/>)"),
-               {"<integrator type=\"bdpt\">", "not supported"});
+}
+
+// Integrators that converge to the path tracer's image are rendered by it, with a warning and
+// their depths; one that renders something else (aov) is refused.
+TEST_F(MitsubaLoader, OtherEstimatorsOfTheSameImageAreRenderedByThePathTracer) {
+  for (const char* type : {"ptracer", "bdpt", "prb"}) {
+    const Scene s = load(std::string(R"(<integrator type=")") + type +
+                         R"("><integer name="max_depth" value="4"/></integrator>)");
+    EXPECT_EQ(s.render.max_depth, 3u) << type;
+    std::string all;
+    for (const std::string& w : s.warnings) all += w + "\n";
+    EXPECT_NE(all.find(std::string("same image as \"") + type + "\""), std::string::npos) << all;
+  }
+  expect_error(scene(R"(<integrator type="aov"/>)"),
+               {"<integrator type=\"aov\">", "not supported"});
 }
 
 TEST_F(MitsubaLoader, BsdfsBecomeMaterialsWithMitsubasDefaultsAndSides) {
@@ -235,6 +249,139 @@ TEST_F(MitsubaLoader, ShapesMasksAndMapsBecomeGeometryAndSurfaceProperties) {
   EXPECT_TRUE(masked.alpha_blend);  // partly there: Mitsuba's mask is a probability
   EXPECT_EQ(masked.alpha.value, 0.25f);
   EXPECT_TRUE(masked.has_alpha());
+}
+
+// Mitsuba flips v on reading an OBJ file, not a PLY file (flip_tex_coords defaults to true for
+// obj, false for ply): a textured material is converted once per kind of coordinates, so a PLY
+// with the default shares the texture of a built-in shape, and one flipped that of the OBJ.
+TEST_F(MitsubaLoader, TextureCoordinatesAreFlippedForObjFilesOnly) {
+  dir_.write("tri.ply",
+             "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+             "property float z\nproperty float u\nproperty float v\nelement face 1\n"
+             "property list uchar int vertex_indices\nend_header\n"
+             "0 0 0 0 0\n1 0 0 1 0\n0 1 0 0 1\n3 0 1 2\n");
+  const std::string bsdf = R"(<bsdf type="diffuse" id="checks"><texture name="reflectance"
+      type="checkerboard"><transform name="to_uv"><scale value="4"/></transform></texture></bsdf>)";
+  const auto textures_for = [&](const std::string& ply_flip) {
+    return load(bsdf + R"(
+      <shape type="obj"><string name="filename" value="quad.obj"/><ref id="checks"/></shape>
+      <shape type="ply"><string name="filename" value="tri.ply"/>)" +
+                ply_flip + R"(<ref id="checks"/></shape>
+      <shape type="rectangle"><ref id="checks"/></shape>)")
+        .textures.size();
+  };
+  EXPECT_EQ(textures_for(""), 2u) << "the PLY's coordinates are Mitsuba's own, as a rectangle's";
+  EXPECT_EQ(textures_for(R"(<boolean name="flip_tex_coords" value="true"/>)"), 2u);
+  EXPECT_EQ(textures_for(R"(<boolean name="flip_tex_coords" value="false"/>)"), 2u);
+  const Scene flipped = load(bsdf + R"(
+      <shape type="obj"><string name="filename" value="quad.obj"/><ref id="checks"/></shape>
+      <shape type="ply"><string name="filename" value="tri.ply"/>
+        <boolean name="flip_tex_coords" value="true"/><ref id="checks"/></shape>)");
+  EXPECT_EQ(flipped.textures.size(), 1u) << "both flipped: one texture";
+  const Scene plain = load(bsdf + R"(
+      <shape type="ply"><string name="filename" value="tri.ply"/><ref id="checks"/></shape>
+      <shape type="rectangle"><ref id="checks"/></shape>)");
+  EXPECT_EQ(plain.textures.size(), 1u) << "neither flipped: one texture";
+}
+
+// A <lookat> without an up takes Mitsuba's: the first vector of the basis it builds around the
+// view direction (+x looking along -z or straight down), where rayfarm's own default (+y) would
+// roll the image or be parallel to the view.
+TEST_F(MitsubaLoader, ALookatWithoutUpTakesMitsubasBasis) {
+  const auto camera_of = [&](const std::string& lookat) {
+    const std::string xml = R"(<scene version="3.0.0"><sensor type="perspective">
+      <transform name="to_world">)" +
+                            lookat + R"(</transform></sensor></scene>)";
+    return load_mitsuba_scene(dir_.write("c.xml", xml), {}, SceneImages::kCheckOnly, {}, {}).camera;
+  };
+  EXPECT_EQ(camera_of(R"(<lookat origin="0, 0, 5" target="0, 0, 0"/>)").up, Vec3(1.f, 0.f, 0.f));
+  EXPECT_EQ(camera_of(R"(<lookat origin="0, 5, 0" target="0, 0, 0"/>)").up, Vec3(1.f, 0.f, 0.f));
+  EXPECT_EQ(camera_of(R"(<lookat origin="0, 0, 0" target="0, 0, 1" up="0, 0, 0"/>)").up,
+            Vec3(1.f, 0.f, 0.f));
+  // Along +x: n = (1, 0, 0), sign +1, a = -1: up = (1 - 1, 0, -1) = (0, 0, -1).
+  const Vec3 up = camera_of(R"(<lookat origin="0, 0, 0" target="3, 0, 0"/>)").up;
+  EXPECT_NEAR(up.x, 0.f, 1e-7f);
+  EXPECT_EQ(up.z, -1.f);
+  EXPECT_EQ(camera_of(R"(<lookat origin="0, 0, 5" target="0, 0, 0" up="0, 1, 0"/>)").up,
+            Vec3(0.f, 1.f, 0.f));
+}
+
+// A shapegroup's meshes are instanced; its spheres become spheres of the scene, one per
+// instance, placed by the instance's transform (which must keep them round).
+TEST_F(MitsubaLoader, ShapegroupsPlaceTheirSpheresAtEveryInstance) {
+  const Scene s = load(R"(
+    <shape type="shapegroup" id="g">
+      <shape type="sphere"><float name="radius" value="0.5"/>
+        <point name="center" x="1" y="0" z="0"/></shape>
+      <shape type="obj"><string name="filename" value="quad.obj"/></shape>
+    </shape>
+    <shape type="instance"><ref id="g"/></shape>
+    <shape type="instance"><ref id="g"/>
+      <transform name="to_world"><scale value="2"/><translate x="10"/></transform></shape>
+    <shape type="shapegroup" id="balls"><shape type="sphere"/></shape>
+    <shape type="instance"><ref id="balls"/>
+      <transform name="to_world"><translate y="-3"/></transform></shape>)");
+  ASSERT_EQ(s.spheres.size(), 3u);
+  EXPECT_EQ(s.spheres[0].center, Vec3(1.f, 0.f, 0.f));
+  EXPECT_EQ(s.spheres[0].radius, 0.5f);
+  EXPECT_EQ(s.spheres[1].center, Vec3(12.f, 0.f, 0.f));  // scaled by 2, then moved by 10
+  EXPECT_EQ(s.spheres[1].radius, 1.f);
+  EXPECT_EQ(s.spheres[2].center, Vec3(0.f, -3.f, 0.f));
+  EXPECT_EQ(s.instances.size(), 2u) << "the spheres-only group places no mesh instance";
+  EXPECT_TRUE(s.meshes.empty());
+  expect_error(scene(R"(<shape type="shapegroup" id="g"><shape type="sphere"/></shape>
+    <shape type="instance"><ref id="g"/>
+      <transform name="to_world"><scale x="2"/></transform></shape>)"),
+               {"<shape type=\"instance\">", "scale all directions alike"});
+}
+
+// A projector is a spot that casts its irradiance image through a camera's frustum (Mitsuba's
+// sample space: u = 0.5 - 0.5 x / (z tan(fov_x / 2)), v = 0.5 - 0.5 aspect y / (z tan)), its
+// aspect ratio the image's; a spot's texture is cast at u = 0.5 + 0.5 x / (z tan(cutoff)).
+TEST_F(MitsubaLoader, ProjectorsAndTexturedSpotsCastTheirImages) {
+  testing::PngSpec png;
+  png.width = 4;
+  png.height = 2;
+  png.samples.assign(4 * 2 * 3, 200);
+  const testing::Bytes bytes = testing::encode_png(png);
+  dir_.write("wide.png", std::string(bytes.begin(), bytes.end()));
+  const Scene s = load(R"(
+    <emitter type="projector"><float name="fov" value="90"/><float name="scale" value="2"/>
+      <transform name="to_world"><lookat origin="0, 3, 0" target="0, 0, 0" up="0, 0, 1"/>
+      </transform></emitter>
+    <emitter type="projector"><float name="fov" value="90"/>
+      <texture type="bitmap" name="irradiance"><string name="filename" value="wide.png"/></texture>
+    </emitter>
+    <emitter type="spot"><float name="cutoff_angle" value="30"/>
+      <texture type="bitmap" name="texture"><string name="filename" value="wide.png"/></texture>
+    </emitter>
+    <emitter type="spot"/>)");
+  ASSERT_EQ(s.spot_lights.size(), 4u);
+  const SpotLight& constant = s.spot_lights[0];
+  ASSERT_TRUE(constant.image.has_value());
+  EXPECT_TRUE(constant.image->projector);
+  EXPECT_FALSE(constant.image->image.is_textured());
+  EXPECT_EQ(constant.image->image.value, Vec3(1.f));
+  EXPECT_NEAR(constant.image->u_scale, -0.5f, 1e-6f);
+  EXPECT_NEAR(constant.image->v_scale, -0.5f, 1e-6f);
+  EXPECT_EQ(constant.direction, Vec3(0.f, -1.f, 0.f));
+  EXPECT_NEAR(constant.intensity.y, 2.0 * kPi * 0.99971, 1e-5) << "pi x scale x Mitsuba's white";
+  EXPECT_NEAR(constant.cutoff_deg, std::atan(std::sqrt(2.0)) * 180.0 / kPi, 1e-4)
+      << "the cone through the frustum's corners";
+  const SpotLight& wide = s.spot_lights[1];
+  ASSERT_TRUE(wide.image.has_value());
+  EXPECT_TRUE(wide.image->image.is_textured());
+  EXPECT_NEAR(wide.image->u_scale, -0.5f, 1e-6f);
+  EXPECT_NEAR(wide.image->v_scale, -1.f, 1e-6f) << "aspect 2, from the image (loaded to check)";
+  const SpotLight& spot = s.spot_lights[2];
+  ASSERT_TRUE(spot.image.has_value());
+  EXPECT_FALSE(spot.image->projector);
+  EXPECT_NEAR(spot.image->u_scale, 0.5 / std::tan(kPi / 6), 1e-6);
+  EXPECT_EQ(spot.beam_width_deg, 22.5f) << "3/4 of the cutoff";
+  EXPECT_FALSE(s.spot_lights[3].image.has_value());
+  expect_error(scene(R"(<emitter type="projector"><transform name="to_world"><scale value="2"/>
+    </transform></emitter>)"),
+               {"<emitter type=\"projector\">", "rotation and a translation"});
 }
 
 TEST_F(MitsubaLoader, AreaEmittersAndLightsKeepMitsubasUnitsAndWhite) {

@@ -18,11 +18,11 @@
 #include <vector>
 
 #include "common/scene/scene.h"
-#include "tests/support/normal_quantile.h"
-#include "tests/renderer/mc_stats.h"
 #include "renderer/lights/light_set.h"
 #include "renderer/samplers/rng.h"
 #include "renderer/scene_data.h"
+#include "tests/renderer/mc_stats.h"
+#include "tests/support/normal_quantile.h"
 
 namespace rayfarm {
 namespace {
@@ -365,6 +365,109 @@ TEST(SpotLightTest, IrradianceInBeamFalloffAndOutside) {
     EXPECT_TRUE(ls.delta);
     const double e = ls.radiance.y * std::max(0.f, ls.wi.y) / ls.pdf;
     EXPECT_NEAR(e, 6.0 * f * std::cos(a) / d2, 1e-4 * 6.0 / d2) << deg << " degrees";
+  }
+}
+
+// ---- spot lights that cast an image (image_spot_light.h) ------------------------------------
+// A light 2 above the floor looking down (-y), its frame x = +x, y = +z. A 2x2 image, read at
+// its texels (nearest, top-left origin): row 0 red, green; row 1 blue, white.
+
+std::shared_ptr<const DecodedImage> four_texels() {
+  auto img = std::make_shared<DecodedImage>();
+  img->width = img->height = 2;
+  img->channels = 3;
+  img->floats = {1, 0, 0, 0, 1, 0, 0, 0, 1, 1, 1, 1};
+  return img;
+}
+
+Scene image_spot_scene(bool projector, bool textured) {
+  Scene s = quad_scene(0.5f);
+  if (textured) {
+    TextureDesc t;
+    t.name = "four";
+    t.image = four_texels();
+    t.space = ColourSpace::linear;
+    t.options.filter = TextureFilter::nearest;
+    t.options.origin = UvOrigin::top_left;
+    s.textures.push_back(t);
+  }
+  SpotLight spot;
+  spot.position = {0.f, 2.f, 0.f};
+  spot.direction = {0.f, -1.f, 0.f};
+  spot.intensity = {3.f, 6.f, 9.f};
+  SpotImage image;
+  image.x_axis = {1.f, 0.f, 0.f};
+  image.y_axis = {0.f, 0.f, 1.f};
+  if (textured) image.image.texture = 0;
+  if (projector) {
+    // A 90-degree frustum, as Mitsuba maps it: u = 0.5 - 0.5 x / z, v = 0.5 - 0.5 y / z; the
+    // cone through its corners, at full intensity within.
+    image.u_scale = image.v_scale = -0.5f;
+    image.projector = true;
+    spot.cutoff_deg = spot.beam_width_deg = float(std::atan(std::sqrt(2.0)) * 180.0 / kPiD);
+  } else {
+    spot.cutoff_deg = 40.f;
+    spot.beam_width_deg = 20.f;
+    image.u_scale = image.v_scale = float(0.5 / std::tan(40.0 * kPiD / 180.0));
+  }
+  spot.image = image;
+  s.spot_lights.push_back(spot);
+  return s;
+}
+
+/// Irradiance at floor point p (normal +y) from the scene's one light; 0 when it sends nothing.
+double floor_irradiance(const LightSet& set, const Vec3& p, int channel) {
+  LightSample ls;
+  if (!set.sample(p, Vec3(0.f), SelectionNumber::from_float(0.5f), 0.5f, 0.5f, ls)) return 0.0;
+  EXPECT_TRUE(ls.delta);
+  return ls.radiance[channel] * std::max(0.f, ls.wi.y) / ls.pdf;
+}
+
+// A projector of a constant image lights its frustum's rectangle on a plane facing it evenly,
+// intensity / h^2 (its 1 / cos^3 cancels the distance and the slant), and nothing beyond.
+TEST(ImageSpotLightTest, AProjectorLightsItsRectangleEvenly) {
+  const Lights l(image_spot_scene(true, false));
+  ASSERT_EQ(l.set.spot_light_count(), 1u);
+  for (const float x : {0.f, 0.7f, -1.3f, 1.99f}) {
+    for (const float z : {0.f, 1.5f, -1.99f}) {
+      EXPECT_NEAR(floor_irradiance(l.set, Vec3(x, 0.f, z), 1), 6.0 / 4.0, 1e-5)
+          << "(" << x << ", " << z << ")";
+    }
+  }
+  // The rectangle on the floor is [-2, 2]^2 (tan 45 degrees x 2).
+  EXPECT_EQ(floor_irradiance(l.set, Vec3(2.01f, 0.f, 0.f), 1), 0.0);
+  EXPECT_EQ(floor_irradiance(l.set, Vec3(0.f, 0.f, -2.01f), 1), 0.0);
+  EXPECT_EQ(floor_irradiance(l.set, Vec3(0.f, 3.f, 0.f), 1), 0.0) << "behind it";
+}
+
+// The image's texel at the direction's (u, v): a projector's u grows towards its frame's -x and
+// v towards -y (Mitsuba's sample space), a textured spot's towards +x and +y.
+TEST(ImageSpotLightTest, TheImageIsReadAtTheDirectionsUv) {
+  const Vec3 red(1.f, 0.f, 0.f), green(0.f, 1.f, 0.f), blue(0.f, 0.f, 1.f), white(1.f);
+  struct Probe {
+    float x, z;
+    Vec3 projector, spot;  // the texel each sees there
+  };
+  const Probe probes[] = {{1.f, 1.f, red, white},
+                          {-1.f, 1.f, green, blue},
+                          {1.f, -1.f, blue, green},
+                          {-1.f, -1.f, white, red}};
+  for (const bool projector : {true, false}) {
+    const Lights l(image_spot_scene(projector, true));
+    for (const Probe& p : probes) {
+      const Vec3 q(p.x * 0.4f, 0.f, p.z * 0.4f);  // within a spot's beam too (16 degrees)
+      const double d2 = 4.0 + double(q.x) * q.x + double(q.z) * q.z;
+      const double cos_a = 2.0 / std::sqrt(d2);
+      // A projector: intensity / h^2 x texel; a spot: intensity x texel x cos / d^2.
+      const double base = projector ? 1.0 / 4.0 : cos_a / d2;
+      const Vec3 texel = projector ? p.projector : p.spot;
+      for (int c = 0; c < 3; ++c) {
+        const double intensity = 3.0 * (c + 1);
+        EXPECT_NEAR(floor_irradiance(l.set, q, c), intensity * texel[c] * base, 1e-5)
+            << (projector ? "projector" : "spot") << " at (" << q.x << ", " << q.z << "), channel "
+            << c;
+      }
+    }
   }
 }
 
