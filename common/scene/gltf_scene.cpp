@@ -57,7 +57,9 @@ void add_environment(const fs::path& file, const std::string& environment, Scene
                           ? Json::array({{{"type", "constant"}, {"radiance", {1, 1, 1}}}})
                           : Json::array({{{"type", "environment"}, {"file", environment}}});
   const scene_json::Context context{file.string() + " --environment", &scene.warnings};
-  read_lights(scene_json::Node(lights, context, ""), file.parent_path(), images, scene);
+  const TextureReader no_textures(file.parent_path(), images);
+  read_lights(scene_json::Node(lights, context, ""), file.parent_path(), images, no_textures,
+              scene);
 }
 
 Scene load_gltf_frame(const fs::path& file, const SceneCheck& check, SceneImages images,

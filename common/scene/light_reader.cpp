@@ -62,32 +62,91 @@ PointLight read_point_light(const Node& n) {
   return {read_point(n.require("position")), read_radiance(n.require("intensity"))};
 }
 
-SpotLight read_spot(const Node& n) {
-  n.allow_keys(
-      {"type", "position", "direction", "look_at", "intensity", "cutoff_angle", "beam_width"});
-  SpotLight s;
-  s.position = read_point(n.require("position"));
-  s.intensity = read_radiance(n.require("intensity"));
+/// The unit axis of a light at `position` from "direction" or "look_at" (one of them required).
+Vec3 read_axis(const Node& n, const Vec3& position) {
   const auto direction = n.find("direction");
   const auto look_at = n.find("look_at");
   if (direction && look_at) n.fail("give either \"direction\" or \"look_at\", not both");
-  if (direction) {
-    s.direction = read_direction(*direction);
-  } else if (look_at) {
-    const Vec3 target = read_point(*look_at);
-    const WideVec3 d = wide(target) - wide(s.position);
-    const double len = length(d);
-    if (!(len > 0.0)) look_at->fail("look_at equals position: no direction");
-    s.direction = Vec3(float(d.x / len), float(d.y / len), float(d.z / len));
-  } else {
-    n.fail("missing key \"direction\" (or \"look_at\")");
-  }
+  if (direction) return read_direction(*direction);
+  if (!look_at) n.fail("missing key \"direction\" (or \"look_at\")");
+  const Vec3 target = read_point(*look_at);
+  const WideVec3 d = wide(target) - wide(position);
+  const double len = length(d);
+  if (!(len > 0.0)) look_at->fail("look_at equals position: no direction");
+  return Vec3(float(d.x / len), float(d.y / len), float(d.z / len));
+}
+
+/// The frame of an image a light casts about `axis`: its y along "up" (default +y, or +z for a
+/// light along y) made orthogonal to the axis, its x = axis x y, to the right as seen from the
+/// light. With u growing along x and v along y, an image (whose uv origin is its bottom-left
+/// corner, the JSON default) lands upright and unmirrored, as a camera there would see it.
+SpotImage image_frame(const Node& n, const Vec3& axis) {
+  WideVec3 up = std::fabs(axis.y) > 0.999f ? WideVec3{0, 0, 1} : WideVec3{0, 1, 0};
+  if (auto u = n.find("up")) up = wide(read_direction(*u));
+  const WideVec3 z = wide(axis);
+  const double along = up.x * z.x + up.y * z.y + up.z * z.z;
+  const WideVec3 y{up.x - along * z.x, up.y - along * z.y, up.z - along * z.z};
+  const double len = length(y);
+  if (!(len > 1e-6)) n.child("up").fail("up must not be parallel to the light's direction");
+  SpotImage image;
+  image.y_axis = Vec3(float(y.x / len), float(y.y / len), float(y.z / len));
+  image.x_axis = normalize(cross(axis, image.y_axis));
+  return image;
+}
+
+SpotLight read_spot(const Node& n, const TextureReader& textures) {
+  n.allow_keys({"type", "position", "direction", "look_at", "intensity", "cutoff_angle",
+                "beam_width", "image", "up"});
+  SpotLight s;
+  s.position = read_point(n.require("position"));
+  s.intensity = read_radiance(n.require("intensity"));
+  s.direction = read_axis(n, s.position);
   if (auto c = n.find("cutoff_angle")) s.cutoff_deg = read_half_angle(*c);
   s.beam_width_deg = 0.75f * s.cutoff_deg;
   if (auto b = n.find("beam_width")) {
     s.beam_width_deg = read_half_angle(*b);
     if (s.beam_width_deg > s.cutoff_deg) b->fail("beam_width must not exceed cutoff_angle");
   }
+  if (auto image = n.find("image")) {
+    if (!(s.cutoff_deg < 90.f)) n.fail("a spot that casts an image needs a cutoff_angle below 90");
+    s.image = image_frame(n, s.direction);
+    s.image->image = textures.radiance(*image);
+    // u = 0.5 + 0.5 x / (z tan(cutoff)) on both axes: the image's square holds the cone.
+    s.image->u_scale = s.image->v_scale =
+        float(0.5 / std::tan(double(s.cutoff_deg) * 3.14159265358979323846 / 180.0));
+  } else if (n.find("up")) {
+    n.child("up").warn("\"up\" orients an image; this spot casts none");
+  }
+  return s;
+}
+
+/// A projector: a camera run backwards, which casts its image through the frustum of a vertical
+/// field of view "fov" and an "aspect" ratio (width over height), the image being the irradiance
+/// it gives a plane facing it at distance 1 (times "intensity").
+SpotLight read_projector(const Node& n, const TextureReader& textures) {
+  n.allow_keys(
+      {"type", "position", "direction", "look_at", "up", "image", "intensity", "fov", "aspect"});
+  SpotLight s;
+  s.position = read_point(n.require("position"));
+  s.direction = read_axis(n, s.position);
+  s.intensity = n.find("intensity") ? read_scale(*n.find("intensity")) : Vec3(1.f);
+  const float fov = read_float(n.require("fov"));
+  if (!(fov > 0.f && fov < 180.f)) n.child("fov").fail("expected an angle in (0, 180) degrees");
+  float aspect = 1.f;
+  if (auto a = n.find("aspect")) {
+    aspect = read_positive(*a);
+    if (!(aspect >= 1e-3f && aspect <= 1e3f)) a->fail("expected an aspect ratio in [0.001, 1000]");
+  }
+  s.image = image_frame(n, s.direction);
+  s.image->image = textures.radiance(n.require("image"));
+  s.image->projector = true;
+  // u = 0.5 + 0.5 x / (z tan_x), v = 0.5 + 0.5 y / (z tan_y): the image fills the frustum.
+  const double tan_y = std::tan(double(fov) * 3.14159265358979323846 / 360.0);
+  const double tan_x = tan_y * aspect;
+  s.image->u_scale = float(0.5 / tan_x);
+  s.image->v_scale = float(0.5 / tan_y);
+  const double corner = std::atan(std::sqrt(tan_x * tan_x + tan_y * tan_y));
+  s.cutoff_deg = s.beam_width_deg = float(corner * 180.0 / 3.14159265358979323846);
   return s;
 }
 
@@ -157,7 +216,8 @@ void check_environment_radiance(const Node& file_node, const fs::path& file,
   }
 }
 
-void read_lights(const Node& n, const fs::path& folder, SceneImages images, Scene& scene) {
+void read_lights(const Node& n, const fs::path& folder, SceneImages images,
+                 const TextureReader& textures, Scene& scene) {
   std::string first_environment;
   for (size_t i = 0; i < n.array().size(); ++i) {
     const Node light = n.child(i);
@@ -166,7 +226,9 @@ void read_lights(const Node& n, const fs::path& folder, SceneImages images, Scen
     if (kind == "point") {
       scene.point_lights.push_back(read_point_light(light));
     } else if (kind == "spot") {
-      scene.spot_lights.push_back(read_spot(light));
+      scene.spot_lights.push_back(read_spot(light, textures));
+    } else if (kind == "projector") {
+      scene.spot_lights.push_back(read_projector(light, textures));
     } else if (kind == "directional") {
       scene.directional_lights.push_back(read_directional(light));
     } else if (kind == "environment" || kind == "constant") {
@@ -184,7 +246,7 @@ void read_lights(const Node& n, const fs::path& folder, SceneImages images, Scen
       }
     } else {
       type.fail("unknown light type " + as_written(type.json()) +
-                "; expected one of point, spot, directional, environment, constant");
+                "; expected one of point, spot, projector, directional, environment, constant");
     }
   }
 }

@@ -1,6 +1,7 @@
 #pragma once
-// The "lights" section of the JSON format (docs/scene-format.md, "Lights"): point, spot and
-// directional lights, and the one environment (an image or a constant) that a scene may have.
+// The "lights" section of the JSON format (docs/scene-format.md, "Lights"): point, spot (with or
+// without an image), projector and directional lights, and the one environment (an image or a
+// constant) that a scene may have.
 #include <filesystem>
 
 #include "common/scene/json_reader.h"
@@ -10,9 +11,10 @@
 namespace rayfarm {
 
 /// Reads the "lights" array into `scene`; an environment's image (relative to `folder`) is
-/// decoded here, kept or only checked as `images` says, and added to scene.referenced.
+/// decoded here, kept or only checked as `images` says, and added to scene.referenced. The images
+/// spots and projectors cast name the scene's textures (`textures`).
 void read_lights(const scene_json::Node& n, const std::filesystem::path& folder, SceneImages images,
-                 Scene& scene);
+                 const TextureReader& textures, Scene& scene);
 
 /// Fails at `file_node` when a texel of the environment image times `scale` has a luminance
 /// beyond the float range (the worker's light would have infinite power), and warns about

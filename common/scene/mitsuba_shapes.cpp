@@ -1,6 +1,7 @@
 // Mitsuba 3 shapes and emitters as rayfarm geometry and lights (docs/mitsuba.md, "Shapes",
 // "Emitters").
 #include <cmath>
+#include <iterator>
 
 #include "common/limits.h"
 #include "common/scene/instances.h"
@@ -66,16 +67,29 @@ TriangleMesh rectangle() {
   return m;
 }
 
+/// Mitsuba's cube: [-1, 1]^3, each face its own four corners with flat normals, and its texture
+/// coordinates laid out as Mitsuba lays them (corners in this order at (0, 1), (1, 1), (1, 0) and
+/// (0, 0); triangles (0, 1, 2) and (3, 0, 2), wound to face outwards).
 TriangleMesh cube() {
+  struct Face {
+    Vec3 n;
+    Vec3 corners[4];
+  };
+  const Face faces[6] = {
+      {{0, -1, 0}, {{1, -1, -1}, {1, -1, 1}, {-1, -1, 1}, {-1, -1, -1}}},
+      {{0, 1, 0}, {{1, 1, -1}, {-1, 1, -1}, {-1, 1, 1}, {1, 1, 1}}},
+      {{1, 0, 0}, {{1, -1, -1}, {1, 1, -1}, {1, 1, 1}, {1, -1, 1}}},
+      {{0, 0, 1}, {{1, -1, 1}, {1, 1, 1}, {-1, 1, 1}, {-1, -1, 1}}},
+      {{-1, 0, 0}, {{-1, -1, 1}, {-1, 1, 1}, {-1, 1, -1}, {-1, -1, -1}}},
+      {{0, 0, -1}, {{1, 1, -1}, {1, -1, -1}, {-1, -1, -1}, {-1, 1, -1}}},
+  };
   TriangleMesh m;
-  const Vec3 axes[3] = {Vec3(1.f, 0.f, 0.f), Vec3(0.f, 1.f, 0.f), Vec3(0.f, 0.f, 1.f)};
-  for (int axis = 0; axis < 3; ++axis) {
-    for (float side : {-1.f, 1.f}) {
-      const Vec3 n = side * axes[axis];
-      Vec3 u = 2.f * axes[(axis + 1) % 3], v = 2.f * axes[(axis + 2) % 3];
-      if (side < 0.f) std::swap(u, v);  // u x v along n: the outside is the front
-      add_quad(m, n - 0.5f * u - 0.5f * v, u, v, n);
-    }
+  for (const Face& f : faces) {
+    const auto base = static_cast<uint32_t>(m.positions.size());
+    m.positions.insert(m.positions.end(), std::begin(f.corners), std::end(f.corners));
+    m.normals.insert(m.normals.end(), {f.n, f.n, f.n, f.n});
+    m.uvs.insert(m.uvs.end(), {Vec2{0.f, 1.f}, Vec2{1.f, 1.f}, Vec2{1.f, 0.f}, Vec2{0.f, 0.f}});
+    m.indices.insert(m.indices.end(), {base, base + 1, base + 2, base + 3, base, base + 2});
   }
   return m;
 }

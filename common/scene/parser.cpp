@@ -86,7 +86,7 @@ class SceneReader {
     if (auto n = root.find("materials")) read_materials(*n);
     if (auto n = root.find("groups")) read_groups(*n);
     if (auto n = root.find("shapes")) read_shapes(*n);
-    if (auto n = root.find("lights")) read_lights(*n, folder_, images_, scene_);
+    if (auto n = root.find("lights")) read_lights(*n, folder_, images_, textures_, scene_);
     if (auto n = root.find("background")) scene_.background = read_radiance(*n);
     if (gltf && !has_camera && !root.find("camera")) {
       scene_.camera = default_view(scene_);

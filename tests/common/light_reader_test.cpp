@@ -124,7 +124,79 @@ TEST(LightReaderTest, BadLightsAreErrorsThatSayWhere) {
       R"([{"type": "directional", "direction": [0, 0, 0], "irradiance": [1, 1, 1]}])",
       {"/lights/0/direction", "zero"});
   expect_light_error(R"([{"type": "area"}])",
-                     {"/lights/0/type", "point, spot, directional, environment, constant"});
+                     {"/lights/0/type", "point, spot, projector, directional, environment"});
+}
+
+/// A scene with the texture "sky" (sky.png) and `lights`.
+fs::path write_textured_scene(TempDir& dir, const std::string& lights) {
+  write_png_rgb8(dir.path() / "sky.png", {255, 0, 0, 0, 0, 255}, 2, 1);
+  return dir.write("scene.json", R"({
+  "camera": {"eye": [0, 0, -5], "look_at": [0, 0, 0], "fov_y": 40},
+  "film": {"width": 8, "height": 8},
+  "textures": {"sky": {"type": "image", "file": "sky.png"}},
+  "lights": )" + lights + "}");
+}
+
+// A spot may cast an image over its cone, and a projector casts one through a camera's frustum:
+// the image's frame has y along "up" and x to the right seen from the light, u and v growing
+// along them, so that an image lands upright as a camera there would see it.
+TEST(LightReaderTest, SpotsAndProjectorsCastImagesUpright) {
+  TempDir dir;
+  const Scene s = load_scene(write_textured_scene(dir, R"([
+    {"type": "projector", "position": [0, 0, 5], "look_at": [0, 0, 0], "fov": 90, "aspect": 2,
+     "image": {"texture": "sky"}, "intensity": 3},
+    {"type": "spot", "position": [0, 4, 0], "direction": [0, -1, 0], "intensity": [1, 1, 1],
+     "cutoff_angle": 45, "image": [0.5, 0.5, 0.5], "up": [0, 0, -1]},
+    {"type": "spot", "position": [0, 4, 0], "direction": [0, -1, 0], "intensity": [1, 1, 1]}])"));
+  ASSERT_EQ(s.spot_lights.size(), 3u);
+  const SpotLight& projector = s.spot_lights[0];
+  ASSERT_TRUE(projector.image.has_value());
+  EXPECT_TRUE(projector.image->projector);
+  EXPECT_EQ(projector.direction, Vec3(0.f, 0.f, -1.f));
+  EXPECT_EQ(projector.image->y_axis, Vec3(0.f, 1.f, 0.f));
+  EXPECT_EQ(projector.image->x_axis, Vec3(1.f, 0.f, 0.f)) << "looking along -z, right is +x";
+  EXPECT_FLOAT_EQ(projector.image->u_scale, 0.25f) << "tan_x = aspect x tan(45) = 2";
+  EXPECT_FLOAT_EQ(projector.image->v_scale, 0.5f);
+  EXPECT_EQ(projector.image->image.texture, 0);
+  EXPECT_EQ(projector.intensity, Vec3(3.f));
+  EXPECT_NEAR(projector.cutoff_deg, std::atan(std::sqrt(5.0)) * 180.0 / 3.14159265358979, 1e-4);
+  const SpotLight& spot = s.spot_lights[1];
+  ASSERT_TRUE(spot.image.has_value());
+  EXPECT_FALSE(spot.image->projector);
+  EXPECT_EQ(spot.image->y_axis, Vec3(0.f, 0.f, -1.f));
+  EXPECT_FLOAT_EQ(spot.image->u_scale, 0.5f) << "0.5 / tan(45 degrees)";
+  EXPECT_EQ(spot.image->image.value, Vec3(0.5f));
+  EXPECT_FALSE(s.spot_lights[2].image.has_value());
+
+  const auto expect_error = [](const std::string& lights,
+                               std::initializer_list<const char*> parts) {
+    TempDir d;
+    const fs::path file = write_textured_scene(d, lights);
+    try {
+      (void)load_scene(file);
+      ADD_FAILURE() << "loaded: " << lights;
+    } catch (const SceneError& e) {
+      for (const char* part : parts)
+        EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what();
+    }
+  };
+  const std::string projector_at = R"({"type": "projector", "position": [0, 0, 5], )";
+  expect_error("[" + projector_at + R"("direction": [0, 0, -1], "image": [1, 1, 1]}])",
+               {"/lights/0", "missing key \"fov\""});
+  expect_error("[" + projector_at + R"("direction": [0, 0, -1], "fov": 180, "image": 1}])",
+               {"/lights/0/fov", "(0, 180)"});
+  expect_error("[" + projector_at + R"("direction": [0, 0, -1], "fov": 60, "aspect": 1e6,
+               "image": [1, 1, 1]}])",
+               {"/lights/0/aspect"});
+  expect_error("[" + projector_at + R"("direction": [0, 0, -1], "fov": 60, "up": [0, 0, 2],
+               "image": [1, 1, 1]}])",
+               {"/lights/0/up", "parallel"});
+  expect_error("[" + projector_at + R"("direction": [0, 0, -1], "fov": 60,
+               "image": {"texture": "nope"}}])",
+               {"/lights/0/image", "nope"});
+  expect_error(R"([{"type": "spot", "position": [0, 4, 0], "direction": [0, -1, 0],
+               "intensity": [1, 1, 1], "cutoff_angle": 90, "image": [1, 1, 1]}])",
+               {"/lights/0", "below 90"});
 }
 
 TEST(LightReaderTest, BundledEnvironmentSceneLoadsWithItsSky) {

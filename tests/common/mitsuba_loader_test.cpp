@@ -251,6 +251,37 @@ TEST_F(MitsubaLoader, ShapesMasksAndMapsBecomeGeometryAndSurfaceProperties) {
   EXPECT_TRUE(masked.has_alpha());
 }
 
+// Mitsuba's cube: each face's texture coordinates laid out as Mitsuba lays them (on +z, u runs
+// along +y and v along +x; on -y, u along +z and v along +x), every triangle facing out.
+TEST_F(MitsubaLoader, ACubeHasMitsubasFaceLayout) {
+  const Scene s = load(R"(<shape type="cube"/>)");
+  ASSERT_EQ(s.meshes.size(), 1u);
+  const TriangleMesh& m = s.meshes[0];
+  ASSERT_EQ(m.triangle_count(), 12u);
+  ASSERT_EQ(m.uvs.size(), m.positions.size());
+  for (size_t t = 0; t < m.triangle_count(); ++t) {
+    const Vec3 &a = m.positions[m.indices[3 * t]], &b = m.positions[m.indices[3 * t + 1]],
+               &c = m.positions[m.indices[3 * t + 2]];
+    const Vec3 centre = (a + b + c) / 3.f;
+    EXPECT_GT(dot(cross(b - a, c - a), centre), 0.f) << "triangle " << t << " faces in";
+  }
+  size_t on_z = 0, on_minus_y = 0;
+  for (size_t i = 0; i < m.positions.size(); ++i) {
+    const Vec3& p = m.positions[i];
+    const Vec2 uv = m.uvs[i];
+    if (m.normals[i] == Vec3(0.f, 0.f, 1.f)) {
+      EXPECT_EQ(uv, (Vec2{(p.y + 1.f) / 2.f, (p.x + 1.f) / 2.f})) << i;
+      ++on_z;
+    }
+    if (m.normals[i] == Vec3(0.f, -1.f, 0.f)) {
+      EXPECT_EQ(uv, (Vec2{(p.z + 1.f) / 2.f, (p.x + 1.f) / 2.f})) << i;
+      ++on_minus_y;
+    }
+  }
+  EXPECT_EQ(on_z, 4u);
+  EXPECT_EQ(on_minus_y, 4u);
+}
+
 // Mitsuba flips v on reading an OBJ file, not a PLY file (flip_tex_coords defaults to true for
 // obj, false for ply): a textured material is converted once per kind of coordinates, so a PLY
 // with the default shares the texture of a built-in shape, and one flipped that of the OBJ.
