@@ -201,12 +201,13 @@ TEST_F(FarmTest, AnAdaptiveJobStopsTileByTileAndEqualsTheLocalRender) {
 TEST_F(FarmTest, LeasesSizedByTimeCoverRunsOfPassesAndChangeNoBit) {
   // Units of a few milliseconds and a target of 30 s a lease: once a worker's time per unit is
   // measured, each lease covers as many of a tile's passes as allowed, and one result returns
-  // their sums. The image is the local one, bit for bit.
+  // their sums. The image is the local one, bit for bit, with a pixel filter whose samples land
+  // in the neighbouring tiles' pixels too (a Gaussian of radius 2).
   start_master("master.log",
                {"--log-level", "debug", "--unit-seconds", "30", "--max-run-units", "8"});
   start_worker("wa", 2);
   start_worker("wb");
-  const fs::path scene = small_scene("cornell-box", 32);
+  const fs::path scene = small_scene("cornell-box", 32, "gaussian");
   const std::vector<std::string> settings{"--spp", "64", "--seed", "11", "--max-depth", "6"};
   std::vector<std::string> job_settings = settings;
   job_settings.insert(job_settings.end(), {"--tile", "16", "--pass-spp", "2"});  // 4 x 32 units
@@ -223,8 +224,9 @@ TEST_F(FarmTest, AWorkerKilledMidJobLosesNothing) {
   start_master();
   Process& victim = start_worker("victim");
   start_worker("survivor");
-  const fs::path scene =
-      small_scene("embree-cornell", 64);  // an OBJ and an MTL travel in the bundle
+  // An OBJ and an MTL travel in the bundle; the Mitchell filter's negative lobes make samples of
+  // either sign.
+  const fs::path scene = small_scene("embree-cornell", 64, "mitchell");
   const std::vector<std::string> settings{"--spp", "1024", "--seed", "3"};
   std::vector<std::string> job_settings = settings;
   job_settings.insert(job_settings.end(), {"--tile", "32", "--pass-spp", "128"});  // 32 units

@@ -207,13 +207,14 @@ class FarmFixture : public ::testing::Test {
   }
 
   /// Copies a bundled scene (and its files) into the test folder with a smaller film.
-  fs::path small_scene(const std::string& name, uint32_t size) {
+  fs::path small_scene(const std::string& name, uint32_t size, const std::string& filter = "") {
     const fs::path from = fs::path(RAYFARM_SOURCE_DIR) / "scenes" / name;
     const fs::path to = dir_ / "scenes" / name;
     fs::create_directories(to);
     fs::copy(from, to, fs::copy_options::recursive | fs::copy_options::overwrite_existing);
     nlohmann::json scene = nlohmann::json::parse(read_file(to / "scene.json"));
     scene["film"] = {{"width", size}, {"height", size}};
+    if (!filter.empty()) scene["film"]["filter"] = filter;
     std::ofstream(to / "scene.json") << scene.dump(2);
     return to / "scene.json";
   }
