@@ -83,16 +83,26 @@ double filter_value(const PixelFilter& f, double x) {
 FilterSampler::FilterSampler(const PixelFilter& filter, FilmSize film)
     : filter_(filter), pixel_box_(filter.pixel_box()) {
   if (pixel_box_) return;
-  radius_ = filter.radius;
-  bin_ = 2.0 * radius_ / kBins;
+  // The readers keep the radius within [1e-3, 8] pixels; a description that did not would make
+  // empty bins, so it is held there here too.
+  radius_ = std::clamp(std::isfinite(filter.radius) ? double(filter.radius) : 0.5, 1e-3,
+                       double(kMaxFilterRadius));
+  filter_.radius = static_cast<float>(radius_);
+  // A tabulated filter's steps fall on bin edges (a whole number of bins per step, from both
+  // ends), so that a bin's density is the filter's own there and its weight 1.
+  bins_ = kBins;
+  if (filter.steps > 0 && filter.steps <= 4096)
+    bins_ = int(2 * filter.steps) *
+            std::max(1, (kBins + int(2 * filter.steps) - 1) / int(2 * filter.steps));
+  bin_ = 2.0 * radius_ / bins_;
   step_ = filter.steps > 0 ? radius_ / filter.steps : 0.0;
-  mass_.resize(kBins);
-  cumulative_.assign(kBins + 1, 0.0);
-  signed_.assign(kBins + 1, 0.0);
+  mass_.resize(bins_);
+  cumulative_.assign(bins_ + 1, 0.0);
+  signed_.assign(bins_ + 1, 0.0);
   const auto f = [&](double x) { return filter_value(filter_, x); };
   const auto abs_f = [&](double x) { return std::fabs(filter_value(filter_, x)); };
-  for (int i = 0; i < kBins; ++i) {
-    const double lo = -radius_ + i * bin_, hi = i + 1 == kBins ? radius_ : lo + bin_;
+  for (int i = 0; i < bins_; ++i) {
+    const double lo = -radius_ + i * bin_, hi = i + 1 == bins_ ? radius_ : lo + bin_;
     mass_[i] = integrate(abs_f, lo, hi, step_);
     cumulative_[i + 1] = cumulative_[i] + mass_[i];
     signed_[i + 1] = signed_[i] + integrate(f, lo, hi, step_);
@@ -105,14 +115,14 @@ FilterSampler::FilterSampler(const PixelFilter& filter, FilmSize film)
 double FilterSampler::cdf(double x) const {
   if (x <= -radius_) return 0.0;
   if (x >= radius_) return cumulative_.back();
-  const int i = std::min(kBins - 1, static_cast<int>((x + radius_) / bin_));
+  const int i = std::min(bins_ - 1, static_cast<int>((x + radius_) / bin_));
   return cumulative_[i] + mass_[i] * ((x + radius_) - i * bin_) / bin_;
 }
 
 double FilterSampler::signed_integral(double x) const {
   if (x <= -radius_) return 0.0;
   if (x >= radius_) return signed_.back();
-  const int i = std::min(kBins - 1, static_cast<int>((x + radius_) / bin_));
+  const int i = std::min(bins_ - 1, static_cast<int>((x + radius_) / bin_));
   const double lo = -radius_ + i * bin_;
   return signed_[i] + integrate([&](double t) { return filter_value(filter_, t); }, lo, x, step_);
 }
@@ -155,8 +165,8 @@ FilterSampler::Offset FilterSampler::sample(const Axis& axis, uint32_t i, float 
   int k = static_cast<int>(std::upper_bound(cumulative_.begin(), cumulative_.end(), t) -
                            cumulative_.begin()) -
           1;
-  const int first = std::min(kBins - 1, static_cast<int>((w.a + radius_) / bin_));
-  const int last = std::min(kBins - 1, static_cast<int>((w.b + radius_) / bin_));
+  const int first = std::min(bins_ - 1, static_cast<int>((w.a + radius_) / bin_));
+  const int last = std::min(bins_ - 1, static_cast<int>((w.b + radius_) / bin_));
   k = std::clamp(k, first, last);
   while (k < last && mass_[k] <= 0.0) ++k;  // an empty bin is never chosen
   if (mass_[k] <= 0.0 || !(w.integral > 0.0)) return {static_cast<float>(centre), 0.f};

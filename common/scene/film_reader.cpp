@@ -34,12 +34,13 @@ PixelFilter read_pixel_filter(const std::optional<Node>& filter,
     f.type = type == "box" ? FilterType::kBox : FilterType::kTent;
     if (object) filter->allow_keys({"type", "radius"});
     f.radius = type == "box" ? 0.5f : 1.f;
-    if (auto r = param("radius")) f.radius = read_within(*r, 0.f, kMaxFilterRadius, true, "radius");
+    if (auto r = param("radius"))
+      f.radius = read_within(*r, kMinFilterRadius, kMaxFilterRadius, false, "radius");
   } else if (type == "gaussian") {
     f.type = FilterType::kGaussian;
     if (object) filter->allow_keys({"type", "stddev"});
     if (auto s = param("stddev"))
-      f.stddev = read_within(*s, 0.f, kMaxFilterRadius / 4.f, true, "stddev");
+      f.stddev = read_within(*s, kMinFilterRadius / 4.f, kMaxFilterRadius / 4.f, false, "stddev");
     f.radius = 4.f * f.stddev;
   } else if (type == "mitchell" || type == "catmull-rom") {
     f.type = FilterType::kMitchell;
@@ -64,7 +65,8 @@ PixelFilter read_pixel_filter(const std::optional<Node>& filter,
     if (object) filter->allow_keys({"type", "width"});
     f.radius = 0.75f;  // width 1.5 pixels, Cycles' default
     if (auto w = param("width"))
-      f.radius = 0.5f * read_within(*w, 0.f, 2.f * kMaxFilterRadius, true, "width");
+      f.radius =
+          0.5f * read_within(*w, 2.f * kMinFilterRadius, 2.f * kMaxFilterRadius, false, "width");
   } else {
     type_node.fail("unknown filter " + scene_json::as_written(type_node.json()) +
                    " (box, tent, gaussian, mitchell, catmull-rom, lanczos or blackman-harris)");

@@ -146,6 +146,9 @@ SpotLight read_projector(const Node& n, const TextureReader& textures) {
   s.image->u_scale = float(0.5 / tan_x);
   s.image->v_scale = float(0.5 / tan_y);
   const double corner = std::atan(std::sqrt(tan_x * tan_x + tan_y * tan_y));
+  // A narrower cone rounds away in the light's single-precision bounds.
+  if (!(corner * 180.0 / 3.14159265358979323846 >= 0.05))
+    n.fail("a projector narrower than 0.05 degrees (its frustum's corner) is not supported");
   s.cutoff_deg = s.beam_width_deg = float(corner * 180.0 / 3.14159265358979323846);
   return s;
 }

@@ -131,12 +131,12 @@ PixelFilter read_rfilter(Context& ctx, const XmlElement* e) {
   } else if (type == "tent") {
     f.type = FilterType::kTent;
     f.radius = static_cast<float>(p.number("radius", 1.0));
-    if (!(f.radius > 0.f && f.radius <= kMaxFilterRadius))
-      e->fail("a tent filter's radius must lie in (0, 8] pixels");
+    if (!(f.radius >= kMinFilterRadius && f.radius <= kMaxFilterRadius))
+      e->fail("a tent filter's radius must lie in [0.001, 8] pixels");
   } else if (type == "gaussian") {
     f.stddev = static_cast<float>(p.number("stddev", 0.5));
-    if (!(f.stddev > 0.f && f.stddev <= kMaxFilterRadius / 4.f))
-      e->fail("a gaussian filter's stddev must lie in (0, 2] pixels");
+    if (!(f.stddev >= kMinFilterRadius / 4.f && f.stddev <= kMaxFilterRadius / 4.f))
+      e->fail("a gaussian filter's stddev must lie in [0.00025, 2] pixels");
     f.radius = 4.f * f.stddev;
   } else if (type == "mitchell" || type == "catmullrom") {
     f.type = FilterType::kMitchell;
@@ -242,6 +242,10 @@ void read_sensor(Context& ctx, const XmlElement& e) {
 
 }  // namespace
 
+/// The narrowest projector (its frustum's corner from the axis): a narrower cone rounds away in
+/// the light's single-precision bounds.
+constexpr double kMinProjectorDegrees = 0.05;
+
 /// An image a spot or projector casts: `colour` (a texture in Mitsuba's own uv, or a constant)
 /// on the light's frame, which to_world must place without scaling or mirroring.
 SpotImage light_image(Context& ctx, const XmlElement& e, const Transform& t, const Colour& colour,
@@ -262,13 +266,16 @@ double image_aspect(Context& ctx, const XmlElement& texture) {
   if (type_of(texture) != "bitmap") return 1.0;
   const int32_t index = texture_of(ctx, texture, UvKind::kNative, true);
   const TextureDesc& desc = ctx.scene.textures[static_cast<size_t>(index)];
+  if (auto it = ctx.aspects.find(desc.file); it != ctx.aspects.end()) return it->second;
   std::shared_ptr<const DecodedImage> image = desc.image;
-  if (image == nullptr) {  // loaded only to be checked: decode it once more for its size
+  if (image == nullptr) {  // loaded only to be checked: decoded once more, for its size only
     const At at(texture, ctx.scene, "filename");
     image = decode_scene_image(at.node, ctx.files.scene_dir, desc.file, SceneImages::kKeep,
                                "texture image");
   }
-  return double(image->width) / double(image->height);
+  const double aspect = double(image->width) / double(image->height);
+  ctx.aspects[desc.file] = aspect;
+  return aspect;
 }
 
 void read_emitter(Context& ctx, const XmlElement& e) {
@@ -293,10 +300,14 @@ void read_emitter(Context& ctx, const XmlElement& e) {
     const bool textured = p.has("texture");
     const Colour texture = p.colour("texture", Vec3(1.f), SpectrumRole::unbounded);
     p.finish();
-    if (!(l.cutoff_deg > 0.f && l.cutoff_deg < 90.f))
-      e.fail("cutoff_angle must lie in (0, 90) degrees");
+    if (!(l.cutoff_deg > 0.f && l.cutoff_deg <= 90.f))
+      e.fail("cutoff_angle must lie in (0, 90] degrees");
     if (!(l.beam_width_deg >= 0.f && l.beam_width_deg <= l.cutoff_deg))
       e.fail("beam_width must lie in [0, cutoff_angle]");
+    if (textured && texture.texture == nullptr)
+      p.find("texture")->fail("a spot's texture must be a texture (Mitsuba refuses a constant)");
+    if (textured && !(l.cutoff_deg < 90.f))
+      e.fail("a spot that casts a texture needs a cutoff_angle below 90 degrees");
     if (textured) {
       // Mitsuba's uv: 0.5 + 0.5 x / (z tan(cutoff)) on both axes of the light's frame.
       const double scale = 0.5 / std::tan(radians(l.cutoff_deg));
@@ -325,6 +336,8 @@ void read_emitter(Context& ctx, const XmlElement& e) {
     l.image->projector = true;
     // The cone through the frustum's corners, at full intensity within (for the light tree).
     const double corner = std::atan(tan_x * std::sqrt(1.0 + 1.0 / (aspect * aspect)));
+    if (!(degrees(corner) >= kMinProjectorDegrees))
+      e.fail("a projector narrower than 0.05 degrees is not supported");
     l.cutoff_deg = l.beam_width_deg = static_cast<float>(degrees(corner));
     scene.spot_lights.push_back(l);
   } else if (type == "directional") {

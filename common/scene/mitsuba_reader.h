@@ -47,6 +47,8 @@ struct Context {
   /// a copy of them in the scene. The spheres of the group being read go to `group_spheres_open`.
   std::map<uint32_t, std::vector<Sphere>> group_spheres;
   std::vector<Sphere>* group_spheres_open = nullptr;
+  /// Width over height of the images projectors cast, by file (each decoded for it once).
+  std::map<std::filesystem::path, double> aspects;
   uint64_t instanced_spheres = 0;
 
   /// Adds `what` to the scene's warnings once per `kind` (e.g. "sampler").

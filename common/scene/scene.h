@@ -58,8 +58,9 @@ enum class FilterType : uint8_t {
   kBlackmanHarris,  ///< the 4-term Blackman-Harris window over [-radius, radius] (Cycles')
 };
 
-/// Widest filter radius, in pixels.
+/// Widest and narrowest filter radius, in pixels.
 inline constexpr float kMaxFilterRadius = 8.f;
+inline constexpr float kMinFilterRadius = 1e-3f;
 
 struct PixelFilter {
   FilterType type = FilterType::kBox;

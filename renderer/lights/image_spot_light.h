@@ -43,6 +43,14 @@ class ImageSpotLight {
       mean = mean * Vec3(std::max(t.x, 0.f), std::max(t.y, 0.f), std::max(t.z, 0.f));
     }
     const double share = double(luminance(mean));
+    // The light tree's intensity: the cone's along its axis, times the image's mean, and for a
+    // projector the growth towards its rectangle's corners (1 / cos^3 there).
+    double peak = share;
+    if (s.image->projector) {
+      const double c = std::cos(double(s.cutoff_deg) * 3.14159265358979323846 / 180.0);
+      peak /= c * c * c;
+    }
+    light.bounds_scale_ = static_cast<float>(std::max(peak, 1e-6));
     if (s.image->projector) {
       // The intensity over the rectangle's solid angle, where 1 / cos^3 cancels the solid angle's
       // cos^3 on the plane z = 1: intensity x image x the rectangle's area there.
@@ -58,8 +66,13 @@ class ImageSpotLight {
   }
 
   double power() const { return power_; }
-  /// The spot's cone (a projector's reaches its rectangle's corners).
-  LightBounds bounds() const { return cone_.bounds(); }
+  /// The spot's cone (a projector's reaches its rectangle's corners), its intensity scaled by
+  /// the image.
+  LightBounds bounds() const {
+    LightBounds b = cone_.bounds();
+    b.intensity *= bounds_scale_;
+    return b;
+  }
 
   /// The light as seen from `ref`; pdf is the selection probability p_select.
   bool sample(const Vec3& ref, float p_select, float /*u1*/, float /*u2*/, LightSample& out) const {
@@ -101,6 +114,7 @@ class ImageSpotLight {
   SpotImage image_;
   const TextureSet* textures_;
   Vec3 axis_;
+  float bounds_scale_ = 1.f;
   double power_ = 0.0;
 };
 

@@ -141,7 +141,7 @@ TEST_F(MitsubaLoader, FiltersHaveMitsubasDefaults) {
                {"s.xml:1:", "<rfilter type=\"sinc\">", "not supported", "lanczos"});
   expect_error(film + R"(<rfilter type="tent"><float name="radius" value="0"/></rfilter>)"
                       "</film></sensor></scene>",
-               {"radius must lie in (0, 8]"});
+               {"radius must lie in [0.001, 8]"});
   expect_error(film + R"(<rfilter type="box"><float name="radius" value="2"/></rfilter>)"
                       "</film></sensor></scene>",
                {"\"radius\""});
@@ -410,6 +410,19 @@ TEST_F(MitsubaLoader, ProjectorsAndTexturedSpotsCastTheirImages) {
   EXPECT_NEAR(spot.image->u_scale, 0.5 / std::tan(kPi / 6), 1e-6);
   EXPECT_EQ(spot.beam_width_deg, 22.5f) << "3/4 of the cutoff";
   EXPECT_FALSE(s.spot_lights[3].image.has_value());
+  // A plain spot may open to 90 degrees; one casting a texture needs less (tan(cutoff)), and
+  // its texture must be one (Mitsuba refuses a constant there).
+  EXPECT_EQ(load(R"(<emitter type="spot"><float name="cutoff_angle" value="90"/></emitter>)")
+                .spot_lights.at(0)
+                .cutoff_deg,
+            90.f);
+  expect_error(scene(R"(<emitter type="spot"><float name="cutoff_angle" value="90"/>
+    <texture type="checkerboard" name="texture"/></emitter>)"),
+               {"below 90 degrees"});
+  expect_error(scene(R"(<emitter type="spot"><rgb name="texture" value="0.5"/></emitter>)"),
+               {"must be a texture"});
+  expect_error(scene(R"(<emitter type="projector"><float name="fov" value="0.01"/></emitter>)"),
+               {"narrower than 0.05 degrees"});
   expect_error(scene(R"(<emitter type="projector"><transform name="to_world"><scale value="2"/>
     </transform></emitter>)"),
                {"<emitter type=\"projector\">", "rotation and a translation"});

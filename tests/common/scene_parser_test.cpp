@@ -644,13 +644,16 @@ TEST(SceneErrors, BadFilmFilters) {
                      {"/film/filter", "unknown filter \"sinc\"", "gaussian"});
   expect_scene_error(film(R"("filter": {"radius": 1})"), {"/film/filter", "missing key \"type\""});
   expect_scene_error(film(R"("filter": {"type": "tent", "radius": 0})"),
-                     {"/film/filter/radius", "radius must lie in (0, 8]"});
+                     {"/film/filter/radius", "radius must lie in [0.001, 8]"});
   expect_scene_error(film(R"("filter": {"type": "tent", "radius": 9})"),
-                     {"/film/filter/radius", "(0, 8]"});
+                     {"/film/filter/radius", "[0.001, 8]"});
   expect_scene_error(film(R"("filter": {"type": "gaussian", "stddev": 3})"),
-                     {"/film/filter/stddev", "(0, 2]"});
+                     {"/film/filter/stddev", "[0.00025, 2]"});
   expect_scene_error(film(R"("filter": {"type": "mitchell", "c": -1})"),
                      {"/film/filter/c", "[0, 1]"});
+  // Half of the smallest float is 0: the width is checked, not only its half.
+  expect_scene_error(film(R"("filter": {"type": "blackman-harris", "width": 1e-45})"),
+                     {"/film/filter/width", "[0.002, 16]"});
   expect_scene_error(film(R"("filter": {"type": "lanczos", "lobes": 0})"), {"/film/filter/lobes"});
   expect_scene_error(film(R"("filter": 3)"), {"/film/filter", "expected a string"});
   expect_scene_error(film(R"("filter": "box", "sample_border": "no")"), {"/film/sample_border"});

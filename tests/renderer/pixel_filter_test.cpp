@@ -180,6 +180,43 @@ TEST(PixelFilter, WeighedSamplesIntegrateTheNormalisedFilter) {
   }
 }
 
+// A tabulated filter's steps fall on the table's bin edges: a positive one's samples all weigh 1
+// (no variance from the weights), in whole windows and in windows cut at the image's edge.
+TEST(PixelFilter, ATabulatedFiltersSamplesWeighOne) {
+  PixelFilter f;
+  f.type = FilterType::kGaussian;
+  f.radius = 2.f;
+  f.steps = 31;
+  for (bool border : {true, false}) {
+    f.sample_border = border;
+    const FilterSampler sampler(f, FilmSize{3, 7});
+    for (uint32_t i = 0; i < 3; ++i) {
+      for (int k = 0; k < 4096; ++k) {
+        const float u = static_cast<float>((k + 0.5) / 4096);
+        EXPECT_NEAR(sampler.sample_x(i, u).weight, 1.f, 1e-5f) << "column " << i << ", u " << u;
+      }
+    }
+  }
+}
+
+// A description the readers would refuse (a radius of 0 or NaN) is held within the readers'
+// range rather than dividing by zero: finite samples with finite weights.
+TEST(PixelFilter, AnOutOfRangeRadiusIsHeldInRange) {
+  for (const float radius : {0.f, std::nanf(""), 1e30f}) {
+    PixelFilter f;
+    f.type = FilterType::kTent;
+    f.radius = radius;
+    f.sample_border = false;
+    const FilterSampler sampler(f, FilmSize{2, 2});
+    for (const float u : {0.f, 0.3f, 0.99999994f}) {
+      const FilterSampler::Offset o = sampler.sample_x(1, u);
+      EXPECT_TRUE(std::isfinite(o.position) && std::isfinite(o.weight)) << radius;
+      EXPECT_GE(o.position, 0.f);
+      EXPECT_LE(o.position, 2.f);
+    }
+  }
+}
+
 TEST(PixelFilter, ThePixelBoxIsNotTabulated) {
   const FilterSampler box(PixelFilter{}, FilmSize{4, 4});
   EXPECT_TRUE(box.pixel_box());
