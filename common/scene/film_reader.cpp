@@ -10,12 +10,11 @@ using scene_json::Node;
 
 namespace {
 
-/// A number within (0, hi] (lo_open) or [lo, hi].
-float read_within(const Node& n, float lo, float hi, bool lo_open, const char* what) {
+/// A number within [lo, hi].
+float read_within(const Node& n, float lo, float hi, const char* what) {
   const float v = scene_json::read_float(n);
-  if ((lo_open ? !(v > lo) : !(v >= lo)) || !(v <= hi)) {
-    n.fail(fmt::format("{} must lie in {}{}, {}], got {}", what, lo_open ? "(" : "[", lo, hi, v));
-  }
+  if (!(v >= lo && v <= hi))
+    n.fail(fmt::format("{} must lie in [{}, {}], got {}", what, lo, hi, v));
   return v;
 }
 
@@ -35,12 +34,12 @@ PixelFilter read_pixel_filter(const std::optional<Node>& filter,
     if (object) filter->allow_keys({"type", "radius"});
     f.radius = type == "box" ? 0.5f : 1.f;
     if (auto r = param("radius"))
-      f.radius = read_within(*r, kMinFilterRadius, kMaxFilterRadius, false, "radius");
+      f.radius = read_within(*r, kMinFilterRadius, kMaxFilterRadius, "radius");
   } else if (type == "gaussian") {
     f.type = FilterType::kGaussian;
     if (object) filter->allow_keys({"type", "stddev"});
     if (auto s = param("stddev"))
-      f.stddev = read_within(*s, kMinFilterRadius / 4.f, kMaxFilterRadius / 4.f, false, "stddev");
+      f.stddev = read_within(*s, kMinFilterRadius / 4.f, kMaxFilterRadius / 4.f, "stddev");
     f.radius = 4.f * f.stddev;
   } else if (type == "mitchell" || type == "catmull-rom") {
     f.type = FilterType::kMitchell;
@@ -51,8 +50,8 @@ PixelFilter read_pixel_filter(const std::optional<Node>& filter,
       f.c = 0.5f;
     } else {
       if (object) filter->allow_keys({"type", "b", "c"});
-      if (auto b = param("b")) f.b = read_within(*b, 0.f, 1.f, false, "b");
-      if (auto c = param("c")) f.c = read_within(*c, 0.f, 1.f, false, "c");
+      if (auto b = param("b")) f.b = read_within(*b, 0.f, 1.f, "b");
+      if (auto c = param("c")) f.c = read_within(*c, 0.f, 1.f, "c");
     }
   } else if (type == "lanczos") {
     f.type = FilterType::kLanczos;
@@ -65,8 +64,7 @@ PixelFilter read_pixel_filter(const std::optional<Node>& filter,
     if (object) filter->allow_keys({"type", "width"});
     f.radius = 0.75f;  // width 1.5 pixels, Cycles' default
     if (auto w = param("width"))
-      f.radius =
-          0.5f * read_within(*w, 2.f * kMinFilterRadius, 2.f * kMaxFilterRadius, false, "width");
+      f.radius = 0.5f * read_within(*w, 2.f * kMinFilterRadius, 2.f * kMaxFilterRadius, "width");
   } else {
     type_node.fail("unknown filter " + scene_json::as_written(type_node.json()) +
                    " (box, tent, gaussian, mitchell, catmull-rom, lanczos or blackman-harris)");

@@ -15,6 +15,8 @@ using namespace scene_json;  // NOLINT(google-build-using-namespace): the JSON r
 
 namespace {
 
+constexpr double kDegree = 3.14159265358979323846 / 180.0;  ///< one degree in radians
+
 /// A direction: three numbers, not all zero, returned unit length.
 Vec3 read_direction(const Node& n) {
   const Vec3 d = read_point(n);
@@ -112,8 +114,7 @@ SpotLight read_spot(const Node& n, const TextureReader& textures) {
     s.image = image_frame(n, s.direction);
     s.image->image = textures.radiance(*image);
     // u = 0.5 + 0.5 x / (z tan(cutoff)) on both axes: the image's square holds the cone.
-    s.image->u_scale = s.image->v_scale =
-        float(0.5 / std::tan(double(s.cutoff_deg) * 3.14159265358979323846 / 180.0));
+    s.image->u_scale = s.image->v_scale = float(0.5 / std::tan(double(s.cutoff_deg) * kDegree));
   } else if (n.find("up")) {
     n.child("up").warn("\"up\" orients an image; this spot casts none");
   }
@@ -141,15 +142,11 @@ SpotLight read_projector(const Node& n, const TextureReader& textures) {
   s.image->image = textures.radiance(n.require("image"));
   s.image->projector = true;
   // u = 0.5 + 0.5 x / (z tan_x), v = 0.5 + 0.5 y / (z tan_y): the image fills the frustum.
-  const double tan_y = std::tan(double(fov) * 3.14159265358979323846 / 360.0);
-  const double tan_x = tan_y * aspect;
-  s.image->u_scale = float(0.5 / tan_x);
+  const double tan_y = std::tan(0.5 * double(fov) * kDegree);
+  s.image->u_scale = float(0.5 / (tan_y * aspect));
   s.image->v_scale = float(0.5 / tan_y);
-  const double corner = std::atan(std::sqrt(tan_x * tan_x + tan_y * tan_y));
-  // A narrower cone rounds away in the light's single-precision bounds.
-  if (!(corner * 180.0 / 3.14159265358979323846 >= 0.05))
+  if (!set_projector_cone(s))
     n.fail("a projector narrower than 0.05 degrees (its frustum's corner) is not supported");
-  s.cutoff_deg = s.beam_width_deg = float(corner * 180.0 / 3.14159265358979323846);
   return s;
 }
 
@@ -189,6 +186,15 @@ EnvironmentMap read_constant(const Node& n) {
 }
 
 }  // namespace
+
+bool set_projector_cone(SpotLight& projector) {
+  const double tan_x = 0.5 / std::fabs(double(projector.image->u_scale)),
+               tan_y = 0.5 / std::fabs(double(projector.image->v_scale));
+  const double corner = std::atan(std::sqrt(tan_x * tan_x + tan_y * tan_y)) / kDegree;
+  if (!(corner >= kMinProjectorDegrees)) return false;
+  projector.cutoff_deg = projector.beam_width_deg = static_cast<float>(corner);
+  return true;
+}
 
 void check_environment_radiance(const Node& file_node, const fs::path& file,
                                 const DecodedImage& image, const Vec3& scale) {

@@ -16,6 +16,16 @@ namespace rayfarm {
 void read_lights(const scene_json::Node& n, const std::filesystem::path& folder, SceneImages images,
                  const TextureReader& textures, Scene& scene);
 
+/// The narrowest projector the scene formats take, the angle of its frustum's corner from its
+/// axis in degrees: a narrower cone rounds away in the light's single-precision bounds.
+inline constexpr double kMinProjectorDegrees = 0.05;
+
+/// Sets a projector's cone (its cutoff and beam width) through the corners of the frustum its
+/// image's uv scales describe (u = 0.5 + u_scale x / z: the image spans |x / z| <= 0.5 /
+/// |u_scale|): at full intensity within, for the light tree. False when it is narrower than
+/// kMinProjectorDegrees.
+bool set_projector_cone(SpotLight& projector);
+
 /// Fails at `file_node` when a texel of the environment image times `scale` has a luminance
 /// beyond the float range (the worker's light would have infinite power), and warns about
 /// samples it takes as black (negative, infinite, NaN).

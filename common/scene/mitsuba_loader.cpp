@@ -242,10 +242,6 @@ void read_sensor(Context& ctx, const XmlElement& e) {
 
 }  // namespace
 
-/// The narrowest projector (its frustum's corner from the axis): a narrower cone rounds away in
-/// the light's single-precision bounds.
-constexpr double kMinProjectorDegrees = 0.05;
-
 /// An image a spot or projector casts: `colour` (a texture in Mitsuba's own uv, or a constant)
 /// on the light's frame, which to_world must place without scaling or mirroring.
 SpotImage light_image(Context& ctx, const XmlElement& e, const Transform& t, const Colour& colour,
@@ -319,12 +315,13 @@ void read_emitter(Context& ctx, const XmlElement& e) {
     // the scene through the camera's frustum; intensity pi x scale x white (Mitsuba's D65) over
     // cos^3, so that the image over pi is the radiance of a white diffuse plane facing it at
     // distance 1 (image_spot_light.h).
-    const bool textured = p.has("irradiance");
     const Colour irradiance = p.colour("irradiance", Vec3(1.f), SpectrumRole::unbounded);
+    if (irradiance.texture == nullptr && !(min_component(irradiance.value) >= 0.f))
+      p.find("irradiance")->fail("a projector's irradiance must not be negative");
     const double scale = p.number("scale", 1.0);
     if (!(scale >= 0.0)) e.fail("scale must not be negative");
     const double aspect =
-        textured && irradiance.texture != nullptr ? image_aspect(ctx, *irradiance.texture) : 1.0;
+        irradiance.texture != nullptr ? image_aspect(ctx, *irradiance.texture) : 1.0;
     const double tan_x = std::tan(0.5 * radians(x_fov(p, aspect)));
     p.finish();
     SpotLight l;
@@ -334,11 +331,7 @@ void read_emitter(Context& ctx, const XmlElement& e) {
     // Mitsuba's sample space: u = 0.5 - 0.5 x / (z tan_x), v = 0.5 - 0.5 aspect y / (z tan_x).
     l.image = light_image(ctx, e, t, irradiance, -0.5 / tan_x, -0.5 * aspect / tan_x);
     l.image->projector = true;
-    // The cone through the frustum's corners, at full intensity within (for the light tree).
-    const double corner = std::atan(tan_x * std::sqrt(1.0 + 1.0 / (aspect * aspect)));
-    if (!(degrees(corner) >= kMinProjectorDegrees))
-      e.fail("a projector narrower than 0.05 degrees is not supported");
-    l.cutoff_deg = l.beam_width_deg = static_cast<float>(degrees(corner));
+    if (!set_projector_cone(l)) e.fail("a projector narrower than 0.05 degrees is not supported");
     scene.spot_lights.push_back(l);
   } else if (type == "directional") {
     DirectionalLight l;

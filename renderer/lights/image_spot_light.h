@@ -35,7 +35,6 @@ class ImageSpotLight {
     auto cone = DeltaSpotLight::make(scene, index);
     if (!cone) return std::nullopt;
     ImageSpotLight light(*cone, *s.image, textures);
-    light.axis_ = s.direction;
     // The image's mean (a constant's own value): the share of the light's power it lets through.
     Vec3 mean = s.image->image.value;
     if (s.image->image.is_textured() && textures != nullptr) {
@@ -47,11 +46,8 @@ class ImageSpotLight {
     // projector the growth towards its rectangle's corners (1 / cos^3 there).
     double peak = share;
     if (s.image->projector) {
-      const double c = std::cos(double(s.cutoff_deg) * 3.14159265358979323846 / 180.0);
+      const double c = std::cos(double(s.cutoff_deg * (kPi / 180.f)));
       peak /= c * c * c;
-    }
-    light.bounds_scale_ = static_cast<float>(std::max(peak, 1e-6));
-    if (s.image->projector) {
       // The intensity over the rectangle's solid angle, where 1 / cos^3 cancels the solid angle's
       // cos^3 on the plane z = 1: intensity x image x the rectangle's area there.
       const double area = 1.0 / std::fabs(double(s.image->u_scale) * s.image->v_scale);
@@ -59,6 +55,7 @@ class ImageSpotLight {
     } else {
       light.power_ = cone->power() * share;
     }
+    light.bounds_scale_ = static_cast<float>(std::max(peak, 1e-6));
     // Any image at all keeps a share of the selection, however dim it reads.
     if (!(light.power_ > 0.0)) light.power_ = cone->power() * 1e-6;
     if (!(light.power_ > 0.0)) return std::nullopt;
@@ -81,7 +78,7 @@ class ImageSpotLight {
     if (!(dist2 > 0.f)) return false;
     out.wi = d / std::sqrt(dist2);
     const Vec3 w = -1.f * out.wi;  // from the light towards ref
-    const float z = dot(w, axis_);
+    const float z = dot(w, cone_.axis());
     if (!(z > 0.f)) return false;
     const Vec2 uv{0.5f + image_.u_scale * dot(w, image_.x_axis) / z,
                   0.5f + image_.v_scale * dot(w, image_.y_axis) / z};
@@ -113,7 +110,6 @@ class ImageSpotLight {
   DeltaSpotLight cone_;
   SpotImage image_;
   const TextureSet* textures_;
-  Vec3 axis_;
   float bounds_scale_ = 1.f;
   double power_ = 0.0;
 };

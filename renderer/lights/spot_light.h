@@ -43,6 +43,8 @@ class DeltaSpotLight {
 
   double power() const { return power_; }
   const Vec3& position() const { return position_; }
+  /// The unit axis of the cone, away from the light.
+  const Vec3& axis() const { return axis_; }
   /// The intensity along the axis.
   const Vec3& intensity() const { return intensity_; }
   /// Where the light tree finds it: a point that emits within the cutoff angle of its axis.

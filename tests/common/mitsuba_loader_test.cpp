@@ -423,6 +423,9 @@ TEST_F(MitsubaLoader, ProjectorsAndTexturedSpotsCastTheirImages) {
                {"must be a texture"});
   expect_error(scene(R"(<emitter type="projector"><float name="fov" value="0.01"/></emitter>)"),
                {"narrower than 0.05 degrees"});
+  expect_error(scene(R"(<emitter type="projector"><rgb name="irradiance" value="1, -1, 1"/>
+    </emitter>)"),
+               {"<rgb name=\"irradiance\"", "must not be negative"});
   expect_error(scene(R"(<emitter type="projector"><transform name="to_world"><scale value="2"/>
     </transform></emitter>)"),
                {"<emitter type=\"projector\">", "rotation and a translation"});
